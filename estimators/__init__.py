@@ -1,0 +1,1 @@
+"""Onboard-style estimators under test (numpy/scipy/numba/opencv only)."""
