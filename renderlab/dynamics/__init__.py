@@ -1,0 +1,1 @@
+"""Dynamics: camera paths, orbits, spin, relative motion, attitude."""

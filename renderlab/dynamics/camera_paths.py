@@ -1,0 +1,52 @@
+"""Simple camera paths for analytic scenes.
+
+``line``: the camera moves at constant velocity from ``start_m`` to ``end_m``;
+``orbit``: the camera moves on a circle of radius ``range_m·cos(elevation)`` at height
+``range_m·sin(elevation)`` above ``target_m`` (azimuth measured from +x toward +y).
+In both cases it looks at ``target_m`` with ``up`` toward the top of the image.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from renderlab.errors import UserError
+from renderlab.geometry.rotations import look_at
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """A camera pose: ``p_render = rotation.apply(p_cam) + position_m``."""
+
+    time_s: float
+    position_m: np.ndarray
+    rotation: Rotation  # R_render_from_cam
+
+
+def _fractions(n: int) -> np.ndarray:
+    return np.zeros(1) if n == 1 else np.linspace(0.0, 1.0, n)
+
+
+def camera_path(traj) -> list[CameraPose]:
+    """Camera poses for every frame of a :class:`renderlab.scenario.TrajectoryConfig`."""
+    target = np.asarray(traj.target_m, float)
+    up = np.asarray(traj.up, float)
+    fr = _fractions(traj.frames)
+    if traj.kind == "line":
+        start = np.asarray(traj.start_m, float)
+        end = np.asarray(traj.end_m if traj.end_m is not None else traj.start_m, float)
+        positions = start[None, :] + fr[:, None] * (end - start)[None, :]
+    else:
+        az = np.radians(traj.azimuth_start_deg + fr * (traj.azimuth_end_deg - traj.azimuth_start_deg))
+        el = np.radians(traj.elevation_deg)
+        offs = traj.range_m * np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.full_like(az, np.sin(el))], 1)
+        positions = target[None, :] + offs
+    poses = []
+    for k, pos in enumerate(positions):
+        if np.linalg.norm(target - pos) < 1e-9:
+            raise UserError(f"trajectory: frame {k} puts the camera on its target {target.tolist()}")
+        poses.append(CameraPose(time_s=k * traj.dt_s, position_m=pos, rotation=look_at(pos, target, up)))
+    return poses

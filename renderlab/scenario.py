@@ -1,0 +1,276 @@
+"""Scenario files: TOML in ``scenes/`` → a validated :class:`Scenario`.
+
+A scenario holds everything needed to reproduce a truth set: the world (bodies, photometric laws,
+albedo), the sun, the camera model, the trajectory, the sensor and the renderer settings.
+Validation is strict: unknown keys, wrong types, non-finite or impossible values are refused with
+one line that names the key (``camera.fx: Input should be greater than 0 (got -5.0)``).
+
+``--set KEY=VALUE`` overrides any key before validation; VALUE is parsed as a TOML value
+(``--set camera.width=128``, ``--set sun.direction=[1,0,1]``, ``--set render.variant="scalar_mono"``),
+and a bare word that is not valid TOML is taken as a string.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import pydantic
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from renderlab.errors import UserError
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Vec3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
+Vec2 = Annotated[list[Positive], Field(min_length=2, max_length=2)]
+LAW_NAMES = ("lambert", "lommel_seeliger", "mcewen", "hapke")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=True)
+
+
+class BodyConfig(_Strict):
+    """One body: an analytic primitive or a triangle mesh, with a photometric law and an albedo."""
+
+    name: str = Field(min_length=1)
+    shape: Literal["sphere", "box", "plane", "mesh"]
+    center_m: Vec3 = [0.0, 0.0, 0.0]
+    rotation_deg: Vec3 = [0.0, 0.0, 0.0]  # intrinsic xyz Euler angles of the body frame
+    radius_m: Positive | None = None  # sphere
+    size_m: list[Positive] | None = None  # box: [x, y, z]; plane: [x, y]
+    file: str | None = None  # mesh: OBJ or PLY, relative to the scenario file
+    law: Literal["lambert", "lommel_seeliger", "mcewen", "hapke"] = "lambert"
+    law_params: dict[str, Finite] = {}
+    albedo: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.3
+    albedo_map: str | None = None  # image file (relative to the scenario file); scales `albedo`
+
+    @model_validator(mode="after")
+    def _shape_fields(self):
+        need = {"sphere": "radius_m", "box": "size_m", "plane": "size_m", "mesh": "file"}[self.shape]
+        if getattr(self, need) is None:
+            raise ValueError(f"shape '{self.shape}' needs '{need}'")
+        if self.shape == "box" and len(self.size_m) != 3:
+            raise ValueError("box size_m needs 3 values [x, y, z]")
+        if self.shape == "plane" and len(self.size_m) != 2:
+            raise ValueError("plane size_m needs 2 values [x, y]")
+        return self
+
+
+class AnalyticWorld(_Strict):
+    kind: Literal["analytic"] = "analytic"
+    bodies: list[BodyConfig] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _unique_names(self):
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names):
+            raise ValueError(f"body names must be unique, got {names}")
+        return self
+
+
+class SunConfig(_Strict):
+    """The sun as a directional source. ``direction`` points from the scene *toward* the sun."""
+
+    direction: Vec3 = [0.3, -0.4, 0.8]
+    irradiance_w_m2: Positive = 1361.0
+
+    @model_validator(mode="after")
+    def _nonzero(self):
+        if math.hypot(*self.direction) < 1e-12:
+            raise ValueError("sun direction must be a non-zero vector")
+        return self
+
+
+class CameraConfig(_Strict):
+    """Intrinsics in pixels (pixel centres are integers, (0, 0) is the top-left pixel's centre)."""
+
+    width: Annotated[int, Field(gt=0, le=16384)] = 256
+    height: Annotated[int, Field(gt=0, le=16384)] = 192
+    fx: Positive = 300.0
+    fy: Positive = 300.0
+    cx: Finite = 127.5
+    cy: Finite = 95.5
+    skew: Finite = 0.0
+    skew_yx: Finite = 0.0
+    model: Literal["pinhole", "brown", "owen"] = "pinhole"
+    distortion: dict[str, Finite] = {}
+
+
+class TrajectoryConfig(_Strict):
+    """Camera path. ``line``: from ``start_m`` to ``end_m``; ``orbit``: around ``target_m`` at
+    ``range_m`` and ``elevation_deg`` from ``azimuth_start_deg`` to ``azimuth_end_deg``.
+    The camera always looks at ``target_m`` with ``up`` toward the top of the image."""
+
+    kind: Literal["line", "orbit"] = "orbit"
+    frames: Annotated[int, Field(gt=0, le=100000)] = 1
+    dt_s: Positive = 1.0
+    target_m: Vec3 = [0.0, 0.0, 0.0]
+    up: Vec3 = [0.0, 0.0, 1.0]
+    start_m: Vec3 | None = None
+    end_m: Vec3 | None = None
+    range_m: Positive = 10.0
+    elevation_deg: Annotated[float, Field(gt=-90, lt=90, allow_inf_nan=False)] = 30.0
+    azimuth_start_deg: Finite = -90.0
+    azimuth_end_deg: Finite = -90.0
+
+    @model_validator(mode="after")
+    def _line_fields(self):
+        if self.kind == "line" and self.start_m is None:
+            raise ValueError("trajectory kind 'line' needs 'start_m'")
+        return self
+
+
+class RenderConfig(_Strict):
+    renderer: Literal["mitsuba", "cycles"] = "mitsuba"
+    variant: Literal["llvm_ad_mono", "llvm_ad_rgb", "scalar_mono", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb"] = (
+        "llvm_ad_mono"
+    )
+    spp: Annotated[int, Field(gt=0, le=65536)] = 16
+    max_depth: Annotated[int, Field(ge=2, le=64)] = 2  # 2 = direct sunlight only (single bounce)
+    near_clip_m: Positive = 1e-3
+    far_clip_m: Positive = 1e7
+    seed: Annotated[int, Field(ge=0)] = 0
+
+    @model_validator(mode="after")
+    def _clips(self):
+        if self.far_clip_m <= self.near_clip_m:
+            raise ValueError(f"far_clip_m ({self.far_clip_m}) must exceed near_clip_m ({self.near_clip_m})")
+        return self
+
+
+class SensorConfig(_Strict):
+    """Sensor settings; keys other than ``auto_exposure`` are :class:`renderlab.sensor.SensorOptions` fields."""
+
+    model_config = ConfigDict(extra="allow", allow_inf_nan=False)
+    auto_exposure: bool = True
+    auto_exposure_fraction: Annotated[float, Field(gt=0, le=1)] = 0.8
+
+    def options_dict(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+    @model_validator(mode="after")
+    def _known_fields(self):
+        from renderlab.sensor import SensorOptions  # light: numpy/scipy only
+
+        extra = self.options_dict()
+        known = set(SensorOptions.__dataclass_fields__)
+        unknown = sorted(set(extra) - known)
+        if unknown:
+            raise ValueError(f"unknown sensor key '{unknown[0]}'; expected one of {', '.join(sorted(known))}")
+        for key, value in extra.items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"sensor.{key} must be a finite number, got {value!r}")
+        SensorOptions(**extra)  # raises UserError naming the field
+        return self
+
+
+class Scenario(_Strict):
+    """A validated scenario. ``source`` is the file it came from (not part of the saved dict)."""
+
+    name: str = "scenario"
+    description: str = ""
+    world: AnalyticWorld
+    sun: SunConfig = SunConfig()
+    camera: CameraConfig = CameraConfig()
+    trajectory: TrajectoryConfig = TrajectoryConfig()
+    sensor: SensorConfig = SensorConfig()
+    render: RenderConfig = RenderConfig()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The validated scenario as plain JSON-able data (what the manifest stores)."""
+        return self.model_dump(mode="json")
+
+
+def _format_error(err: pydantic.ValidationError, source: str) -> str:
+    e = err.errors()[0]
+    loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith("function-"))
+    msg = e["msg"].removeprefix("Value error, ")
+    if e["type"] == "extra_forbidden":
+        return f"{source}: unknown key '{loc}'"
+    if e["type"] == "missing":
+        return f"{source}: missing key '{loc}'"
+    got = e.get("input")
+    got_txt = "" if isinstance(got, dict) or got is None else f" (got {got!r})"
+    where = f"{loc}: " if loc else ""
+    return f"{source}: {where}{msg}{got_txt}"
+
+
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """Parse ``KEY=VALUE`` (dotted KEY, TOML VALUE) into (path, value)."""
+    if "=" not in text:
+        raise UserError(f"--set expects KEY=VALUE, got {text!r}")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key or any(not part for part in key.split(".")):
+        raise UserError(f"--set has an empty key in {text!r}")
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key.split("."), value
+
+
+def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    """Return a copy of ``data`` with each ``KEY=VALUE`` override applied (lists indexed by number)."""
+    out = copy.deepcopy(data)
+    for text in overrides:
+        path, value = parse_override(text)
+        node: Any = out
+        for i, part in enumerate(path[:-1]):
+            nxt = path[i + 1]
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise UserError(f"--set {'.'.join(path)}: no list item {part}")
+                node = node[int(part)]
+            else:
+                node = node.setdefault(part, [] if nxt.isdigit() else {})
+            if not isinstance(node, (dict, list)):
+                raise UserError(f"--set {'.'.join(path)}: '{part}' is not a table")
+        last = path[-1]
+        if isinstance(node, list):
+            if not last.isdigit() or int(last) >= len(node):
+                raise UserError(f"--set {'.'.join(path)}: no list item {last}")
+            node[int(last)] = value
+        else:
+            node[last] = value
+    return out
+
+
+def scenario_from_dict(data: dict[str, Any], source: str = "scenario") -> Scenario:
+    """Validate plain data into a :class:`Scenario` (UserError with one line on failure)."""
+    try:
+        return Scenario.model_validate(data)
+    except pydantic.ValidationError as err:
+        raise UserError(_format_error(err, source)) from None
+    except UserError as err:
+        raise UserError(f"{source}: {err}") from None
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    p = Path(path)
+    if not p.is_file():
+        raise UserError(f"scenario file not found: {path}")
+    try:
+        return tomllib.loads(p.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as err:
+        raise UserError(f"{p.name}: not valid TOML ({err})") from None
+    except UnicodeDecodeError:
+        raise UserError(f"{p.name}: not a text file") from None
+
+
+def load_scenario(path: str | Path, overrides: list[str] | None = None) -> tuple[Scenario, Path]:
+    """Read, override and validate a scenario file.
+
+    Returns
+    -------
+    (Scenario, Path)
+        The scenario and the folder it came from (relative file references resolve against it).
+    """
+    p = Path(path)
+    data = apply_overrides(read_toml(p), overrides or [])
+    return scenario_from_dict(data, p.name), p.resolve().parent

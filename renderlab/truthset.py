@@ -1,0 +1,462 @@
+"""Truth sets on disk: write and read them exactly as the design's "Files on disk" says.
+
+A truth set is a folder with ``manifest.json`` (``"format": "renderlab.truthset/1"``) and,
+per frame, ``frames/NNNNNN.exr`` (float32 radiance + AOVs: ``Y`` or ``R G B``, ``P.X P.Y P.Z``,
+``N.X N.Y N.Z``, ``range``, ``id``) and ``frames/NNNNNN.png`` (16-bit DN), plus optional Parquet
+tables and files. :class:`TruthSetWriter` stages everything in a hidden sibling folder and renames
+it into place only on success; :class:`TruthSet` reads a set without mitsuba or bpy. The same
+inputs give bit-identical files.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import secrets
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+
+import cv2
+import numpy as np
+import OpenEXR
+
+from renderlab.errors import UserError
+
+FORMAT = "renderlab.truthset/1"
+MANIFEST = "manifest.json"
+AOV_CHANNELS = ("P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z", "range", "id")
+RGB_CHANNELS = ("R", "G", "B")
+_RESERVED_HEADER = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder", "name",
+                    "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type", "tiles",
+                    "version", "chunkCount"}
+_MAX_EXACT_ID = 2 ** 24  # float32 holds every integer of magnitude up to this exactly
+
+
+# ----------------------------------------------------------------------------------- EXR / PNG
+def write_exr(path, channels: dict, header_extra: dict | None = None) -> None:
+    """Write a single-part scanline EXR, float32 channels, lossless ZIP compression.
+
+    The header holds only the standard attributes plus ``header_extra`` (no time stamps), so
+    the same data give bit-identical files.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file.
+    channels : dict of str to numpy.ndarray
+        Channel name → (H, W) real array (cast to float32; all the same shape).
+    header_extra : dict of str to (str, int, float), optional
+        Extra header attributes.
+    """
+    if not channels:
+        raise ValueError("write_exr: no channels")
+    data, shape = {}, None
+    for name, arr in channels.items():
+        a = np.asarray(arr)
+        if a.ndim != 2 or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+            raise ValueError(f"write_exr: channel {name!r} must be a real (H, W) array, got "
+                             f"{a.dtype} {a.shape}")
+        if shape is not None and a.shape != shape:
+            raise ValueError(f"write_exr: channel {name!r} has shape {a.shape}, expected {shape}")
+        shape = a.shape
+        data[str(name)] = np.ascontiguousarray(a, dtype=np.float32)  # C order is required
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for key, value in (header_extra or {}).items():
+        if key in _RESERVED_HEADER or isinstance(value, bool) or not isinstance(
+                value, (str, int, float)):
+            raise ValueError(f"write_exr: header attribute {key!r}={value!r} not allowed")
+        header[str(key)] = value
+    try:
+        with OpenEXR.File(header, data) as exr:
+            exr.write(str(path))
+    except (RuntimeError, OSError) as exc:
+        raise UserError(f"cannot write EXR {path}: {exc}") from None
+
+
+def read_exr(path) -> dict:
+    """Read every channel of an EXR (part 0): ``{name: float32 (H, W) array}``.
+
+    A missing, truncated or corrupt file raises :class:`UserError` naming the file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise UserError(f"EXR file not found: {p}")
+    try:
+        with OpenEXR.File(str(p), separate_channels=True) as exr:
+            out = {name: np.asarray(ch.pixels, dtype=np.float32)
+                   for name, ch in exr.channels().items()}
+    except (RuntimeError, OSError, ValueError) as exc:
+        raise UserError(f"corrupt or unreadable EXR {p}: {exc}") from None
+    if not out or any(a.ndim != 2 for a in out.values()):
+        raise UserError(f"EXR {p} has no channels or non-2-D channels")
+    return out
+
+
+def write_dn_png(path, dn: np.ndarray) -> None:
+    """Write an integer (H, W) DN image (values 0..65535, N-bit values stored as they are)
+    as a 16-bit grayscale PNG with deterministic bytes."""
+    a = np.asarray(dn)
+    if a.ndim != 2 or not np.issubdtype(a.dtype, np.integer):
+        raise ValueError(f"write_dn_png: dn must be an integer (H, W) array, got {a.dtype} "
+                         f"{a.shape}")
+    if a.size and (a.min() < 0 or a.max() > 65535):
+        raise ValueError("write_dn_png: dn values must be in 0..65535")
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(a, dtype=np.uint16),
+                           [cv2.IMWRITE_PNG_COMPRESSION, 3])
+    if not ok:
+        raise UserError(f"cannot encode PNG {path}")
+    try:
+        Path(path).write_bytes(buf.tobytes())
+    except OSError as exc:
+        raise UserError(f"cannot write PNG {path}: {exc.strerror or exc}") from None
+
+
+def read_dn_png(path) -> np.ndarray:
+    """Read a 16-bit grayscale DN PNG as a uint16 (H, W) array (UserError if it is not one)."""
+    p = Path(path)
+    try:
+        raw = np.frombuffer(p.read_bytes(), dtype=np.uint8)
+    except OSError as exc:
+        raise UserError(f"cannot read PNG {p}: {exc.strerror or exc}") from None
+    img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
+    if img is None:
+        raise UserError(f"corrupt or unreadable PNG {p}")
+    if img.dtype != np.uint16 or img.ndim != 2:
+        raise UserError(f"PNG {p} is not 16-bit grayscale ({img.dtype}, shape {img.shape})")
+    return img
+
+
+# ------------------------------------------------------------------------------------ metadata
+def _jsonable(obj, where: str):
+    """Plain-JSON copy of ``obj`` (numpy scalars/arrays converted); NaN/inf → UserError."""
+    if isinstance(obj, np.ndarray):
+        obj = obj.tolist()
+    elif isinstance(obj, np.generic):
+        obj = obj.item()
+    if obj is None or isinstance(obj, (bool, str)):
+        return obj
+    if isinstance(obj, int):
+        return int(obj)
+    if isinstance(obj, float):
+        if not math.isfinite(obj):
+            raise UserError(f"truth-set metadata {where} is {obj} (NaN/inf are not allowed)")
+        return float(obj)
+    if isinstance(obj, dict):
+        out = {}
+        for k, v in obj.items():
+            if not isinstance(k, str):
+                raise UserError(f"truth-set metadata {where} has a non-string key {k!r}")
+            out[k] = _jsonable(v, f"{where}.{k}")
+        return out
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v, f"{where}[{i}]") for i, v in enumerate(obj)]
+    raise UserError(f"truth-set metadata {where} has unsupported type {type(obj).__name__}")
+
+
+def _safe_relpath(relpath: str, what: str) -> str:
+    s = str(relpath).replace("\\", "/")
+    parts = PurePosixPath(s).parts
+    if not s or s.startswith("/") or not parts or any(p in ("..", ".", "") for p in parts):
+        raise UserError(f"{what} must be a relative path inside the truth set, got {relpath!r}")
+    return "/".join(parts)
+
+
+# -------------------------------------------------------------------------------------- writer
+class TruthSetWriter:
+    """Write a truth set atomically: stage in a hidden sibling folder, rename on success.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        Final folder. If it exists and is non-empty, UserError unless ``overwrite``.
+    manifest_head : dict
+        Top-level manifest entries (``renderer``, ``scenario``, ``render_frame``, ...);
+        ``format`` and ``frames`` are set by the writer.
+    overwrite : bool, optional
+        Replace an existing non-empty ``out_dir`` (only at the final rename).
+
+    Examples
+    --------
+    >>> with TruthSetWriter("out/set", {"renderer": {"name": "mitsuba"}}) as w:  # doctest: +SKIP
+    ...     w.add_frame(0, 0.0, channels, dn, {"camera": cam, "pose": pose})
+    """
+
+    def __init__(self, out_dir, manifest_head: dict, *, overwrite: bool = False):
+        self.out_dir = Path(out_dir).absolute()
+        if not isinstance(manifest_head, dict):
+            raise TypeError("manifest_head must be a dict")
+        for key in ("format", "frames"):
+            if key in manifest_head:
+                raise ValueError(f"manifest_head must not set {key!r}; the writer does")
+        self._head = _jsonable(manifest_head, "manifest")
+        self.overwrite = bool(overwrite)
+        self._frames: dict[int, dict] = {}
+        self._names: set[str] = set()
+        self._staging: Path | None = None
+        self._check_target()
+
+    def _check_target(self) -> None:
+        d = self.out_dir
+        if d.exists() and not d.is_dir():
+            raise UserError(f"output {d} exists and is not a directory")
+        if d.is_dir() and any(d.iterdir()) and not self.overwrite:
+            raise UserError(f"output directory {d} exists and is not empty (use overwrite)")
+        anc = d.parent
+        while not os.path.lexists(anc) and anc != anc.parent:
+            anc = anc.parent  # nearest existing ancestor; missing ones are created
+        if not anc.is_dir():
+            raise UserError(f"cannot write {d}: {anc} is not a directory")
+        if not os.access(anc, os.W_OK | os.X_OK):
+            raise UserError(f"cannot write {d}: directory {anc} is not writable")
+
+    @property
+    def staging_dir(self) -> Path | None:
+        """The hidden folder being written, while the context is open."""
+        return self._staging
+
+    def __enter__(self) -> "TruthSetWriter":
+        parent = self.out_dir.parent
+        name = f".{self.out_dir.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+            (parent / name).mkdir()
+            (parent / name / "frames").mkdir()
+        except OSError as exc:
+            shutil.rmtree(parent / name, ignore_errors=True)
+            raise UserError(f"cannot create output directory next to {self.out_dir}: "
+                            f"{exc.strerror or exc}") from None
+        self._staging = parent / name
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        staging, self._staging = self._staging, None
+        if staging is None:
+            return False
+        try:
+            if exc_type is None:
+                self._commit(staging)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)  # no-op after a successful rename
+        return False
+
+    def _require_open(self) -> Path:
+        if self._staging is None:
+            raise RuntimeError("TruthSetWriter is not open; use it as a context manager")
+        return self._staging
+
+    def _claim(self, rel: str) -> None:
+        if rel in self._names or rel == MANIFEST:
+            raise ValueError(f"truth-set file {rel!r} is already written or reserved")
+        self._names.add(rel)
+
+    def add_frame(self, index: int, time_s: float, channels: dict, dn: np.ndarray,
+                  frame_meta: dict) -> dict:
+        """Write ``frames/NNNNNN.exr`` and ``.png`` and record the frame.
+
+        Parameters
+        ----------
+        index : int
+            Frame index (>= 0, unique).
+        time_s : float
+            Frame time, s.
+        channels : dict of str to numpy.ndarray
+            ``Y`` (or ``R``, ``G``, ``B``) and ``P.X P.Y P.Z N.X N.Y N.Z range id``, (H, W) each.
+        dn : numpy.ndarray
+            Sensor image, integer (H, W).
+        frame_meta : dict
+            More frame record keys (``camera``, ``pose``, ``sun``, ``bodies``, ...).
+
+        Returns
+        -------
+        dict
+            The frame record as it will appear in the manifest.
+        """
+        if not isinstance(frame_meta, dict):
+            raise TypeError("frame_meta must be a dict")
+        staging = self._require_open()
+        if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or index < 0:
+            raise ValueError(f"frame index must be a non-negative int, got {index!r}")
+        index = int(index)
+        if index in self._frames:
+            raise ValueError(f"frame {index} was already added")
+        missing = [c for c in AOV_CHANNELS if c not in channels]
+        if "Y" not in channels and not all(c in channels for c in RGB_CHANNELS):
+            missing.insert(0, "Y (or R, G, B)")
+        if missing:
+            raise ValueError(f"frame {index}: missing channels {', '.join(missing)}")
+        ids = np.asarray(channels["id"])
+        if ids.size and np.nanmax(np.abs(ids)) > _MAX_EXACT_ID:
+            raise ValueError(f"frame {index}: ids beyond ±2^24 do not fit a float32 exactly")
+        shape = np.shape(channels["P.X"])
+        if np.shape(dn) != shape:
+            raise ValueError(f"frame {index}: dn shape {np.shape(dn)} differs from EXR {shape}")
+        clash = {"index", "time_s", "exr", "dn"} & set(frame_meta)
+        if clash:
+            raise ValueError(f"frame_meta must not set {sorted(clash)}")
+        exr_rel, dn_rel = f"frames/{index:06d}.exr", f"frames/{index:06d}.png"
+        record = _jsonable({"index": index, "time_s": time_s, "exr": exr_rel, "dn": dn_rel,
+                            **frame_meta}, f"frames[{index}]")
+        self._claim(exr_rel)
+        self._claim(dn_rel)
+        write_exr(staging / exr_rel, channels)
+        write_dn_png(staging / dn_rel, dn)
+        self._frames[index] = record
+        return record
+
+    def _new_file(self, rel: str) -> Path:
+        path = self._require_open() / rel
+        self._claim(rel)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return path
+
+    def add_table(self, name: str, table) -> str:
+        """Write a ``pyarrow.Table`` as ``<name>.parquet``; returns the relative path."""
+        import pyarrow.parquet as pq
+
+        rel = _safe_relpath(f"{name}.parquet", "table name")
+        pq.write_table(table, str(self._new_file(rel)))
+        return rel
+
+    def add_file(self, relpath: str, data: bytes) -> str:
+        """Write raw bytes at ``relpath`` inside the set; returns the normalised relative path."""
+        rel = _safe_relpath(relpath, "file path")
+        self._new_file(rel).write_bytes(bytes(data))
+        return rel
+
+    def manifest(self) -> dict:
+        """The manifest as it would be written now (frames sorted by index)."""
+        return {"format": FORMAT, **self._head,
+                "frames": [self._frames[i] for i in sorted(self._frames)]}
+
+    def _commit(self, staging: Path) -> None:
+        text = json.dumps(self.manifest(), indent=1, sort_keys=False, allow_nan=False)
+        (staging / MANIFEST).write_text(text + "\n", encoding="utf-8")
+        self._check_target()
+        old = None
+        if self.out_dir.is_dir() and any(self.out_dir.iterdir()):
+            old = staging.with_name(staging.name.replace(".staging-", ".old-"))
+            os.rename(self.out_dir, old)
+        try:
+            os.rename(staging, self.out_dir)  # replaces an empty directory too
+        except OSError as exc:
+            if old is not None:
+                os.rename(old, self.out_dir)
+            raise UserError(f"cannot move truth set into {self.out_dir}: "
+                            f"{exc.strerror or exc}") from None
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+# -------------------------------------------------------------------------------------- reader
+@dataclass
+class TruthFrame:
+    """One frame of a truth set, loaded.
+
+    ``radiance`` is float32 (H, W) ``Y`` in W m⁻² sr⁻¹ (None for RGB sets), ``rgb`` float32
+    (H, W, 3) (None for mono sets); ``position`` (render frame, m; NaN where nothing was hit)
+    and ``normal`` are float32 (H, W, 3); ``range`` float32 (H, W) in m; ``id`` int32 (H, W)
+    with -1 for no hit; ``dn`` uint16 (H, W); ``meta`` is the manifest's frame record
+    (camera, pose, sun, bodies, ...).
+    """
+
+    index: int
+    time_s: float
+    radiance: np.ndarray | None
+    rgb: np.ndarray | None
+    position: np.ndarray
+    normal: np.ndarray
+    range: np.ndarray
+    id: np.ndarray
+    dn: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+
+class TruthSet:
+    """A truth set on disk, read-only. Use :meth:`open`."""
+
+    def __init__(self, path: Path, manifest: dict):
+        self.path = path
+        self.manifest = manifest
+        self.frames: list[dict] = manifest["frames"]
+
+    @classmethod
+    def open(cls, path) -> "TruthSet":
+        """Open and validate a truth set folder (manifest format, listed files exist)."""
+        root = Path(path)
+        mpath = root / MANIFEST
+        if not root.is_dir():
+            raise UserError(f"truth set not found: {root} is not a directory")
+        if not mpath.is_file():
+            raise UserError(f"truth set {root} has no {MANIFEST}")
+        try:
+            manifest = json.loads(mpath.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise UserError(f"cannot read {mpath}: {exc}") from None
+        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+            got = manifest.get("format") if isinstance(manifest, dict) else None
+            raise UserError(f"{mpath}: format must be {FORMAT!r}, got {got!r}")
+        frames = manifest.get("frames")
+        if not isinstance(frames, list):
+            raise UserError(f"{mpath}: 'frames' must be a list")
+        for k, rec in enumerate(frames):
+            if not isinstance(rec, dict):
+                raise UserError(f"{mpath}: frames[{k}] is not an object")
+            for key in ("index", "time_s", "exr", "dn"):
+                if key not in rec:
+                    raise UserError(f"{mpath}: frames[{k}] has no {key!r}")
+            for key in ("exr", "dn"):
+                rel = _safe_relpath(rec[key], f"{mpath}: frames[{k}].{key}")
+                if not (root / rel).is_file():
+                    raise UserError(f"truth set {root}: frames[{k}].{key} file {rel} is missing")
+        return cls(root, manifest)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def camera(self, i: int) -> dict:
+        """The camera dict of frame ``i`` (position in :attr:`frames`)."""
+        rec = self.frames[i]
+        if "camera" not in rec:
+            raise UserError(f"truth set {self.path}: frames[{i}] has no camera")
+        return rec["camera"]
+
+    def read_table(self, name: str):
+        """Read ``<name>.parquet`` as a ``pyarrow.Table``."""
+        import pyarrow.parquet as pq
+
+        p = self.path / _safe_relpath(f"{name}.parquet", "table name")
+        if not p.is_file():
+            raise UserError(f"truth set {self.path} has no table {name}.parquet")
+        return pq.read_table(str(p))
+
+    def load(self, i: int) -> TruthFrame:
+        """Load frame ``i`` (position in :attr:`frames`): EXR channels, DN image and record."""
+        rec = self.frames[i]
+        exr_path, dn_path = self.path / rec["exr"], self.path / rec["dn"]
+        ch = read_exr(exr_path)
+        missing = [c for c in AOV_CHANNELS if c not in ch]
+        has_rgb = all(c in ch for c in RGB_CHANNELS)
+        if "Y" not in ch and not has_rgb:
+            missing.insert(0, "Y (or R, G, B)")
+        if missing:
+            raise UserError(f"EXR {exr_path} lacks channels {', '.join(missing)}")
+        dn = read_dn_png(dn_path)
+        shape = ch["P.X"].shape
+        if dn.shape != shape:
+            raise UserError(f"{dn_path} is {dn.shape}, but {exr_path} is {shape}")
+        cam = rec.get("camera") or {}
+        if "width" in cam and "height" in cam and (cam["height"], cam["width"]) != shape:
+            raise UserError(f"{exr_path} is {shape[1]}x{shape[0]} but the camera says "
+                            f"{cam['width']}x{cam['height']}")
+        ids = ch["id"]
+        if not np.all(np.isfinite(ids)) or not np.all(ids == np.rint(ids)):
+            raise UserError(f"EXR {exr_path}: channel 'id' holds non-integer values")
+        return TruthFrame(
+            index=int(rec["index"]), time_s=float(rec["time_s"]),
+            radiance=ch.get("Y"),
+            rgb=np.stack([ch[c] for c in RGB_CHANNELS], axis=-1) if has_rgb else None,
+            position=np.stack([ch["P.X"], ch["P.Y"], ch["P.Z"]], axis=-1),
+            normal=np.stack([ch["N.X"], ch["N.Y"], ch["N.Z"]], axis=-1),
+            range=ch["range"], id=ids.astype(np.int32), dn=dn, meta=dict(rec))

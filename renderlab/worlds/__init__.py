@@ -1,0 +1,1 @@
+"""Truth worlds: analytic scenes, EV5, Earth, microsatellite."""

@@ -1,0 +1,69 @@
+"""Analytic worlds: spheres, boxes and planes (and user meshes) whose truth is known exactly.
+
+They prove the renderers: a Lambert sphere in sunlight has radiance A·E·cos(i)/π, a box on a
+plane casts a shadow whose edge is the projection of the box's edge along the sun direction.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from renderlab.errors import UserError
+from renderlab.photometry import make_law
+from renderlab.render.scene import BodySpec, SceneDescription
+
+
+def load_albedo_map(path: Path) -> np.ndarray:
+    """Read an 8/16-bit grey image (PNG, TIFF, ...) or a float EXR/NPY-free image as values in [0, 1]."""
+    import cv2
+
+    if not path.is_file():
+        raise UserError(f"albedo map not found: {path}")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
+    if img is None:
+        raise UserError(f"albedo map {path.name} could not be read as an image")
+    if img.ndim == 3:
+        img = img.mean(axis=2)
+    if np.issubdtype(img.dtype, np.integer):
+        img = img.astype(np.float64) / np.iinfo(img.dtype).max
+    img = np.asarray(img, np.float64)
+    if not np.all(np.isfinite(img)) or img.min() < 0:
+        raise UserError(f"albedo map {path.name} has negative or non-finite values")
+    return img
+
+
+def build_scene(world, base_dir: Path) -> SceneDescription:
+    """Scene description of a :class:`renderlab.scenario.AnalyticWorld` (ids follow the body order)."""
+    bodies = []
+    for k, b in enumerate(world.bodies):
+        mesh_path = None
+        if b.shape == "mesh":
+            mesh_path = (base_dir / b.file).resolve()
+            if not mesh_path.is_file():
+                raise UserError(f"world.bodies.{k}.file: mesh not found: {b.file}")
+            if mesh_path.suffix.lower() not in (".obj", ".ply"):
+                raise UserError(f"world.bodies.{k}.file: only OBJ and PLY meshes are supported, got {b.file}")
+        amap = load_albedo_map((base_dir / b.albedo_map).resolve()) if b.albedo_map else None
+        try:
+            law = make_law(b.law, **b.law_params)
+        except UserError as err:
+            raise UserError(f"world.bodies.{k}: {err}") from None
+        bodies.append(
+            BodySpec(
+                name=b.name,
+                body_id=k,
+                shape=b.shape,
+                center_m=np.asarray(b.center_m, float),
+                R_render_from_body=Rotation.from_euler("xyz", b.rotation_deg, degrees=True).as_matrix(),
+                law=law,
+                albedo=b.albedo,
+                radius_m=b.radius_m,
+                size_m=tuple(b.size_m) if b.size_m else None,
+                mesh_path=mesh_path,
+                albedo_map=amap,
+            )
+        )
+    return SceneDescription(bodies=bodies, render_frame={"name": "SCENE"})
