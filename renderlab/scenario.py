@@ -127,11 +127,12 @@ class TrajectoryConfig(_Strict):
 
 class RenderConfig(_Strict):
     renderer: Literal["mitsuba", "cycles"] = "mitsuba"
-    variant: Literal["llvm_ad_mono", "llvm_ad_rgb", "scalar_mono", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb"] = (
+    variant: Literal["llvm_ad_mono", "llvm_ad_rgb", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb"] = (
         "llvm_ad_mono"
     )
     spp: Annotated[int, Field(gt=0, le=65536)] = 16
     max_depth: Annotated[int, Field(ge=2, le=64)] = 2  # 2 = direct sunlight only (single bounce)
+    pixel_filter: Literal["box", "center"] = "box"  # center: one sample at the pixel centre (validation)
     near_clip_m: Positive = 1e-3
     far_clip_m: Positive = 1e7
     seed: Annotated[int, Field(ge=0)] = 0

@@ -1,0 +1,56 @@
+"""Frames, rotations and camera models: pure numpy/scipy, shared by the lab and the estimators.
+
+- :mod:`.rotations`: scipy ``Rotation`` helpers (scalar-last quaternions), ``look_at`` for the lab camera
+  frame (+z boresight, +x right, +y down), eq. 1 of the Retina paper (``to_camera_frame``).
+- :mod:`.camera`: :class:`CameraModel`, gnomonic projection + distortion + the 2x2 pixel map
+  (Retina eqs. 3-4), with an exact inverse and analytic Jacobians.
+- :mod:`.distortion`: the Brown/OpenCV and Owen distortion models and their Newton inverse.
+"""
+
+from .camera import CameraModel
+from .distortion import (
+    DISTORTION_KEYS,
+    MODELS,
+    distort,
+    distortion_jacobian,
+    max_valid_radius,
+    normalize_distortion,
+    owen_coefficients_from_mm,
+    undistort,
+)
+from .rotations import (
+    angle_between,
+    as_axis_angle,
+    axis_angle,
+    invert_transform,
+    look_at,
+    quat_xyzw,
+    rotation_from_matrix,
+    rotation_from_quat_xyzw,
+    skew,
+    to_camera_frame,
+    transform_points,
+)
+
+__all__ = [
+    "CameraModel",
+    "DISTORTION_KEYS",
+    "MODELS",
+    "distort",
+    "distortion_jacobian",
+    "max_valid_radius",
+    "normalize_distortion",
+    "owen_coefficients_from_mm",
+    "undistort",
+    "angle_between",
+    "as_axis_angle",
+    "axis_angle",
+    "invert_transform",
+    "look_at",
+    "quat_xyzw",
+    "rotation_from_matrix",
+    "rotation_from_quat_xyzw",
+    "skew",
+    "to_camera_frame",
+    "transform_points",
+]

@@ -9,11 +9,16 @@ through :meth:`CameraModel.unproject` in float64 and becomes a Mitsuba ray. Mits
 * Box pixel filter: sample j of pixel (s, l) is at (s, l) + frac(r2_j + u_pix) − ½, with r2_j the
   R2 low-discrepancy sequence and u_pix one uniform shift per pixel (Cranley–Patterson rotation).
   Each sample is uniform over the pixel square, so the mean is the exact box-filtered radiance.
+  ``pixel_filter = "center"`` takes one sample at the pixel centre instead (point sampling, for
+  validation against closed forms).
+* Scalar variants (the fallback when LLVM is unusable) trace the same rays one at a time from
+  Python: identical semantics, much slower (see ``benchmarks/``).
 * Truth AOVs come from one ray through each pixel *centre*: position (hit point, render frame),
   shading normal, body id, and range = ‖P − camera‖ computed in float64 from the position.
 * Clip planes are planar, like a camera's: a ray starts at depth ``near_clip_m`` and ends at
   depth ``far_clip_m`` along the boresight.
 * The scene is loaded once; per frame only the sun (``mi.traverse``) and the rays change.
+
 """
 
 from __future__ import annotations
@@ -56,6 +61,8 @@ class MitsubaBackend:
         self.variant = mi.variant()
         self.version = mi.__version__
         self.rgb = self.variant.endswith("rgb")
+        self.mono_out = settings.variant.endswith("mono")  # a mono scene rendered by the scalar_rgb fallback
+        self.scalar = self.variant.startswith("scalar")
         desc = {
             "type": "scene",
             "integrator": {"type": "path", "max_depth": settings.max_depth, "hide_emitters": True},
@@ -65,10 +72,15 @@ class MitsubaBackend:
         for body in scene.bodies:
             key = f"body{body.body_id}"
             keys[key] = body.body_id
-            desc[key] = self._shape_dict(body)
-        self.scene = mi.load_dict(desc)
+            desc[key] = {**self._shape_dict(body), "id": key}
+        # optimize=False: no merging of meshes that share a BSDF (each body keeps its own id)
+        self.scene = mi.load_dict(desc, optimize=False)
         self.params = mi.traverse(self.scene)
-        reg = np.array(dr.reinterpret_array(mi.UInt32, self.scene.shapes_dr()), dtype=np.int64)
+        if self.scalar:  # no pointer registry in scalar mode: number the shapes ourselves
+            reg = np.arange(1, len(self.scene.shapes()) + 1, dtype=np.int64)
+            self._scalar_reg = reg
+        else:
+            reg = np.array(dr.reinterpret_array(mi.UInt32, self.scene.shapes_dr()), dtype=np.int64)
         self._id_lut = np.full(int(reg.max()) + 2, -1, dtype=np.int32)
         for rid, shape in zip(reg, self.scene.shapes()):
             self._id_lut[rid] = keys[shape.id()]
@@ -122,9 +134,8 @@ class MitsubaBackend:
         self.params["sun.irradiance.value"] = float(frame.sun.irradiance_w_m2)
         self.params.update()
 
-    def _rays(self, frame: FrameSpec, sl: np.ndarray):
-        """Mitsuba rays for pixel coordinates ``sl`` (N, 2); returns (ray, origin float64)."""
-        mi = self.mi
+    def _ray_arrays(self, frame: FrameSpec, sl: np.ndarray):
+        """float32 ray origins (N, 3), directions (N, 3) and max distances (N,) for pixels ``sl``."""
         d_cam = frame.camera.unproject(sl)
         d_cam = d_cam / np.linalg.norm(d_cam, axis=1, keepdims=True)
         R = frame.pose.rotation.as_matrix()
@@ -133,21 +144,62 @@ class MitsubaBackend:
         t_near = self.settings.near_clip_m / d_cam[:, 2]
         org = o[None, :] + d * t_near[:, None]
         maxt = self.settings.far_clip_m / d_cam[:, 2] - t_near
-        f32 = lambda a: np.ascontiguousarray(a, dtype=np.float32)  # noqa: E731
-        ray = mi.RayDifferential3f(
-            mi.Point3f(f32(org[:, 0]), f32(org[:, 1]), f32(org[:, 2])),
-            mi.Vector3f(f32(d[:, 0]), f32(d[:, 1]), f32(d[:, 2])),
-        )
-        ray.maxt = mi.Float(f32(maxt))
+        return org.astype(np.float32), d.astype(np.float32), maxt.astype(np.float32)
+
+    def _rays(self, frame: FrameSpec, sl: np.ndarray):
+        """One wavefront of Mitsuba rays (JIT variants) for pixel coordinates ``sl`` (N, 2)."""
+        mi = self.mi
+        org, d, maxt = self._ray_arrays(frame, sl)
+        c = np.ascontiguousarray
+        ray = mi.RayDifferential3f(mi.Point3f(c(org[:, 0]), c(org[:, 1]), c(org[:, 2])),
+                                   mi.Vector3f(c(d[:, 0]), c(d[:, 1]), c(d[:, 2])))
+        ray.maxt = mi.Float(maxt)
         return ray
 
-    def _truth_aovs(self, frame: FrameSpec, centres: np.ndarray):
+    def _scalar_rays(self, frame: FrameSpec, sl: np.ndarray):
+        mi = self.mi
+        for o, d, t in zip(*self._ray_arrays(frame, sl)):
+            ray = mi.RayDifferential3f(mi.Point3f(*o.tolist()), mi.Vector3f(*d.tolist()))
+            ray.maxt = float(t)
+            yield ray
+
+    def _intersect(self, frame: FrameSpec, centres: np.ndarray):
+        """(valid, P, N, registry id) of the first hit along each centre ray."""
         mi, dr = self.mi, self.dr
-        si = self.scene.ray_intersect(self._rays(frame, centres))
-        valid = np.array(si.is_valid(), dtype=bool)
-        P = np.array(si.p, dtype=np.float64).T
-        N = np.array(si.sh_frame.n, dtype=np.float64).T
-        reg = np.array(dr.reinterpret_array(mi.UInt32, si.shape), dtype=np.int64)
+        if not self.scalar:
+            si = self.scene.ray_intersect(self._rays(frame, centres))
+            reg = np.array(dr.reinterpret_array(mi.UInt32, si.shape), dtype=np.int64)
+            return (np.array(si.is_valid(), dtype=bool), np.array(si.p, dtype=np.float64).T,
+                    np.array(si.sh_frame.n, dtype=np.float64).T, reg)
+        n = len(centres)
+        valid, P, N, reg = np.zeros(n, bool), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int64)
+        shapes = list(self.scene.shapes())
+        for k, ray in enumerate(self._scalar_rays(frame, centres)):
+            si = self.scene.ray_intersect(ray)
+            if si.is_valid():
+                valid[k], P[k], N[k] = True, list(si.p), list(si.sh_frame.n)
+                reg[k] = self._scalar_reg[shapes.index(si.shape)] if si.shape in shapes else 0
+        return valid, P, N, reg
+
+    def _radiance(self, frame: FrameSpec, sl: np.ndarray, seed: int) -> np.ndarray:
+        """Radiance (channels, N) along the rays through ``sl`` with a sampler seeded by ``seed``."""
+        mi, dr = self.mi, self.dr
+        n = len(sl)
+        sampler = mi.load_dict({"type": "independent"})
+        if not self.scalar:
+            sampler.seed(dr.opaque(mi.UInt32, seed), n)
+            spec, _, _ = self._integrator.sample(self.scene, sampler, self._rays(frame, sl))
+            return np.array(spec, dtype=np.float64).reshape(3 if self.rgb else 1, n)
+        out = np.zeros((3 if self.rgb else 1, n))
+        sampler.seed(seed, 1)
+        for k, ray in enumerate(self._scalar_rays(frame, sl)):
+            spec, _, _ = self._integrator.sample(self.scene, sampler, ray)
+            out[:, k] = list(spec) if self.rgb else float(spec[0] if hasattr(spec, "__len__") else spec)
+            sampler.advance()
+        return out
+
+    def _truth_aovs(self, frame: FrameSpec, centres: np.ndarray):
+        valid, P, N, reg = self._intersect(frame, centres)
         ids = np.where(valid, self._id_lut[np.clip(reg, 0, len(self._id_lut) - 1)], -1).astype(np.int32)
         P[~valid] = np.nan
         N[~valid] = np.nan
@@ -164,17 +216,18 @@ class MitsubaBackend:
         P, N, rng_m, ids = self._truth_aovs(frame, centres)
 
         ss = np.random.SeedSequence(seed)
-        offsets = subpixel_offsets(self.settings.spp, W * H, np.random.default_rng(ss.spawn(1)[0]))
-        sampler_seeds = ss.generate_state(self.settings.spp, dtype=np.uint32)
+        if self.settings.pixel_filter == "center":
+            offsets = np.zeros((1, W * H, 2))
+        else:
+            offsets = subpixel_offsets(self.settings.spp, W * H, np.random.default_rng(ss.spawn(1)[0]))
+        sampler_seeds = ss.generate_state(len(offsets), dtype=np.uint32)
         acc = np.zeros((3 if self.rgb else 1, W * H), dtype=np.float64)
-        sampler = mi.load_dict({"type": "independent"})
-        for j in range(self.settings.spp):
-            ray = self._rays(frame, centres + offsets[j])
-            sampler.seed(self.dr.opaque(mi.UInt32, int(sampler_seeds[j])), W * H)
-            spec, _, _ = self._integrator.sample(self.scene, sampler, ray)
-            acc += np.array(spec, dtype=np.float64).reshape(acc.shape)
-        radiance = (acc / self.settings.spp).astype(np.float32)
-        radiance = radiance.T.reshape(H, W, 3) if self.rgb else radiance[0].reshape(H, W)
+        for j in range(len(offsets)):
+            acc += self._radiance(frame, centres + offsets[j], int(sampler_seeds[j]))
+        radiance = (acc / len(offsets)).astype(np.float32)
+        if self.rgb and self.mono_out:
+            radiance = radiance.mean(axis=0, keepdims=True)
+        radiance = radiance[0].reshape(H, W) if len(radiance) == 1 else radiance.T.reshape(H, W, 3)
         return RenderedFrame(
             radiance=radiance,
             position=P.reshape(H, W, 3).astype(np.float32),

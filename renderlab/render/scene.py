@@ -91,6 +91,7 @@ class RenderSettings:
     variant: str = "llvm_ad_mono"
     spp: int = 16
     max_depth: int = 2
+    pixel_filter: str = "box"  # "box" (spp samples uniform over the pixel) or "center" (one sample)
     near_clip_m: float = 1e-3
     far_clip_m: float = 1e7
 

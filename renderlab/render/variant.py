@@ -21,7 +21,9 @@ LLVM_CANDIDATES = (
     "/usr/lib/aarch64-linux-gnu/libLLVM-19.so",
     "/usr/lib/llvm-19/lib/libLLVM.so",
 )
-KNOWN_VARIANTS = ("llvm_ad_mono", "llvm_ad_rgb", "scalar_mono", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb")
+KNOWN_VARIANTS = ("llvm_ad_mono", "llvm_ad_rgb", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb")
+# The PyPI wheel has no scalar_mono: mono scenes fall back to scalar_rgb, and the backend averages
+# the (equal, for grey albedo and sun) channels back to one.
 
 _active: str | None = None
 
@@ -41,8 +43,7 @@ def init_mitsuba(variant: str = "llvm_ad_mono"):
     Parameters
     ----------
     variant : str
-        One of ``llvm_ad_mono``, ``llvm_ad_rgb``, ``scalar_mono``, ``scalar_rgb``, ``cuda_ad_mono``,
-        ``cuda_ad_rgb``.
+        One of ``llvm_ad_mono``, ``llvm_ad_rgb``, ``scalar_rgb``, ``cuda_ad_mono``, ``cuda_ad_rgb``.
 
     Returns
     -------
@@ -64,7 +65,7 @@ def init_mitsuba(variant: str = "llvm_ad_mono"):
     try:
         mi.set_variant(variant)
     except Exception as exc:  # the LLVM/CUDA backend is missing or broken on this machine
-        fallback = "scalar_rgb" if variant.endswith("rgb") else "scalar_mono"
+        fallback = "scalar_rgb"
         warnings.warn(
             f"Mitsuba variant {variant} is not usable here ({exc}); falling back to {fallback}, "
             "which is about 10x slower. Install Debian's libllvm19 (./setup.sh does).",
