@@ -25,9 +25,7 @@ class FrameChecks:
     reproj_max_px: float
     reproj_median_px: float
     n_hit: int
-    lambert_median_rel: float
-    lambert_p99_rel: float
-    n_lambert: int
+    lambert: dict[int, tuple[int, float, float]]  # body id → (pixels, median, p99 relative error)
 
 
 def reprojection_errors(frame) -> np.ndarray:
@@ -57,7 +55,8 @@ def lambert_interior_mask(frame, body_ids) -> np.ndarray:
     return same & lit_all & border & np.isin(ids, list(body_ids))
 
 
-def lambert_relative_errors(frame, albedo_by_id: dict[int, float]) -> np.ndarray:
+def lambert_relative_errors(frame, albedo_by_id: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Relative errors on lit interior pixels of Lambert bodies, and the body id of each pixel."""
     mask = lambert_interior_mask(frame, albedo_by_id)
     sun = frame.meta["sun"]
     s = np.asarray(sun["direction_render"], float)
@@ -65,18 +64,18 @@ def lambert_relative_errors(frame, albedo_by_id: dict[int, float]) -> np.ndarray
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     A = np.vectorize(albedo_by_id.get)(frame.id[mask])
     expected = A * sun["irradiance_w_m2"] * np.clip(n @ s, 0, None) / np.pi
-    return np.abs(frame.radiance[mask] / expected - 1.0)
+    return np.abs(frame.radiance[mask] / expected - 1.0), frame.id[mask]
 
 
 def check_frame(frame, albedo_by_id: dict[int, float]) -> FrameChecks:
     rep = reprojection_errors(frame)
-    lam = lambert_relative_errors(frame, albedo_by_id)
+    lam, ids = lambert_relative_errors(frame, albedo_by_id)
+    per_body = {int(b): (int((ids == b).sum()), float(np.median(lam[ids == b])), float(np.percentile(lam[ids == b], 99)))
+                for b in np.unique(ids)}
     return FrameChecks(
         frame=frame.index,
         reproj_max_px=float(rep.max()) if rep.size else float("nan"),
         reproj_median_px=float(np.median(rep)) if rep.size else float("nan"),
         n_hit=int(rep.size),
-        lambert_median_rel=float(np.median(lam)) if lam.size else float("nan"),
-        lambert_p99_rel=float(np.percentile(lam, 99)) if lam.size else float("nan"),
-        n_lambert=int(lam.size),
+        lambert=per_body,
     )

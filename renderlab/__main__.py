@@ -1,0 +1,5 @@
+import sys
+
+from renderlab.cli import main
+
+sys.exit(main())
