@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help()
-            return 2
+            raise UserError("a command is required (render, demo); see renderlab --help")
         handler = {"render": cmd_render, "demo": cmd_demo}[args.command]
         return handler(args)
     except UserError as err:

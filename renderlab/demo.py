@@ -53,7 +53,7 @@ def run_demo(out: Path, progress: bool = True) -> Path:
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     A = np.vectorize(lambert.get)(f0.id[mask])
     residual[mask] = f0.radiance[mask] / (A * f0.meta["sun"]["irradiance_w_m2"] * np.clip(n @ s, 0, None) / np.pi) - 1
-    preview = truthset_preview(ts, out / "preview.png", residual=residual,
+    truthset_preview(ts, out / "preview.png", residual=residual,
                                title=f"renderlab demo — {scenario.name} (Mitsuba {ts.manifest['renderer']['variant']})")
 
     cam = scenario.camera

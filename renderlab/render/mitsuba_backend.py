@@ -223,7 +223,6 @@ class MitsubaBackend:
 
     def render(self, frame: FrameSpec, seed: int) -> RenderedFrame:
         """Render one frame. ``seed`` fixes the sub-pixel pattern and Mitsuba's sampler."""
-        mi = self.mi
         cam = frame.camera
         W, H = cam.width, cam.height
         self._set_sun(frame)

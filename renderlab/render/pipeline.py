@@ -43,7 +43,15 @@ def make_backend(scenario: Scenario, scene, renderer: str):
     if renderer == "mitsuba":
         from renderlab.render.mitsuba_backend import MitsubaBackend
 
-        return MitsubaBackend(scene, settings)
+        try:
+            return MitsubaBackend(scene, settings)
+        except RuntimeError as exc:  # Mitsuba reports an unreadable mesh as 'At dictionary node "bodyK": ...'
+            for body in scene.bodies:
+                if body.mesh_path is not None and f'"body{body.body_id}"' in str(exc):
+                    detail = str(exc).rsplit("] ", 1)[-1]
+                    raise UserError(f"world.bodies.{body.body_id}.file: cannot load mesh "
+                                    f"{body.mesh_path.name}: {detail}") from None
+            raise
     raise UserError(f"renderer '{renderer}' is not available yet (only 'mitsuba' is)")
 
 
