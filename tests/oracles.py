@@ -22,8 +22,9 @@ def hit_sphere(o, d, c, r):
     """Distance along unit rays to the first hit of a sphere (inf if none)."""
     oc = o - c
     b = np.einsum("ij,ij->i", oc, d)
-    disc = b**2 - (np.einsum("ij,ij->i", oc, oc) - r * r)
-    t = -b - np.sqrt(np.where(disc >= 0, disc, np.nan))
+    with np.errstate(invalid="ignore"):
+        disc = b**2 - (np.einsum("ij,ij->i", oc, oc) - r * r)
+        t = -b - np.sqrt(np.where(disc >= 0, disc, np.nan))
     return np.where((disc >= 0) & (t > 0), t, np.inf)
 
 
