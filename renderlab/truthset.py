@@ -102,7 +102,7 @@ class TruthSetWriter:
         if d.exists() and not d.is_dir():
             raise UserError(f"output {d} exists and is not a directory")
         if d.is_dir() and any(d.iterdir()) and not self.overwrite:
-            raise UserError(f"output directory {d} exists and is not empty (use overwrite)")
+            raise UserError(f"output directory {d} exists and is not empty (use --overwrite to replace it)")
         anc = d.parent
         while not os.path.lexists(anc) and anc != anc.parent:
             anc = anc.parent  # nearest existing ancestor; missing ones are created

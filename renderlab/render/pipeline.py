@@ -72,6 +72,8 @@ def render_truthset(
     seed = scenario.render.seed if seed is None else int(seed)
     if seed < 0:
         raise UserError(f"--seed must be a non-negative integer, got {seed}")
+    if seed != scenario.render.seed:  # the manifest's scenario records the seed actually used
+        scenario = scenario.model_copy(update={"render": scenario.render.model_copy(update={"seed": seed})})
     renderer = renderer or scenario.render.renderer
     specs = frame_specs(scenario)
     if frames is not None:
