@@ -10,7 +10,6 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import numpy as np
 
 from renderlab.errors import UserError
 
@@ -29,7 +28,7 @@ def run_demo(out: Path, progress: bool = True) -> Path:
     """Run the demo into ``out`` and return the report's path."""
     from renderlab.render.pipeline import render_truthset
     from renderlab.report.preview import truthset_preview
-    from renderlab.report.truth_checks import check_frame, lambert_interior_mask
+    from renderlab.report.truth_checks import check_frame, lambert_residual_image
     from renderlab.scenario import load_scenario
     from renderlab.truthset import TruthSet
 
@@ -45,14 +44,7 @@ def run_demo(out: Path, progress: bool = True) -> Path:
     lambert = {k: b.albedo for k, b in enumerate(scenario.world.bodies) if b.law == "lambert" and not b.albedo_map}
     checks = [check_frame(ts.load(k), lambert) for k in range(len(ts))]
 
-    f0 = ts.load(0)
-    mask = lambert_interior_mask(f0, lambert)
-    residual = np.full(f0.id.shape, np.nan)
-    s = np.asarray(f0.meta["sun"]["direction_render"])
-    n = f0.normal[mask].astype(float)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    A = np.vectorize(lambert.get)(f0.id[mask])
-    residual[mask] = f0.radiance[mask] / (A * f0.meta["sun"]["irradiance_w_m2"] * np.clip(n @ s, 0, None) / np.pi) - 1
+    residual = lambert_residual_image(ts.load(0), lambert)
     truthset_preview(ts, out / "preview.png", residual=residual,
                                title=f"renderlab demo — {scenario.name} (Mitsuba {ts.manifest['renderer']['variant']})")
 

@@ -55,8 +55,8 @@ def lambert_interior_mask(frame, body_ids) -> np.ndarray:
     return same & lit_all & border & np.isin(ids, list(body_ids))
 
 
-def lambert_relative_errors(frame, albedo_by_id: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Relative errors on lit interior pixels of Lambert bodies, and the body id of each pixel."""
+def lambert_residual_image(frame, albedo_by_id: dict[int, float]) -> np.ndarray:
+    """(H, W) signed relative error L / (A·E·cos i/π) − 1 on lit interior Lambert pixels, NaN elsewhere."""
     mask = lambert_interior_mask(frame, albedo_by_id)
     sun = frame.meta["sun"]
     s = np.asarray(sun["direction_render"], float)
@@ -64,7 +64,16 @@ def lambert_relative_errors(frame, albedo_by_id: dict[int, float]) -> tuple[np.n
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     A = np.vectorize(albedo_by_id.get)(frame.id[mask])
     expected = A * sun["irradiance_w_m2"] * np.clip(n @ s, 0, None) / np.pi
-    return np.abs(frame.radiance[mask] / expected - 1.0), frame.id[mask]
+    out = np.full(frame.id.shape, np.nan)
+    out[mask] = frame.radiance[mask] / expected - 1.0
+    return out
+
+
+def lambert_relative_errors(frame, albedo_by_id: dict[int, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Relative errors on lit interior pixels of Lambert bodies, and the body id of each pixel."""
+    res = lambert_residual_image(frame, albedo_by_id)
+    mask = np.isfinite(res)
+    return np.abs(res[mask]), frame.id[mask]
 
 
 def check_frame(frame, albedo_by_id: dict[int, float]) -> FrameChecks:
