@@ -95,11 +95,10 @@ def render_truthset(
         for spec, child in tqdm(list(zip(specs, children)), desc="render", unit="frame", disable=not progress):
             render_ss, sensor_ss = child.spawn(2)
             out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
+            lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)  # mono sensor
             if spec.index == specs[0].index and scenario.sensor.auto_exposure:
-                t_exp = exposure_for_peak(out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1), opts,
-                                          fraction=scenario.sensor.auto_exposure_fraction)
+                t_exp = exposure_for_peak(lum, opts, fraction=scenario.sensor.auto_exposure_fraction)
                 opts = with_exposure(opts, t_exp)
-            lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)
             sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
             meta = {
                 "camera": spec.camera.to_dict(),
