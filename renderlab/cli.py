@@ -39,6 +39,28 @@ def _pos_int(text: str) -> int:
     return value
 
 
+#: commands that live in their own module: ``add_parser(subparsers)`` and ``run(args) -> int``.
+#: Each module keeps heavy imports inside ``run`` so ``renderlab --help`` stays instant.
+EXTRA_COMMANDS = {
+    "measure": "renderlab.commands.measure",
+    "crosscheck": "renderlab.commands.crosscheck",
+    "visibility": "renderlab.commands.visibility",
+    "campaign": "renderlab.commands.campaign",
+    "report": "renderlab.commands.report",
+}
+
+
+def _extra_commands() -> dict:
+    import importlib
+    import importlib.util
+
+    out = {}
+    for name, mod in EXTRA_COMMANDS.items():
+        if importlib.util.find_spec(mod) is not None:
+            out[name] = importlib.import_module(mod)
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="renderlab", description="renderlab: truth images and estimator validation for optical navigation.")
     p.add_argument("--version", action="version", version=f"renderlab {__version__}")
@@ -54,6 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a scenario key (TOML value), e.g. --set camera.width=128; repeatable")
     r.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    for name, module in _extra_commands().items():
+        module.add_parser(sub)
 
     d = sub.add_parser("demo", help="the main job on built-in defaults: render, check, preview, report")
     d.add_argument("--out", default="demo_out", metavar="DIR", help="output folder (default: demo_out)")
@@ -88,9 +113,11 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help()
-            raise UserError("a command is required (render, demo); see renderlab --help")
-        handler = {"render": cmd_render, "demo": cmd_demo}[args.command]
-        return handler(args)
+            raise UserError(f"a command is required ({', '.join(['render', 'demo', *_extra_commands()])}); see renderlab --help")
+        handlers = {"render": cmd_render, "demo": cmd_demo}
+        if args.command in handlers:
+            return handlers[args.command](args)
+        return _extra_commands()[args.command].run(args)
     except UserError as err:
         print(f"renderlab: error: {err}", file=sys.stderr)
         return 2

@@ -19,19 +19,15 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import pydantic
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 
+from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec2, Vec3  # noqa: F401 (re-exported)
 from renderlab.errors import UserError
+from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
+from renderlab.worlds.ev5.config import EV5DescentTrajectory, EV5World
+from renderlab.worlds.microsat.config import MicrosatWorld, SeparationTrajectory
 
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-Vec3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
-Vec2 = Annotated[list[Positive], Field(min_length=2, max_length=2)]
 LAW_NAMES = ("lambert", "lommel_seeliger", "mcewen", "hapke")
-
-
-class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, validate_default=True)
 
 
 class BodyConfig(_Strict):
@@ -170,17 +166,57 @@ class SensorConfig(_Strict):
         return self
 
 
+def _kind_of(default: str):
+    def pick(value: Any) -> str:
+        kind = value.get("kind", default) if isinstance(value, dict) else getattr(value, "kind", default)
+        return f"kind={kind}"
+    return pick
+
+
+#: world kind → the trajectory kinds that make sense for it
+WORLD_TRAJECTORIES = {
+    "analytic": ("line", "orbit"),
+    "ev5": ("ev5_descent",),
+    "earth": ("leo",),
+    "microsat": ("separation",),
+}
+
+World = Annotated[
+    Annotated[AnalyticWorld, Tag("kind=analytic")] | Annotated[EV5World, Tag("kind=ev5")]
+    | Annotated[EarthWorld, Tag("kind=earth")] | Annotated[MicrosatWorld, Tag("kind=microsat")],
+    Discriminator(_kind_of("analytic"), custom_error_type="world_kind",
+                  custom_error_message=f"kind must be one of {', '.join(WORLD_TRAJECTORIES)}"),
+]
+_TRAJ_TAGS = {"line": "kind=line", "orbit": "kind=orbit"}
+Trajectory = Annotated[
+    Annotated[TrajectoryConfig, Tag("kind=line")] | Annotated[TrajectoryConfig, Tag("kind=orbit")]
+    | Annotated[EV5DescentTrajectory, Tag("kind=ev5_descent")] | Annotated[LEOTrajectory, Tag("kind=leo")]
+    | Annotated[SeparationTrajectory, Tag("kind=separation")],
+    Discriminator(_kind_of("orbit"), custom_error_type="trajectory_kind",
+                  custom_error_message="kind must be one of "
+                  + ", ".join(k for ks in WORLD_TRAJECTORIES.values() for k in ks)),
+]
+
+
 class Scenario(_Strict):
     """A validated scenario. ``source`` is the file it came from (not part of the saved dict)."""
 
     name: str = "scenario"
     description: str = ""
-    world: AnalyticWorld
+    world: World
     sun: SunConfig = SunConfig()
     camera: CameraConfig = CameraConfig()
-    trajectory: TrajectoryConfig = TrajectoryConfig()
+    trajectory: Trajectory = TrajectoryConfig()
     sensor: SensorConfig = SensorConfig()
     render: RenderConfig = RenderConfig()
+
+    @model_validator(mode="after")
+    def _world_fits_trajectory(self):
+        allowed = WORLD_TRAJECTORIES[self.world.kind]
+        if self.trajectory.kind not in allowed:
+            raise ValueError(f"trajectory.kind '{self.trajectory.kind}' does not fit world.kind '{self.world.kind}' "
+                             f"(use {' or '.join(repr(k) for k in allowed)})")
+        return self
 
     def to_dict(self) -> dict[str, Any]:
         """The validated scenario as plain JSON-able data (what the manifest stores)."""
@@ -189,7 +225,7 @@ class Scenario(_Strict):
 
 def _format_error(err: pydantic.ValidationError, source: str) -> str:
     e = err.errors()[0]
-    loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith("function-"))
+    loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith(("function-", "kind=")))
     msg = e["msg"].removeprefix("Value error, ")
     if e["type"] == "extra_forbidden":
         return f"{source}: unknown key '{loc}'"

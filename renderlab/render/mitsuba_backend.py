@@ -87,7 +87,7 @@ class MitsubaBackend:
         for body in scene.bodies:
             key = f"body{body.body_id}"
             keys[key] = body.body_id
-            desc[key] = {**self._shape_dict(body), "id": key}
+            desc[key] = self._trimesh(body, key) if body.shape == "trimesh" else {**self._shape_dict(body), "id": key}
         # optimize=False: no merging of meshes that share a BSDF (each body keeps its own id)
         self.scene = mi.load_dict(desc, optimize=False)
         self.params = mi.traverse(self.scene)
@@ -113,6 +113,29 @@ class MitsubaBackend:
             "filter_type": "bilinear",
             "wrap_mode": "clamp",
         }
+
+    def _trimesh(self, body: BodySpec, key: str):
+        """A Mitsuba mesh built from in-memory vertices (body frame → render frame in float64)."""
+        mi, dr = self.mi, self.dr
+        from renderlab.render.mitsuba_bsdf import bsdf_dict
+
+        V = np.asarray(body.vertices, np.float64) @ body.R_render_from_body.T + np.asarray(body.center_m, float)
+        F = np.ascontiguousarray(body.faces, dtype=np.uint32)
+        if body.vertex_albedo is not None:
+            albedo = {"type": "mesh_attribute", "name": "vertex_albedo"}
+        else:
+            albedo = self._albedo_texture(body)
+        props = mi.Properties()
+        props["bsdf"] = mi.load_dict(bsdf_dict(body.law, albedo))
+        mesh = mi.Mesh(key, len(V), len(F), props=props)
+        params = mi.traverse(mesh)
+        params["vertex_positions"] = type(params["vertex_positions"])(_aligned_f32(V))
+        params["faces"] = type(params["faces"])(F.ravel())
+        if body.vertex_albedo is not None:
+            va = np.asarray(body.vertex_albedo, np.float64) * float(body.albedo)
+            mesh.add_attribute("vertex_albedo", 1, type(params["vertex_positions"])(_aligned_f32(va)))
+        params.update()
+        return mesh
 
     def _shape_dict(self, body: BodySpec) -> dict:
         from renderlab.render.mitsuba_bsdf import bsdf_dict

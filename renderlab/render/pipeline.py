@@ -19,7 +19,6 @@ from renderlab.render.scene import FrameSpec, RenderSettings, SunSpec
 from renderlab.scenario import Scenario
 from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
 from renderlab.truthset import TruthSetWriter
-from renderlab.worlds.analytic import build_scene
 
 
 def frame_specs(scenario: Scenario) -> list[FrameSpec]:
@@ -66,8 +65,14 @@ def render_truthset(
     progress: bool = True,
     overwrite: bool = False,
 ) -> Path:
-    """Render a scenario into a truth set folder (written atomically) and return its path."""
+    """Render a scenario into a truth set folder (written atomically) and return its path.
+
+    The world's :class:`renderlab.worlds.base.WorldPlan` supplies the frames, the scene(s), per-frame
+    metadata and truth-table rows; this function owns seeds, the renderer, the sensor and the files.
+    """
     from tqdm import tqdm
+
+    from renderlab.worlds.base import make_plan
 
     seed = scenario.render.seed if seed is None else int(seed)
     if seed < 0:
@@ -75,24 +80,30 @@ def render_truthset(
     if seed != scenario.render.seed:  # the manifest's scenario records the seed actually used
         scenario = scenario.model_copy(update={"render": scenario.render.model_copy(update={"seed": seed})})
     renderer = renderer or scenario.render.renderer
-    specs = frame_specs(scenario)
-    if frames is not None:
-        if frames < 1:
-            raise UserError(f"--frames must be at least 1, got {frames}")
-        specs = specs[:frames]
-    scene = build_scene(scenario.world, base_dir)
-    head = {"scenario": scenario.to_dict(), "render_frame": scene.render_frame, "seed": seed}
+    if frames is not None and frames < 1:
+        raise UserError(f"--frames must be at least 1, got {frames}")
+    head = {"scenario": scenario.to_dict(), "seed": seed}
     TruthSetWriter(out_dir, head, overwrite=overwrite)  # refuses a bad output folder before the slow start
-    backend = make_backend(scenario, scene, renderer)
-    writer = TruthSetWriter(
-        out_dir,
-        {**head, "renderer": {"name": backend.name, "version": backend.version, "variant": backend.variant}},
-        overwrite=overwrite,
-    )
+    plan = make_plan(scenario, base_dir)
+    specs = plan.frames if frames is None else plan.frames[:frames]
+    head["render_frame"] = plan.render_frame
     opts = SensorOptions(**scenario.sensor.options_dict())
     children = np.random.SeedSequence(seed).spawn(len(specs))
-    with writer:
+    backend, key_loaded, writer = None, object(), None
+    rows: dict[str, list[dict]] = {}
+    try:
         for spec, child in tqdm(list(zip(specs, children)), desc="render", unit="frame", disable=not progress):
+            key = plan.scene_key(spec)
+            if backend is None or key != key_loaded:
+                scene = plan.scene(key)
+                backend, key_loaded = make_backend(scenario, scene, renderer), key
+            if writer is None:
+                writer = TruthSetWriter(
+                    out_dir,
+                    {**head, "renderer": {"name": backend.name, "version": backend.version, "variant": backend.variant}},
+                    overwrite=overwrite,
+                ).__enter__()
+                plan.write_static(writer)
             render_ss, sensor_ss = child.spawn(2)
             out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
             lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)  # mono sensor
@@ -107,9 +118,56 @@ def render_truthset(
                     "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)],
                 },
                 "sun": spec.sun.to_dict(),
-                "bodies": {b.name: b.state() for b in scene.bodies},
+                **plan.frame_meta(spec, scene),
                 "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
                            "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)},
             }
             writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn, meta)
+            for name, new_rows in plan.frame_rows(spec, out).items():
+                rows.setdefault(name, []).extend(new_rows)
+        for name, table_rows in rows.items():
+            writer.add_table(name, _rows_to_table(table_rows))
+        writer.add_file("contact_sheet.png", _contact_sheet_png(writer))
+    except BaseException as exc:
+        if writer is not None:
+            writer.__exit__(type(exc), exc, exc.__traceback__)
+        raise
+    writer.__exit__(None, None, None)
     return Path(out_dir)
+
+
+def _rows_to_table(rows: list[dict]):
+    """A pyarrow table from row dicts (columns in first-row order)."""
+    import pyarrow as pa
+
+    cols = list(rows[0]) if rows else []
+    return pa.table({c: [r[c] for r in rows] for c in cols})
+
+
+def _contact_sheet_png(writer) -> bytes:
+    """PNG bytes of a grid of the frames' sensor images (up to 16, evenly spaced), frame numbers on top."""
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from renderlab.imageio import read_dn_png
+
+    frames = writer.manifest()["frames"]
+    pick = np.unique(np.linspace(0, len(frames) - 1, min(16, len(frames))).round().astype(int))
+    ncol = int(np.ceil(np.sqrt(len(pick))))
+    nrow = int(np.ceil(len(pick) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3 * ncol, 3 * nrow), squeeze=False, constrained_layout=True)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, k in zip(axes.ravel(), pick):
+        rec = frames[k]
+        dn = read_dn_png(writer.staging_dir / rec["dn"])
+        ax.imshow(dn, cmap="gray", vmin=0, vmax=max(1, int(dn.max())), interpolation="nearest")
+        ax.set_title(f"frame {rec['index']}  t={rec['time_s']:.1f} s", fontsize=8)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    return buf.getvalue()

@@ -24,9 +24,11 @@ class BodySpec:
     """A rigid body: ``p_render = R_render_from_body @ p_body + center_m``.
 
     ``shape`` is ``sphere`` (``radius_m``), ``box`` (``size_m`` = 3 edge lengths), ``plane``
-    (``size_m`` = 2 edge lengths, normal +z of the body frame) or ``mesh`` (``mesh_path``, OBJ/PLY,
-    vertices in metres in the body frame). ``albedo_map`` (H, W) multiplies ``albedo`` through
-    the surface's uv coordinates.
+    (``size_m`` = 2 edge lengths, normal +z of the body frame), ``mesh`` (``mesh_path``, OBJ/PLY,
+    vertices in metres in the body frame) or ``trimesh`` (in-memory ``vertices`` (V, 3) float64 in
+    metres in the body frame and ``faces`` (F, 3) int, counter-clockwise seen from outside; flat
+    facets). ``albedo_map`` (H, W) multiplies ``albedo`` through the surface's uv coordinates;
+    ``vertex_albedo`` (V,) multiplies it per vertex of a trimesh (interpolated over each facet).
     """
 
     name: str
@@ -41,6 +43,9 @@ class BodySpec:
     mesh_path: Path | None = None
     albedo_map: np.ndarray | None = None
     face_normals: bool = True
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+    vertex_albedo: np.ndarray | None = None
 
     def state(self) -> dict:
         """JSON-able true state for the manifest."""
@@ -58,6 +63,8 @@ class BodySpec:
             out["radius_m"] = float(self.radius_m)
         if self.size_m is not None:
             out["size_m"] = [float(v) for v in self.size_m]
+        if self.faces is not None:
+            out["n_faces"] = int(len(self.faces))
         return out
 
 

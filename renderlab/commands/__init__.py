@@ -1,0 +1,1 @@
+"""Sub-commands of ``renderlab`` that live in their own module (see ``renderlab.cli.EXTRA_COMMANDS``)."""

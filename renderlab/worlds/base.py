@@ -1,0 +1,75 @@
+"""What a world gives the render pipeline: a :class:`WorldPlan`.
+
+Every world kind (``analytic``, ``ev5``, ``earth``, ``microsat``) has a module with
+``make_plan(scenario, base_dir) -> WorldPlan``. The pipeline (``renderlab.render.pipeline``) is
+world-agnostic: it asks the plan for the frames (camera, pose, sun), for the scene each frame needs
+(most worlds have one scene for all frames, loaded once and updated in place; Earth renders a new
+local tangent tile per footprint), for extra per-frame metadata and truth-table rows, and for the
+static files a truth set of that world carries (EV5: landmark catalog and maplets).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Hashable
+
+from renderlab.render.scene import FrameSpec, RenderedFrame, SceneDescription
+
+#: world kind → module with ``make_plan``
+WORLD_MODULES = {
+    "analytic": "renderlab.worlds.analytic",
+    "ev5": "renderlab.worlds.ev5",
+    "earth": "renderlab.worlds.earth",
+    "microsat": "renderlab.worlds.microsat",
+}
+
+
+@dataclass
+class WorldPlan:
+    """The frames of a scenario and the scenes they are rendered from.
+
+    Subclass (or fill the fields of) this for each world. Defaults give one static scene.
+
+    Attributes
+    ----------
+    frames : list of FrameSpec
+        Camera model, pose (render frame) and sun of every frame, in order.
+    render_frame : dict
+        The manifest's top-level ``render_frame`` (``{"name": "EV5_FIXED"}``, ...).
+    static_scene : SceneDescription or None
+        The scene of every frame when the world has only one.
+    """
+
+    frames: list[FrameSpec]
+    render_frame: dict = field(default_factory=lambda: {"name": "SCENE"})
+    static_scene: SceneDescription | None = None
+
+    def scene_key(self, spec: FrameSpec) -> Hashable:
+        """Frames with equal keys share one loaded scene (the backend is rebuilt when it changes)."""
+        return 0
+
+    def scene(self, key: Hashable) -> SceneDescription:
+        """The scene for ``key`` (from :meth:`scene_key`)."""
+        if self.static_scene is None:
+            raise NotImplementedError("a world without a static scene must override scene()")
+        return self.static_scene
+
+    def frame_meta(self, spec: FrameSpec, scene: SceneDescription) -> dict:
+        """Extra manifest entries for this frame (``bodies`` true states, per-frame ``render_frame``, ...)."""
+        return {"bodies": {b.name: b.state() for b in scene.bodies}}
+
+    def write_static(self, writer) -> None:
+        """Write files every truth set of this world carries (catalogs, maplets, databases)."""
+
+    def frame_rows(self, spec: FrameSpec, rendered: RenderedFrame) -> dict[str, list[dict]]:
+        """Truth-table rows for this frame: ``{table_name: [row, ...]}``; the pipeline writes
+        ``<table_name>.parquet`` with all frames' rows at the end."""
+        return {}
+
+
+def make_plan(scenario, base_dir: Path) -> WorldPlan:
+    """The :class:`WorldPlan` of ``scenario`` (dispatch on ``scenario.world.kind``)."""
+    module = importlib.import_module(WORLD_MODULES[scenario.world.kind])
+    return module.make_plan(scenario, Path(base_dir))

@@ -1,0 +1,1 @@
+"""earth world (see config.py for its scenario sections)."""

@@ -1,0 +1,1 @@
+"""ev5 world (see config.py for its scenario sections)."""

@@ -1,0 +1,1 @@
+"""microsat world (see config.py for its scenario sections)."""
