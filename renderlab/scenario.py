@@ -21,7 +21,7 @@ from typing import Annotated, Any, Literal
 import pydantic
 from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 
-from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec2, Vec3  # noqa: F401 (re-exported)
+from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
 from renderlab.worlds.ev5.config import EV5DescentTrajectory, EV5World

@@ -116,7 +116,7 @@ class MitsubaBackend:
 
     def _trimesh(self, body: BodySpec, key: str):
         """A Mitsuba mesh built from in-memory vertices (body frame → render frame in float64)."""
-        mi, dr = self.mi, self.dr
+        mi = self.mi
         from renderlab.render.mitsuba_bsdf import bsdf_dict
 
         V = np.asarray(body.vertices, np.float64) @ body.R_render_from_body.T + np.asarray(body.center_m, float)
@@ -127,10 +127,13 @@ class MitsubaBackend:
             albedo = self._albedo_texture(body)
         props = mi.Properties()
         props["bsdf"] = mi.load_dict(bsdf_dict(body.law, albedo))
-        mesh = mi.Mesh(key, len(V), len(F), props=props)
+        has_uv = body.vertex_uv is not None
+        mesh = mi.Mesh(key, len(V), len(F), props=props, has_vertex_texcoords=has_uv)
         params = mi.traverse(mesh)
         params["vertex_positions"] = type(params["vertex_positions"])(_aligned_f32(V))
         params["faces"] = type(params["faces"])(F.ravel())
+        if has_uv:
+            params["vertex_texcoords"] = type(params["vertex_texcoords"])(_aligned_f32(body.vertex_uv))
         if body.vertex_albedo is not None:
             va = np.asarray(body.vertex_albedo, np.float64) * float(body.albedo)
             mesh.add_attribute("vertex_albedo", 1, type(params["vertex_positions"])(_aligned_f32(va)))

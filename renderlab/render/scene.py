@@ -28,7 +28,10 @@ class BodySpec:
     vertices in metres in the body frame) or ``trimesh`` (in-memory ``vertices`` (V, 3) float64 in
     metres in the body frame and ``faces`` (F, 3) int, counter-clockwise seen from outside; flat
     facets). ``albedo_map`` (H, W) multiplies ``albedo`` through the surface's uv coordinates;
-    ``vertex_albedo`` (V,) multiplies it per vertex of a trimesh (interpolated over each facet).
+    ``vertex_albedo`` (V,) multiplies it per vertex of a trimesh (interpolated over each facet);
+    ``vertex_uv`` (V, 2) gives a trimesh texture coordinates for ``albedo_map`` (u → map column left to
+    right, v → map row top to bottom: the centre of map pixel (row, col) is at u = (col + ½)/W,
+    v = (row + ½)/H; a test pins it).
     """
 
     name: str
@@ -46,6 +49,7 @@ class BodySpec:
     vertices: np.ndarray | None = None
     faces: np.ndarray | None = None
     vertex_albedo: np.ndarray | None = None
+    vertex_uv: np.ndarray | None = None
 
     def state(self) -> dict:
         """JSON-able true state for the manifest."""
