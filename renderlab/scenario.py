@@ -21,6 +21,7 @@ from typing import Annotated, Any, Literal
 import pydantic
 from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 
+from renderlab.campaign.config import CampaignConfig, PerturbationConfig
 from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
@@ -209,6 +210,8 @@ class Scenario(_Strict):
     trajectory: Trajectory = TrajectoryConfig()
     sensor: SensorConfig = SensorConfig()
     render: RenderConfig = RenderConfig()
+    perturbations: PerturbationConfig = PerturbationConfig()
+    campaign: CampaignConfig = CampaignConfig()
 
     @model_validator(mode="after")
     def _world_fits_trajectory(self):

@@ -3,19 +3,77 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from datetime import datetime
+from typing import Annotated, Literal
 
-from renderlab.config_types import Seed, Strict
+from pydantic import Field, field_validator
+
+from renderlab.config_types import NonNegative, Positive, Seed, Strict
+
+Fraction = Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)]
+Albedo = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
 
 
 class EarthWorld(Strict):
-    """WGS-84 Earth with GSHHG land/water albedo, optional clouds, real sun for the epoch."""
+    """WGS-84 Earth with GSHHG land/water albedo, optional clouds, real sun for the epoch.
+
+    The ground of each frame is a local tangent tile (ENU) following the ellipsoid, textured from the
+    full-resolution GSHHG polygons at ``texture_oversample`` texture cells per ground sample distance.
+    ``cloud_cover`` > 0 adds a cloud layer (its own body id, casting shadows) at ``cloud_altitude_m``.
+    The onboard coastline database written with the set is GSHHG simplified to ``coast_db_tolerance_m``
+    and displaced by a smooth random map error of ``coast_db_error_m`` (1σ per axis, correlation length
+    ``coast_db_error_scale_m``).
+    """
 
     kind: Literal["earth"] = "earth"
     seed: Seed = 0
+    land_albedo: Albedo = 0.25
+    water_albedo: Albedo = 0.06
+    texture_oversample: Annotated[float, Field(ge=2, le=16, allow_inf_nan=False)] = 2.0
+    antialias: Annotated[int, Field(ge=1, le=8)] = 4
+    tile_grid: Annotated[int, Field(ge=4, le=1024)] = 64
+    tile_margin_px: NonNegative = 8.0
+    cloud_cover: Fraction = 0.0
+    cloud_altitude_m: Positive = 3000.0
+    cloud_albedo: Albedo = 0.7
+    cloud_scale_m: Positive = 20e3
+    cloud_grid: Annotated[int, Field(ge=8, le=2048)] = 384
+    coast_db_tolerance_m: NonNegative = 150.0
+    coast_db_error_m: NonNegative = 300.0
+    coast_db_error_scale_m: Positive = 100e3
+    coast_db_margin_deg: NonNegative = 0.5
 
 
 class LEOTrajectory(Strict):
-    """A LEO orbit from classical elements, nadir-pointing camera."""
+    """A LEO orbit from classical elements, nadir-pointing camera.
+
+    Frame k is taken at ``start_s + k·dt_s`` after ``epoch_utc`` (where the elements hold). ``fov_deg``
+    (if set) replaces the camera's fx, fy, cx, cy by a centred square-pixel pinhole whose image width spans
+    it. ``pointing_error_deg`` is the true attitude's random offset from nadir (1σ per axis, seeded by
+    ``world.seed``); ``star_tracker_sigma_arcsec`` the noise of the attitude the star tracker reports.
+    """
 
     kind: Literal["leo"] = "leo"
+    epoch_utc: str = "2024-06-21T15:00:00Z"
+    altitude_km: Annotated[float, Field(ge=150, le=40000, allow_inf_nan=False)] = 1000.0
+    inclination_deg: Annotated[float, Field(ge=0, le=180, allow_inf_nan=False)] = 45.0
+    eccentricity: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = 0.0
+    raan_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
+    argp_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
+    true_anomaly_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
+    j2: bool = False
+    frames: Annotated[int, Field(gt=0, le=100000)] = 1
+    dt_s: Positive = 30.0
+    start_s: NonNegative = 0.0
+    fov_deg: Annotated[float, Field(gt=0, lt=120, allow_inf_nan=False)] | None = 30.0
+    pointing_error_deg: NonNegative = 0.0
+    star_tracker_sigma_arcsec: NonNegative = 5.0
+
+    @field_validator("epoch_utc")
+    @classmethod
+    def _epoch(cls, v: str) -> str:
+        try:
+            datetime.fromisoformat(v.replace("Z", "+00:00"))
+        except ValueError:
+            raise ValueError(f"not an ISO 8601 UTC time like 2024-06-21T15:00:00Z: {v!r}") from None
+        return v

@@ -1,1 +1,136 @@
-"""ev5 world (see config.py for its scenario sections)."""
+"""EV5 world: procedural 2008 EV5, boulder-field landing site, maplet catalog, descent, landmark truth.
+
+Render frame = EV5 body-fixed frame (``EV5_FIXED``): the asteroid is static; the camera and the
+sun move per frame (:mod:`.descent`), so one Mitsuba scene serves every frame. Bodies: id 0 the
+global mesh (:mod:`.shape`, cut under the site), id 1 the landing-site DEM (:mod:`.site`). The
+truth set carries the landmark catalog (:mod:`.catalog`, :mod:`.landmarks`) and
+``landmark_truth.parquet`` (:mod:`.landmark_truth`). ``world.seed`` alone makes body, site,
+boulders, catalog and maplets (independent random streams per part).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+GLOBAL_ID, SITE_ID = 0, 1
+#: spawn keys of the independent random streams under ``world.seed``
+STREAMS = {"shape": 0, "terrain": 1, "boulders": 2, "placement": 3, "mapping_error": 4}
+
+
+def stream(seed: int, name: str) -> np.random.Generator:
+    """The seeded generator of one part of the world."""
+    return np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(STREAMS[name],)))
+
+
+@dataclass
+class EV5Model:
+    """Everything ``world.seed`` makes: shapes, site, catalog, spin state, photometric law."""
+
+    shape: object  # GlobalShape, cut under the site
+    site: object  # Site
+    maplets: list
+    tiers: dict
+    spin: object  # SpinState
+    law: object  # PhotometricLaw
+    albedo: float
+    full_shape_stats: dict = field(default_factory=dict)
+
+    def bodies(self):
+        from renderlab.render.scene import BodySpec
+
+        sv, sf = self.site.mesh()
+        common = dict(center_m=np.zeros(3), R_render_from_body=np.eye(3), law=self.law, albedo=self.albedo)
+        return [BodySpec(name="ev5", body_id=GLOBAL_ID, shape="trimesh", vertices=self.shape.vertices,
+                         faces=self.shape.faces, vertex_albedo=self.shape.vertex_albedo, **common),
+                BodySpec(name="landing_site", body_id=SITE_ID, shape="trimesh", vertices=sv, faces=sf,
+                         vertex_albedo=self.site.albedo.reshape(-1), **common)]
+
+
+def build_model(world, base_dir: Path) -> EV5Model:
+    """Build the EV5 world of a validated :class:`~renderlab.worlds.ev5.config.EV5World`."""
+    from renderlab.dynamics.small_body import SpinState
+    from renderlab.errors import UserError
+    from renderlab.photometry import make_law
+    from renderlab.worlds.ev5.landmarks import build_catalog
+    from renderlab.worlds.ev5.shape import load_shape_file, procedural_shape
+    from renderlab.worlds.ev5.site import build_site
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=3, desc="ev5 world", unit="step", disable=None)  # off when not on a terminal
+    bar.set_postfix_str("global shape")
+    if world.shape_file:
+        shape = load_shape_file((Path(base_dir) / world.shape_file).resolve(), world.shape_file_units)
+        facet = float(np.median(np.linalg.norm(shape.vertices[shape.faces[:, 0]] - shape.vertices[shape.faces[:, 1]], axis=1)))
+    else:
+        shape = procedural_shape(world, stream(world.seed, "shape"))
+        facet = world.facet_m
+    stats = {"extents_m": [float(v) for v in shape.extents()], "volume_m3": shape.volume(),
+             "equivalent_diameter_m": shape.equivalent_diameter(), "n_faces": int(len(shape.faces))}
+    bar.update()
+    bar.set_postfix_str("landing site")
+    site, cut = build_site(shape, world.site, facet, stream(world.seed, "terrain"), stream(world.seed, "boulders"))
+    bar.update()
+    bar.set_postfix_str("landmark catalog")
+    maplets, tiers = build_catalog(site, world, stream(world.seed, "placement"), stream(world.seed, "mapping_error"))
+    bar.update()
+    bar.close()
+    try:
+        law = make_law(world.law, **world.law_params)
+    except UserError as err:
+        raise UserError(f"world.law_params: {err}") from None
+    spin = SpinState(world.pole_lambda_deg, world.pole_beta_deg, world.rotation_period_h * 3600.0)
+    return EV5Model(cut, site, maplets, tiers, spin, law, float(world.albedo), stats)
+
+
+def make_plan(scenario, base_dir: Path):
+    """World plan of an EV5 descent scenario (module docstring)."""
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.render.scene import FrameSpec, SceneDescription, SunSpec
+    from renderlab.worlds.base import WorldPlan
+    from renderlab.worlds.ev5.descent import descent_states
+    from renderlab.worlds.ev5.landmark_truth import landmark_rows
+
+    model = build_model(scenario.world, Path(base_dir))
+    camera = CameraModel.from_dict(scenario.camera.model_dump())
+    states = descent_states(scenario.trajectory, model.spin, model.site.origin_m, model.site.R_body_from_site)
+    irr = scenario.sun.irradiance_w_m2
+    frames = [FrameSpec(index=k, pose=s.pose, camera=camera,
+                        sun=SunSpec(direction_render=s.sun_dir_body, irradiance_w_m2=irr)) for k, s in enumerate(states)]
+
+    class EV5Plan(WorldPlan):
+        def frame_meta(self, spec, scene):
+            st = states[spec.index]
+            T = model.spin.T_eclip_from_body(st.time_s)
+            return {"bodies": {b.name: b.state() for b in scene.bodies},
+                    "ev5": {"altitude_m": st.altitude_m, "spin_matched": st.spin_matched,
+                            "spin": model.spin.to_dict(st.time_s),
+                            "sun_direction_eclip": [float(v) for v in T.apply(st.sun_dir_body)]}}
+
+        def write_static(self, writer):
+            from renderlab.worlds.ev5.catalog import write_catalog
+
+            write_catalog(writer, model.maplets, model.tiers)
+            site = model.site
+            info = {"origin_m": site.origin_m.tolist(), "R_body_from_site": site.R_body_from_site.tolist(),
+                    "x0_m": site.x0_m, "cell_m": site.cell_m, "n": site.n, "body_id": SITE_ID,
+                    "target_boulder_center_xy_m": site.target_center_xy.tolist(),
+                    "target_boulder_diameter_m": site.target_diameter_m,
+                    "n_boulders": site.n_boulders, "n_craters": site.n_craters,
+                    "global_shape": model.full_shape_stats, "global_body_id": GLOBAL_ID}
+            writer.add_file("site.json", (json.dumps(info, indent=1) + "\n").encode())
+
+        def frame_rows(self, spec, rendered):
+            return {"landmark_truth": landmark_rows(spec.index, spec, rendered, model.maplets, model.tiers,
+                                                    model.site, self._footprints)}
+
+    plan = EV5Plan(frames=frames, render_frame={"name": "EV5_FIXED"},
+                   static_scene=SceneDescription(bodies=model.bodies(), render_frame={"name": "EV5_FIXED"}))
+    plan._footprints = {}
+    plan.model = model
+    plan.states = states
+    return plan

@@ -1,21 +1,84 @@
 """Scenario sections of the unknown-satellite world (``world.kind = "microsat"``) and its relative
-motion (``trajectory.kind = "separation"``). Light: pydantic only."""
+motion (``trajectory.kind = "separation"``). Light: pydantic only.
+
+Units: metres, m/s, kg·m², degrees and deg/s only where the key says so.
+"""
 
 from __future__ import annotations
 
-from typing import Literal
+import math
+from typing import Annotated, Literal
 
-from renderlab.config_types import Seed, Strict
+from pydantic import Field, model_validator
+
+from renderlab.config_types import Finite, Positive, Seed, Strict, Vec3
+
+Albedo = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
+PositiveVec3 = Annotated[list[Positive], Field(min_length=3, max_length=3)]
+
+
+def _nonzero(v, name):
+    if math.hypot(*v) < 1e-12:
+        raise ValueError(f"{name} must be a non-zero vector")
 
 
 class MicrosatWorld(Strict):
-    """A Chibis-M-like microsatellite: bus, panels, long thin antennas (tips = reference features)."""
+    """A Chibis-M-like microsatellite: bus, two solar panels, long thin antennas whose tips carry small
+    bright knobs (the reference features). Body frame = principal axes, origin at the centre of mass."""
 
     kind: Literal["microsat"] = "microsat"
-    seed: Seed = 0
+    seed: Seed = 0                                   # jitters the antenna directions (± antenna_jitter_deg)
+    bus_size_m: PositiveVec3 = [0.45, 0.45, 0.5]
+    panel_size_m: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [0.45, 0.3]
+    n_antennas: Annotated[int, Field(ge=4, le=12)] = 6
+    antenna_length_m: Positive = 0.8
+    antenna_width_m: Positive = 0.012
+    antenna_jitter_deg: Annotated[float, Field(ge=0, le=20, allow_inf_nan=False)] = 5.0
+    knob_radius_m: Positive = 0.03
+    inertia_kg_m2: PositiveVec3 = [1.6, 2.1, 2.6]    # principal moments (body axes)
+    albedo_bus: Albedo = 0.12
+    albedo_panel: Albedo = 0.05
+    albedo_antenna: Albedo = 0.25
+    albedo_knob: Albedo = 0.9
+    sun_lvlh: Vec3 = [0.4, 0.7, 0.5]               # toward the sun at t = 0, chaser LVLH frame
+
+    @model_validator(mode="after")
+    def _checks(self):
+        _nonzero(self.sun_lvlh, "sun_lvlh")
+        I1, I2, I3 = self.inertia_kg_m2
+        if I1 + I2 < I3 or I2 + I3 < I1 or I1 + I3 < I2:
+            raise ValueError(f"inertia_kg_m2 {self.inertia_kg_m2} violates the triangle inequality")
+        if self.knob_radius_m * 2 >= self.antenna_length_m:
+            raise ValueError("knob_radius_m must be much smaller than antenna_length_m")
+        return self
 
 
 class SeparationTrajectory(Strict):
-    """Clohessy-Wiltshire relative motion after separation; Euler + gravity-gradient attitude."""
+    """Clohessy-Wiltshire relative motion after separation; Euler + gravity-gradient attitude.
+
+    The chaser holds its LVLH attitude; the camera is fixed on it at ``camera_offset_lvlh_m`` from its
+    centre of mass, looking along ``camera_boresight_lvlh``. The target's state at the first frame is
+    ``r0_lvlh_m``, ``v0_lvlh_mps`` (relative to the chaser's centre of mass), ``q0_lvlh_from_body_xyzw`` and
+    the absolute body rate ``omega0_body_deg_s``.
+    """
 
     kind: Literal["separation"] = "separation"
+    frames: Annotated[int, Field(gt=0, le=100000)] = 100
+    dt_s: Positive = 0.1
+    altitude_m: Annotated[float, Field(gt=100e3, lt=50000e3, allow_inf_nan=False)] = 600e3
+    r0_lvlh_m: Vec3 = [0.05, -4.6, 0.05]
+    v0_lvlh_mps: Vec3 = [0.01, -0.12, 0.005]
+    q0_lvlh_from_body_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] = [0.2, -0.1, 0.3, 0.93]
+    omega0_body_deg_s: Vec3 = [1.5, 3.6, 1.5]
+    camera_offset_lvlh_m: Vec3 = [0.0, -0.6, 0.0]
+    camera_boresight_lvlh: Vec3 = [0.0, -1.0, 0.0]
+    camera_up_lvlh: Vec3 = [1.0, 0.0, 0.0]
+    attitude_substeps: Annotated[int, Field(ge=1, le=1000)] = 10
+
+    @model_validator(mode="after")
+    def _checks(self):
+        _nonzero(self.camera_boresight_lvlh, "camera_boresight_lvlh")
+        _nonzero(self.camera_up_lvlh, "camera_up_lvlh")
+        if math.hypot(*self.q0_lvlh_from_body_xyzw) < 1e-9:
+            raise ValueError("q0_lvlh_from_body_xyzw must be a non-zero quaternion")
+        return self

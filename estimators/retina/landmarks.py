@@ -1,0 +1,163 @@
+r"""Retina per landmark and per frame: predict → correlate (eq. 9) → peak → final output phase.
+
+For each landmark: the maplet is projected with the a-priori pose (eqs. 1–4); its synthetic image is
+ray-traced and lit with McEwen's law (eqs. 5–8, :mod:`.predict`); the correlation coefficient (eq. 9) is
+computed at every integer shift within the search distance (:mod:`.correlation`); the peak is located to
+sub-pixel precision (:mod:`.peaks`, the paper's 3×3 interpolation by default). The measured shift
+(Δs, Δl) moves the predicted landmark pixel onto the observed one: ``meas = pred + (Δs, Δl)``.
+
+Final output phase (paper, "Final Output Phase"): all shifts of a frame should agree, since they come
+from one pose error. Each shift is compared with the frame's median shift; those farther than
+``max(outlier_floor_px, outlier_k · 1.4826 · MAD)`` are flagged :data:`~estimators.flags.OUTLIER` for
+the filter, not dropped. (The paper compares with the mean; the median is not dragged by the outliers
+it is looking for.)
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from estimators import flags as F
+from estimators.retina.correlation import correlation_surface
+from estimators.retina.maplet_mesh import MapletMesh
+from estimators.retina.peaks import locate_peak
+from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
+from renderlab.geometry.camera import CameraModel
+
+
+@dataclass(frozen=True)
+class RetinaOptions:
+    """Retina settings.
+
+    Attributes
+    ----------
+    template : TemplateOptions
+        Synthetic image options (supersampling, PSF, McEwen parameters, shadow rays).
+    peak : str
+        Peak finder (see :data:`estimators.retina.peaks.FINDERS`).
+    min_correlation : float
+        Peaks under this correlation are flagged ``LOW_CORRELATION`` (no result).
+    min_pixels : int
+        Minimum overlapping valid pixels at the peak.
+    outlier_k, outlier_floor_px : float
+        Final output phase threshold (module docstring).
+    """
+
+    template: TemplateOptions = field(default_factory=TemplateOptions)
+    peak: str = "retina_3x3"
+    min_correlation: float = 0.3
+    min_pixels: int = 64
+    outlier_k: float = 5.0
+    outlier_floor_px: float = 1.0
+
+
+@dataclass
+class LandmarkMeasurement:
+    """One landmark's measurement in one image (px; NaN shifts when there is no result)."""
+
+    landmark_id: int
+    pred_s: float
+    pred_l: float
+    ds: float = float("nan")
+    dl: float = float("nan")
+    score: float = float("nan")
+    flags: int = 0
+    search_px: int = 0
+    n_pixels: int = 0
+    shadow_fraction: float = float("nan")
+    t_ms: float = 0.0
+
+    @property
+    def meas_s(self) -> float:
+        return self.pred_s + self.ds
+
+    @property
+    def meas_l(self) -> float:
+        return self.pred_l + self.dl
+
+    @property
+    def has_result(self) -> bool:
+        return not (self.flags & F.NO_RESULT_MASK) and np.isfinite(self.ds)
+
+
+def facing_flags(mesh_or_maplet, pose: CameraPoseEstimate, sun_body: np.ndarray) -> int:
+    """``FACING_AWAY`` when the maplet's up axis faces away from the sun or the camera."""
+    M = getattr(mesh_or_maplet, "maplet", mesh_or_maplet)
+    up = np.asarray(M.R_body_from_maplet, float)[:, 2]
+    to_cam = np.asarray(pose.position_m, float) - np.asarray(M.center_m, float)
+    return F.FACING_AWAY if (up @ np.asarray(sun_body, float) <= 0 or up @ to_cam <= 0) else 0
+
+
+def measure_landmark(image: np.ndarray, mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate,
+                     sun_body: np.ndarray, search_px: int, options: RetinaOptions = RetinaOptions(),
+                     image_valid: np.ndarray | None = None) -> LandmarkMeasurement:
+    """Measure one landmark's (Δs, Δl) in ``image`` (see the module docstring)."""
+    t0 = time.perf_counter()
+    M = mesh.maplet
+    pred = project_point(camera, pose, M.center_m)
+    out = LandmarkMeasurement(int(M.landmark_id), float(pred[0]), float(pred[1]), search_px=int(search_px))
+    try:
+        if not np.all(np.isfinite(pred)):
+            out.flags |= F.OFF_IMAGE
+            return out
+        out.flags |= facing_flags(mesh, pose, sun_body)
+        if out.flags:
+            return out
+        tpl = render_template(mesh, camera, pose, sun_body, options.template)
+        if tpl is None:
+            out.flags |= F.OFF_IMAGE
+            return out
+        out.shadow_fraction = tpl.shadow_fraction
+        v = tpl.image[tpl.valid]
+        if v.size < options.min_pixels or np.ptp(v) <= 0:
+            out.flags |= F.FLAT_TEMPLATE if v.size >= options.min_pixels else F.TOO_FEW_PIXELS
+            return out
+        C, cnt = correlation_surface(image, tpl.image, tpl.valid, tpl.s0, tpl.l0, int(search_px),
+                                     image_valid, options.min_pixels)
+        peak = locate_peak(C, options.peak)
+        if peak is None:
+            out.flags |= F.OFF_IMAGE if cnt.max() == 0 else F.TOO_FEW_PIXELS
+            return out
+        r = int(search_px)
+        out.n_pixels = int(cnt[int(round(peak.dl)) + r, int(round(peak.ds)) + r])
+        out.score = peak.score
+        if peak.on_border:
+            out.flags |= F.SEARCH_BORDER
+        if peak.score < options.min_correlation:
+            out.flags |= F.LOW_CORRELATION
+        if not out.flags:
+            out.ds, out.dl = peak.ds, peak.dl
+        return out
+    finally:
+        out.t_ms = (time.perf_counter() - t0) * 1e3
+
+
+def final_output_phase(measurements: list, k: float = 5.0, floor_px: float = 1.0) -> np.ndarray:
+    """Flag shifts inconsistent with the frame's median shift (in place); returns the median (Δs, Δl).
+
+    Needs at least three results; with fewer nothing is flagged (there is no majority to compare with).
+    """
+    good = [m for m in measurements if m.has_result]
+    if len(good) < 3:
+        return np.full(2, np.nan)
+    d = np.array([[m.ds, m.dl] for m in good])
+    med = np.median(d, axis=0)
+    dist = np.hypot(*(d - med).T)
+    thr = max(floor_px, k * 1.4826 * float(np.median(dist)))
+    for m, r in zip(good, dist):
+        if r > thr:
+            m.flags |= F.OUTLIER
+    return med
+
+
+def measure_frame(image: np.ndarray, meshes: list[MapletMesh], camera: CameraModel, pose: CameraPoseEstimate,
+                  sun_body: np.ndarray, search_px: list[int], options: RetinaOptions = RetinaOptions(),
+                  image_valid: np.ndarray | None = None) -> list[LandmarkMeasurement]:
+    """All landmarks of one image, then the final output phase."""
+    res = [measure_landmark(image, m, camera, pose, sun_body, r, options, image_valid)
+           for m, r in zip(meshes, search_px)]
+    final_output_phase(res, options.outlier_k, options.outlier_floor_px)
+    return res

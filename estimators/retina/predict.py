@@ -1,0 +1,204 @@
+r"""Landmark prediction: projection with the a-priori pose (eqs. 1–4), search distance, synthetic image.
+
+Projection. The landmark centre :math:`\mathbf{x}_B` (body frame) goes to the camera frame with
+:math:`\mathbf{x}_C = \mathbf{T}_C^B(\mathbf{x}_B - \mathbf{t}_B)` (eqs. 1–2, ``T_C^B = R_body_from_cam^T``),
+then through the gnomonic projection, distortion and pixel map of the camera model (eqs. 3–4).
+
+Search distance. The a-priori pose error (position δt, covariance Σ_t; attitude δθ, a small rotation of
+the camera frame, ``R_body_from_cam ← R_body_from_cam · exp([δθ]×)``, covariance Σ_θ) moves the landmark's
+pixel by J_t δt + J_θ δθ with J_t = −J_p T_C^B and J_θ = J_p [x_C]×, J_p the projection Jacobian. The
+search radius is n_σ times the square root of the largest eigenvalue of the 2×2 pixel covariance
+(3σ by default), rounded up.
+
+Synthetic image (Retina "Synthetic Image Generation"): the pixels covering the maplet (bounding box of
+its projected grid points) are taken through the inverse camera model at k×k sub-pixel positions, the
+lines of sight are intersected with the maplet facets, a shadow ray is cast from every hit toward the
+sun, and each unshadowed hit is lit with McEwen's law (eqs. 5–8) and the maplet albedo. The k² samples
+are averaged (supersampling) and an optional Gaussian PSF matching the camera is applied
+(normalised over the valid pixels). A pixel is valid when all its samples hit the maplet.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
+from estimators.retina.maplet_mesh import MapletMesh
+from estimators.retina.raytrace import shade_pixels, trace_rays_numpy
+from renderlab.geometry.camera import CameraModel
+from renderlab.geometry.rotations import skew
+
+
+@dataclass(frozen=True)
+class CameraPoseEstimate:
+    """A camera pose in the body frame: ``p_body = R_body_from_cam @ p_cam + position_m``."""
+
+    R_body_from_cam: np.ndarray
+    position_m: np.ndarray
+
+    def to_camera(self, p_body: np.ndarray) -> np.ndarray:
+        """Eq. 1: body-frame points (..., 3) → camera frame."""
+        return (np.asarray(p_body, float) - np.asarray(self.position_m, float)) @ np.asarray(self.R_body_from_cam, float)
+
+
+def project_point(camera: CameraModel, pose: CameraPoseEstimate, p_body: np.ndarray) -> np.ndarray:
+    """Eqs. 1–4: body-frame point(s) (..., 3) → pixel (s, l) (..., 2); NaN behind the camera."""
+    return camera.project(pose.to_camera(p_body))
+
+
+def pixel_covariance(camera: CameraModel, pose: CameraPoseEstimate, p_body: np.ndarray,
+                     cov_pos_m2: np.ndarray, cov_rot_rad2: np.ndarray) -> np.ndarray:
+    """2×2 covariance (px²) of the landmark's pixel from the a-priori pose covariance (module docstring)."""
+    x_c = pose.to_camera(p_body)
+    Jp = camera.project_jacobian(x_c)
+    J_t = -Jp @ np.asarray(pose.R_body_from_cam, float).T
+    J_th = Jp @ skew(x_c)
+    return J_t @ np.asarray(cov_pos_m2, float) @ J_t.T + J_th @ np.asarray(cov_rot_rad2, float) @ J_th.T
+
+
+def search_radius_px(camera: CameraModel, pose: CameraPoseEstimate, p_body: np.ndarray,
+                     cov_pos_m2: np.ndarray, cov_rot_rad2: np.ndarray, n_sigma: float = 3.0,
+                     min_px: int = 2, max_px: int = 64) -> int:
+    """Search distance in whole pixels: ``ceil(n_sigma · sqrt(λ_max(Σ_px)))``, clamped to [min_px, max_px]."""
+    cov = pixel_covariance(camera, pose, p_body, cov_pos_m2, cov_rot_rad2)
+    if not np.all(np.isfinite(cov)):
+        return int(max_px)
+    lam = float(np.linalg.eigvalsh(cov)[-1])
+    return int(min(max(math.ceil(n_sigma * math.sqrt(max(lam, 0.0))), min_px), max_px))
+
+
+@dataclass(frozen=True)
+class TemplateOptions:
+    """Options of the synthetic image.
+
+    Attributes
+    ----------
+    supersample : int
+        k: k×k rays per pixel.
+    psf_sigma_px : float
+        Gaussian PSF standard deviation, px (0: none).
+    alpha0, ls_weight : float
+        McEwen parameters (eq. 5).
+    shadow_rays : bool
+        Cast shadow rays (False: only attached shadows, cos i ≤ 0).
+    max_size_px : int
+        Refuse templates larger than this on either side (the landmark is too close).
+    tracer : {"numba", "numpy"}
+        Grid-DDA numba kernel, or the plain-numpy brute force (benchmark baseline, slow).
+    """
+
+    supersample: int = 3
+    psf_sigma_px: float = 0.0
+    alpha0: float = DEFAULT_ALPHA0
+    ls_weight: float = 2.0
+    shadow_rays: bool = True
+    max_size_px: int = 256
+    tracer: str = "numba"
+
+
+@dataclass
+class Template:
+    """A predicted landmark image. ``image[y, x]`` is pixel (s0 + x, l0 + y) of the camera image."""
+
+    image: np.ndarray
+    valid: np.ndarray
+    s0: int
+    l0: int
+    shadow_fraction: float
+
+
+def template_box(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate) -> tuple[int, int, int, int] | None:
+    """Integer pixel box (s_min, l_min, s_max, l_max) covering the projected maplet grid, or None."""
+    sl = project_point(camera, pose, mesh.maplet.points_body().reshape(-1, 3))
+    if not np.all(np.isfinite(sl)):
+        return None
+    lo = np.floor(sl.min(axis=0)).astype(int)
+    hi = np.ceil(sl.max(axis=0)).astype(int)
+    return int(lo[0]), int(lo[1]), int(hi[0]), int(hi[1])
+
+
+def render_template(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate, sun_body: np.ndarray,
+                    options: TemplateOptions = TemplateOptions()) -> Template | None:
+    """Ray-trace the predicted image of a maplet (module docstring); None if it cannot be made."""
+    box = template_box(mesh, camera, pose)
+    if box is None:
+        return None
+    s_min, l_min, s_max, l_max = box
+    w, h = s_max - s_min + 1, l_max - l_min + 1
+    if w > options.max_size_px or h > options.max_size_px or w < 2 or h < 2:
+        return None
+    k = int(options.supersample)
+    off = (np.arange(k) + 0.5) / k - 0.5
+    ox, oy = np.meshgrid(off, off)
+    ls, ss = np.meshgrid(np.arange(l_min, l_max + 1, dtype=float), np.arange(s_min, s_max + 1, dtype=float),
+                         indexing="ij")
+    sl = np.stack([ss[..., None] + ox.ravel(), ls[..., None] + oy.ravel()], axis=-1).reshape(-1, 2)
+    d_cam = camera.unproject(sl)
+    M = mesh.maplet
+    R_mb = np.asarray(M.R_body_from_maplet, float).T
+    R_bc = np.asarray(pose.R_body_from_cam, float)
+    d_m = d_cam @ (R_mb @ R_bc).T
+    o_m = R_mb @ (np.asarray(pose.position_m, float) - np.asarray(M.center_m, float))
+    sun_m = R_mb @ (np.asarray(sun_body, float) / np.linalg.norm(sun_body))
+    ok_ray = np.all(np.isfinite(d_m), axis=1)
+    eps = 1e-6 * mesh.spacing + 1e-9
+    if options.tracer == "numpy":
+        img, cover, shadow_fraction = _shade_numpy(mesh, o_m, d_m, ok_ray, sun_m, options, eps, k * k)
+    else:
+        d_m[~ok_ray] = np.nan
+        val, nhit, nsh = shade_pixels(o_m, np.ascontiguousarray(d_m), k * k, mesh.heights, mesh.cell_min,
+                                      mesh.cell_max, mesh.spacing, mesh.normals, mesh.albedo, sun_m,
+                                      bool(options.shadow_rays), float(options.alpha0), float(options.ls_weight), eps)
+        img, cover = val, nhit / (k * k)
+        shadow_fraction = float(nsh.sum() / max(nhit.sum(), 1))
+    img, cover = img.reshape(h, w), cover.reshape(h, w)
+    valid = cover >= 1.0 - 1e-12
+    if options.psf_sigma_px > 0:
+        from scipy.ndimage import gaussian_filter
+
+        num = gaussian_filter(img * valid, options.psf_sigma_px, mode="constant")
+        den = gaussian_filter(valid.astype(float), options.psf_sigma_px, mode="constant")
+        img = np.where(valid, num / np.maximum(den, 1e-12), 0.0)
+    return Template(image=np.where(valid, img, 0.0), valid=valid, s0=s_min, l0=l_min,
+                    shadow_fraction=shadow_fraction)
+
+
+def _shade_numpy(mesh, o_m, d_m, ok_ray, sun_m, options, eps, k2):
+    """Plain-numpy synthetic image (brute-force tracer, vectorised shading): the benchmark baseline and an
+    independent check of the fused numba kernel."""
+    M = mesh.maplet
+    d = np.where(ok_ray[:, None], d_m, np.array([0.0, 0.0, 1.0]))
+    hit, P, Nn, shadow = trace_rays_numpy(mesh, np.broadcast_to(o_m, d.shape).copy(), d,
+                                          sun_m if options.shadow_rays else np.zeros(3), eps)
+    hit &= ok_ray
+    value = np.zeros(len(d))
+    if hit.any():
+        to_cam = o_m[None, :] - P[hit]
+        to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
+        n_h = Nn[hit]
+        cos_i = n_h @ sun_m
+        cos_r = np.einsum("ij,ij->i", n_h, to_cam)
+        phase = np.arccos(np.clip(to_cam @ sun_m, -1.0, 1.0))
+        alb = _bilinear(M.albedo, P[hit, 0] / M.spacing_m + (M.n - 1) / 2, P[hit, 1] / M.spacing_m + (M.n - 1) / 2)
+        v = mcewen_relative(cos_i, cos_r, phase, alb, options.alpha0, options.ls_weight)
+        v[shadow[hit] & (cos_i > 0)] = 0.0
+        value[hit] = v
+    lit_shadow = (shadow & hit) & (np.einsum("ij,j->i", np.nan_to_num(Nn), sun_m) > 0)
+    return (value.reshape(-1, k2).mean(axis=1), hit.reshape(-1, k2).mean(axis=1),
+            float(lit_shadow.sum() / max(hit.sum(), 1)))
+
+
+def _bilinear(grid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear sample of ``grid[row v, col u]`` (clamped at the border)."""
+    n1, n0 = grid.shape[0] - 1, grid.shape[1] - 1
+    u = np.clip(u, 0, n0)
+    v = np.clip(v, 0, n1)
+    i0 = np.clip(np.floor(u).astype(int), 0, n0 - 1)
+    j0 = np.clip(np.floor(v).astype(int), 0, n1 - 1)
+    fu, fv = u - i0, v - j0
+    g = np.asarray(grid, float)
+    return ((1 - fu) * (1 - fv) * g[j0, i0] + fu * (1 - fv) * g[j0, i0 + 1]
+            + (1 - fu) * fv * g[j0 + 1, i0] + fu * fv * g[j0 + 1, i0 + 1])

@@ -1,0 +1,91 @@
+"""A campaign plan: scenario + N runs + perturbations, one spawned ``SeedSequence`` per run.
+
+Run ``i`` is seeded by ``SeedSequence(seed, spawn_key=(i,))``, which is exactly the ``i``-th child of
+``SeedSequence(seed).spawn(N)``: any run can be replayed alone, and the seeds of runs 0..N-1 do not
+depend on N (a campaign can be extended without changing its first runs).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+MAX_RUNS = 1_000_000
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """Everything a worker needs to execute one run (picklable: plain data only)."""
+
+    campaign_dir: str
+    campaign: str
+    study: str
+    scenario: dict
+    base_dir: str
+    index: int
+    seed: int
+
+    def seed_sequence(self) -> np.random.SeedSequence:
+        return run_seed_sequence(self.seed, self.index)
+
+
+def run_seed_sequence(seed: int, index: int) -> np.random.SeedSequence:
+    """The run's ``SeedSequence``: the ``index``-th spawned child of ``SeedSequence(seed)``."""
+    return np.random.SeedSequence(int(seed), spawn_key=(int(index),))
+
+
+@dataclass(frozen=True)
+class CampaignPlan:
+    """A validated plan. ``scenario`` is a :class:`renderlab.scenario.Scenario`."""
+
+    scenario: object
+    base_dir: Path
+    runs: int
+    seed: int
+    study: str
+
+    @property
+    def name(self) -> str:
+        return self.scenario.name
+
+    def plan_dict(self) -> dict:
+        """The part of the manifest that must match for ``--resume``."""
+        return {"study": self.study, "runs": self.runs,
+                "seed": {"entropy": self.seed, "run_seed": "SeedSequence(entropy, spawn_key=(run,))"},
+                "scenario": self.scenario.to_dict()}
+
+    def digest(self) -> str:
+        text = json.dumps(self.plan_dict(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def tasks(self, campaign_dir: Path, indices=None) -> list[RunTask]:
+        sc = self.scenario.to_dict()
+        idx = range(self.runs) if indices is None else indices
+        return [RunTask(str(campaign_dir), self.name, self.study, sc, str(self.base_dir), int(i), self.seed)
+                for i in idx]
+
+
+def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, study: str | None = None) -> CampaignPlan:
+    """Validate a plan: run count, seed and the study (resolved against the registry).
+
+    Raises
+    ------
+    UserError
+        ``--runs`` out of range, negative seed, or an unknown study / one that does not fit the world.
+    """
+    from renderlab.campaign.studies import resolve_study, study_for
+
+    if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
+        raise UserError(f"--runs must be an integer in 1..{MAX_RUNS}, got {runs!r}")
+    seed = scenario.campaign.seed if seed is None else seed
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"campaign seed must be a non-negative integer, got {seed!r}")
+    name = study or study_for(scenario)
+    resolve_study(name)  # fails early on an unknown study
+    return CampaignPlan(scenario=scenario, base_dir=Path(base_dir).resolve(), runs=runs, seed=seed, study=name)

@@ -1,0 +1,241 @@
+"""Scoring campaign tables: errors against truth, bias, noise, robust statistics, failure rates, CRLB.
+
+Measurement tables (design.md): ``err = meas − truth`` per axis (s, l) and method. Per group:
+bias = mean (Student-t confidence interval), noise = standard deviation (χ² interval, normal errors),
+robust versions median (binomial order-statistic interval) and MAD·1.4826 (σ for normal errors),
+RMS, and the no-result rate (rows with ``flags & FLAG_NO_RESULT`` or a NaN measurement; Wilson
+interval). Breakdowns repeat this per quantile bin of a covariate (phase angle, GSD ratio, shadow
+fraction, albedo contrast, range).
+
+Image-registration Cramér–Rao bound: for an image I(s − δs, l − δl) of a known scene in independent
+Gaussian pixel noise of variance σ²ᵢ, the Fisher information of the shift is
+``J = Σᵢ ∇Iᵢ ∇Iᵢᵀ / σ²ᵢ`` and any unbiased shift estimate has ``cov ≥ J⁻¹``. With uncorrelated
+gradients this is the single-axis ``σ²/Σ(∂I/∂s)²`` of the issue. ∇I is the central difference of the
+noise-free expected DN (4th-order stencil); σ² comes from the sensor model (shot + dark electrons, read noise, gain,
+1/12 DN² quantisation). It bounds the correlation shift of Wright et al. eq. 9 and any centroid.
+
+Filter tables (``run, t_s, err_*``, ``nees``, ``nis``): per error column mean/std/RMS after a settling
+time, and ANEES/ANIS with their two-sided χ² bounds (N runs × d degrees of freedom).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+FLAG_NO_RESULT = 1  #: the method returned no measurement
+FLAG_OUT_OF_VIEW = 2  #: the predicted search window left the image
+FLAG_TOUCHES_EDGE = 4  #: the detection touched the search window's edge
+
+MEASUREMENT_COLUMNS = ("campaign", "run", "frame", "item", "method", "pred_s", "pred_l", "meas_s", "meas_l",
+                       "truth_s", "truth_l", "err_s", "err_l", "score", "flags", "t_ms")
+FILTER_COLUMNS = ("run", "t_s")
+BREAKDOWNS = ("phase_deg", "gsd_ratio", "shadow_fraction", "albedo_contrast", "range_m")
+#: columns that hold wall-clock timings (excluded from bit-identity checks)
+TIMING_COLUMNS = ("t_ms",)
+
+
+def table_kind(table) -> str:
+    """``"measurement"`` or ``"filter"`` from the columns present, ``"other"`` otherwise."""
+    names = set(table.column_names)
+    if set(MEASUREMENT_COLUMNS) <= names:
+        return "measurement"
+    if set(FILTER_COLUMNS) <= names and any(n.startswith("err_") for n in names):
+        return "filter"
+    return "other"
+
+
+# ------------------------------------------------------------------------------ statistics
+@dataclass(frozen=True)
+class Stats:
+    """Statistics of one error sample (NaNs removed); intervals at ``confidence``."""
+
+    n: int
+    mean: float
+    mean_lo: float
+    mean_hi: float
+    std: float
+    std_lo: float
+    std_hi: float
+    median: float
+    median_lo: float
+    median_hi: float
+    mad: float
+    rms: float
+
+
+def error_stats(x, confidence: float = 0.95) -> Stats:
+    """Bias, noise, robust statistics and their confidence intervals of the finite values of ``x``."""
+    from scipy import stats
+
+    x = np.sort(np.asarray(x, float)[np.isfinite(np.asarray(x, float))])
+    n = len(x)
+    nan = math.nan
+    if n == 0:
+        return Stats(0, *([nan] * 11))
+    a = 1.0 - confidence
+    mean, med = float(x.mean()), float(np.median(x))
+    rms = float(np.sqrt(np.mean(x * x)))
+    mad = float(1.482602218505602 * np.median(np.abs(x - med)))
+    if n < 2:
+        return Stats(n, mean, nan, nan, nan, nan, nan, med, nan, nan, mad, rms)
+    sd = float(x.std(ddof=1))
+    half = float(stats.t.ppf(1 - a / 2, n - 1)) * sd / math.sqrt(n)
+    q = (n - 1) * sd * sd
+    std_lo, std_hi = math.sqrt(q / stats.chi2.ppf(1 - a / 2, n - 1)), math.sqrt(q / stats.chi2.ppf(a / 2, n - 1))
+    j = int(stats.binom.ppf(a / 2, n, 0.5))  # order statistics x_(j), x_(n-j+1), 1-based
+    med_lo, med_hi = (float(x[j - 1]), float(x[n - j])) if j >= 1 else (nan, nan)
+    return Stats(n, mean, mean - half, mean + half, sd, std_lo, std_hi, med, med_lo, med_hi, mad, rms)
+
+
+def proportion_ci(k: int, n: int, confidence: float = 0.95) -> tuple[float, float, float]:
+    """Rate ``k/n`` and its Wilson score interval."""
+    from scipy import stats
+
+    if n == 0:
+        return math.nan, math.nan, math.nan
+    z = float(stats.norm.ppf(1 - (1 - confidence) / 2))
+    p = k / n
+    den = 1 + z * z / n
+    mid = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return p, min(p, max(0.0, mid - half)), max(p, min(1.0, mid + half))
+
+
+# ------------------------------------------------------------------------ measurement scoring
+def _col(table, name, dtype=float):
+    return np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype)
+
+
+def no_result_mask(table) -> np.ndarray:
+    """Rows where the method gave no measurement (flag or NaN)."""
+    flags = _col(table, "flags", np.int64)
+    return ((flags & FLAG_NO_RESULT) != 0) | ~np.isfinite(_col(table, "meas_s")) | ~np.isfinite(_col(table, "meas_l"))
+
+
+def _group_rows(table, mask, keys: dict, confidence: float) -> list[dict]:
+    rows = []
+    failed = no_result_mask(table)[mask]
+    rate, rate_lo, rate_hi = proportion_ci(int(failed.sum()), int(mask.sum()), confidence)
+    for axis in ("s", "l"):
+        err = _col(table, f"err_{axis}")[mask][~failed]
+        st = error_stats(err, confidence)
+        row = {**keys, "axis": axis, "n_rows": int(mask.sum()), "n_result": st.n,
+               "no_result_rate": rate, "no_result_lo": rate_lo, "no_result_hi": rate_hi,
+               **{f"{k}": getattr(st, k) for k in Stats.__dataclass_fields__ if k != "n"}}
+        if f"crlb_{axis}" in table.column_names:
+            c = _col(table, f"crlb_{axis}")[mask][~failed]
+            c = c[np.isfinite(c)]
+            row["crlb_rms"] = float(np.sqrt(np.mean(c * c))) if len(c) else math.nan
+            row["std_over_crlb"] = st.std / row["crlb_rms"] if len(c) and row["crlb_rms"] > 0 else math.nan
+        if "t_ms" in table.column_names:
+            row["t_ms_median"] = float(np.nanmedian(_col(table, "t_ms")[mask])) if mask.any() else math.nan
+        rows.append(row)
+    return rows
+
+
+def score_measurements(table, confidence: float = 0.95) -> list[dict]:
+    """Summary rows per (method, axis): bias, noise, robust stats, intervals, no-result rate, CRLB ratio."""
+    methods = _col(table, "method", object)
+    rows = []
+    for m in sorted(set(methods)):
+        rows += _group_rows(table, methods == m, {"method": m}, confidence)
+    return rows
+
+
+def breakdown(table, column: str, bins: int = 4, confidence: float = 0.95) -> list[dict]:
+    """Summary rows per (method, quantile bin of ``column``, axis); empty if the column is absent."""
+    if column not in table.column_names:
+        return []
+    v = _col(table, column)
+    fin = np.isfinite(v)
+    if fin.sum() == 0:
+        return []
+    edges = np.unique(np.quantile(v[fin], np.linspace(0, 1, bins + 1)))
+    if len(edges) < 2:
+        edges = np.array([v[fin].min(), v[fin].max()])
+    idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, len(edges) - 2)
+    methods = _col(table, "method", object)
+    rows = []
+    for m in sorted(set(methods)):
+        for b in range(len(edges) - 1):
+            mask = (methods == m) & fin & (idx == b)
+            if mask.any():
+                keys = {"method": m, "by": column, "bin": b, "lo": float(edges[b]), "hi": float(edges[b + 1]),
+                        "center": float(np.median(v[mask]))}
+                rows += _group_rows(table, mask, keys, confidence)
+    return rows
+
+
+# ----------------------------------------------------------------------------- CRLB
+def dn_variance(radiance: np.ndarray, options) -> np.ndarray:
+    """Per-pixel DN noise variance of :func:`renderlab.sensor.expose`: (μₑ + σ_read²)/g² + 1/12."""
+    from renderlab.sensor import mean_electrons
+
+    mu = np.minimum(mean_electrons(np.asarray(radiance, float), options), float(options.full_well_e))
+    return (mu + float(options.read_noise_e) ** 2) / float(options.gain_e_per_dn) ** 2 + 1.0 / 12.0
+
+
+def registration_crlb(expected: np.ndarray, variance, *, full: bool = True) -> tuple[float, float]:
+    """Cramér–Rao bound (1σ, px) of the (s, l) shift of a known image in Gaussian pixel noise.
+
+    Parameters
+    ----------
+    expected : ndarray (H, W)
+        Noise-free expected image (e.g. DN) over the registration window.
+    variance : float or ndarray (H, W)
+        Pixel noise variance, same units squared.
+    full : bool
+        True: sqrt of the diagonal of ``J⁻¹`` (joint s, l estimation); False: the single-axis
+        ``sqrt(σ²/Σ(∂I/∂s)²)`` form (equal when the gradients are uncorrelated).
+    """
+    from scipy.ndimage import correlate1d
+
+    img = np.asarray(expected, float)
+    stencil = np.array([1.0, -8.0, 0.0, 8.0, -1.0]) / 12.0  # 4th-order central difference
+    gs = correlate1d(img, stencil, axis=1, mode="nearest")
+    gl = correlate1d(img, stencil, axis=0, mode="nearest")
+    gs[:, [0, 1, -2, -1]] = np.nan  # the stencil needs two neighbours each side:
+    gl[[0, 1, -2, -1], :] = np.nan  # border pixels are left out
+    w = 1.0 / np.broadcast_to(np.asarray(variance, float), img.shape)
+    ok = np.isfinite(gs) & np.isfinite(gl) & np.isfinite(w)
+    J = np.array([[np.sum((w * gs * gs)[ok]), np.sum((w * gs * gl)[ok])],
+                  [np.sum((w * gs * gl)[ok]), np.sum((w * gl * gl)[ok])]])
+    if not full:
+        return (1 / math.sqrt(J[0, 0]) if J[0, 0] > 0 else math.inf, 1 / math.sqrt(J[1, 1]) if J[1, 1] > 0 else math.inf)
+    if np.linalg.det(J) <= 1e-12 * max(J[0, 0] * J[1, 1], 1e-300):
+        return math.inf, math.inf
+    C = np.linalg.inv(J)
+    return float(math.sqrt(C[0, 0])), float(math.sqrt(C[1, 1]))
+
+
+# ----------------------------------------------------------------------------- filter scoring
+def score_filter(table, *, settle_s: float = 0.0, nees_dof: int = 6, nis_dof: int = 2,
+                 confidence: float = 0.95) -> list[dict]:
+    """Rows per error column (after ``t_s ≥ settle_s``), plus ANEES/ANIS with χ² bounds."""
+    from scipy import stats
+
+    t = _col(table, "t_s")
+    keep = t >= settle_s
+    runs = _col(table, "run", np.int64)[keep]
+    n_runs = len(np.unique(runs))
+    rows = []
+    for name in table.column_names:
+        if name.startswith("err_"):
+            st = error_stats(_col(table, name)[keep], confidence)
+            rows.append({"quantity": name, "n": st.n, "mean": st.mean, "mean_lo": st.mean_lo, "mean_hi": st.mean_hi,
+                         "std": st.std, "rms": st.rms, "median": st.median, "mad": st.mad})
+    a = 1 - confidence
+    for name, dof in (("nees", nees_dof), ("nis", nis_dof)):
+        if name in table.column_names and n_runs:
+            v = _col(table, name)[keep]
+            ts = t[keep]
+            per_time = [np.nanmean(v[ts == tt]) for tt in np.unique(ts)]  # average over runs at each time
+            lo, hi = stats.chi2.ppf([a / 2, 1 - a / 2], dof * n_runs) / n_runs
+            inside = float(np.mean((np.array(per_time) >= lo) & (np.array(per_time) <= hi)))
+            rows.append({"quantity": f"a{name}", "n": len(v), "mean": float(np.nanmean(v)),
+                         "median": float(np.nanmedian(v)), "chi2_lo": float(lo), "chi2_hi": float(hi),
+                         "fraction_inside": inside})
+    return rows

@@ -1,0 +1,167 @@
+"""The campaign folder: manifest, one result folder per finished run, written atomically.
+
+::
+
+    CAMPAIGN_DIR/
+      campaign.json            format, plan (study, runs, seed, scenario), versions
+      runs/000000/             one folder per finished run, renamed into place when complete
+        <table>.parquet        the study's tables (measurements, perturbations, ...)
+        status.json            {"run", "status": "ok" | "error", "error", "seconds", "tables"}
+      work/truth_cache/<key>/  cached truth renders (renderlab.campaign.cache)
+
+A run is staged in ``runs/.NNNNNN.staging-*`` and renamed to ``runs/NNNNNN`` only when all of its files
+are written, so a killed campaign never leaves a half-written run; ``--resume`` skips runs whose folder
+says ``ok`` and re-executes the rest (errors included). Runs are indexed, so none can be doubled.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import shutil
+from pathlib import Path
+
+from renderlab.errors import UserError
+
+FORMAT = "renderlab.campaign/1"
+MANIFEST = "campaign.json"
+
+
+def run_dir(campaign_dir: Path, index: int) -> Path:
+    return Path(campaign_dir) / "runs" / f"{index:06d}"
+
+
+def _versions() -> dict:
+    import platform
+    from importlib import metadata
+
+    out = {"python": platform.python_version()}
+    for dist in ("renderlab", "numpy", "scipy", "pyarrow", "mitsuba", "opencv-python-headless", "dask", "distributed"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def _write_json_atomic(path: Path, data: dict) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}")
+    tmp.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def read_manifest(campaign_dir: Path) -> dict:
+    p = Path(campaign_dir) / MANIFEST
+    if not p.is_file():
+        raise UserError(f"{campaign_dir} is not a campaign folder (no {MANIFEST})")
+    try:
+        m = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise UserError(f"cannot read {p}: {exc}") from None
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        raise UserError(f"{p}: format must be {FORMAT!r}")
+    return m
+
+
+def _first_difference(a, b, where="") -> str:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b)):
+            if a.get(k) != b.get(k):
+                return _first_difference(a.get(k), b.get(k), f"{where}.{k}" if where else k)
+    return where or "(root)"
+
+
+def open_campaign(campaign_dir: Path, plan, *, resume: bool) -> dict:
+    """Create the folder and manifest, or (``resume``) check that the existing plan is the same one."""
+    d = Path(campaign_dir)
+    if d.exists() and not d.is_dir():
+        raise UserError(f"--out {d} exists and is not a directory")
+    plan_dict = plan.plan_dict()
+    if (d / MANIFEST).is_file():
+        if not resume:
+            raise UserError(f"--out {d} already holds a campaign; pass --resume to continue it or choose a new --out")
+        old = read_manifest(d)
+        if old.get("plan") != plan_dict:
+            key = _first_difference(old.get("plan") or {}, plan_dict)
+            raise UserError(f"--resume: {d} was made with a different plan ({key} differs); use a new --out")
+        return old
+    if d.is_dir() and any(d.iterdir()):
+        raise UserError(f"--out {d} exists, is not empty and holds no campaign")
+    try:
+        (d / "runs").mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"cannot create campaign folder {d}: {exc.strerror or exc}") from None
+    base = os.path.relpath(plan.base_dir, d.resolve())
+    manifest = {"format": FORMAT, "name": plan.name, "plan": plan_dict, "plan_digest": plan.digest(),
+                "scenario_dir": Path(base).as_posix(), "versions": _versions()}
+    _write_json_atomic(d / MANIFEST, manifest)
+    return manifest
+
+
+def run_status(campaign_dir: Path, index: int) -> dict | None:
+    p = run_dir(campaign_dir, index) / "status.json"
+    if not p.is_file():
+        return None
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def is_finished(campaign_dir: Path, index: int) -> bool:
+    st = run_status(campaign_dir, index)
+    return bool(st) and st.get("status") == "ok"
+
+
+def write_run(campaign_dir: Path, index: int, tables: dict, status: dict) -> None:
+    """Write one run's tables and status atomically (stage, then rename into ``runs/NNNNNN``)."""
+    import pyarrow.parquet as pq
+
+    runs = Path(campaign_dir) / "runs"
+    final = run_dir(campaign_dir, index)
+    stage = runs / f".{final.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
+    stage.mkdir(parents=True)
+    try:
+        for name, table in sorted(tables.items()):
+            pq.write_table(table, str(stage / f"{name}.parquet"))
+        (stage / "status.json").write_text(json.dumps({**status, "tables": sorted(tables)}, indent=1) + "\n",
+                                           encoding="utf-8")
+        if final.exists():
+            if is_finished(campaign_dir, index):  # another worker finished this run: keep its files
+                shutil.rmtree(stage, ignore_errors=True)
+                return
+            old = runs / f".{final.name}.old-{os.getpid()}-{secrets.token_hex(4)}"
+            os.rename(final, old)
+            shutil.rmtree(old, ignore_errors=True)
+        os.rename(stage, final)
+    except OSError:
+        shutil.rmtree(stage, ignore_errors=True)
+        if not is_finished(campaign_dir, index):
+            raise
+
+
+def finished_runs(campaign_dir: Path, runs: int) -> list[int]:
+    return [i for i in range(runs) if is_finished(campaign_dir, i)]
+
+
+def load_tables(campaign_dir: Path) -> dict:
+    """All finished runs' tables, concatenated per name in run order: ``{name: pyarrow.Table}``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    m = read_manifest(campaign_dir)
+    parts: dict[str, list] = {}
+    for i in range(int(m["plan"]["runs"])):
+        st = run_status(campaign_dir, i)
+        if not st or st.get("status") != "ok":
+            continue
+        for name in st.get("tables", []):
+            parts.setdefault(name, []).append(pq.read_table(str(run_dir(campaign_dir, i) / f"{name}.parquet")))
+    return {name: pa.concat_tables(ts, promote_options="permissive") for name, ts in parts.items()}
+
+
+def run_statuses(campaign_dir: Path) -> list[dict]:
+    """Status of every planned run (``{"run": i, "status": "missing"}`` where none was written)."""
+    m = read_manifest(campaign_dir)
+    return [run_status(campaign_dir, i) or {"run": i, "status": "missing"} for i in range(int(m["plan"]["runs"]))]

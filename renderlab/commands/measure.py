@@ -1,0 +1,66 @@
+"""``renderlab measure TRUTHSET --method retina|spc [--out FILE] [--seed S]``: landmark measurements of an
+EV5 truth set (see :mod:`renderlab.measure`); writes one Parquet table."""
+
+from __future__ import annotations
+
+import math
+
+
+def add_parser(subparsers) -> None:
+    p = subparsers.add_parser("measure", help="measure the landmarks of an EV5 truth set (Retina or SPC-style)")
+    p.add_argument("truthset", metavar="TRUTHSET", help="truth set folder with a landmark catalog")
+    p.add_argument("--method", required=True, choices=["retina", "spc"], help="measurement method")
+    p.add_argument("--out", metavar="FILE", help="output Parquet (default TRUTHSET/measurements_<method>.parquet)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the a-priori pose draws (default 0)")
+    p.add_argument("--sigma-pos-m", type=float, default=0.5, metavar="M",
+                   help="a-priori position 1-sigma per axis, m (default 0.5)")
+    p.add_argument("--sigma-att-deg", type=float, default=0.05, metavar="DEG",
+                   help="a-priori attitude 1-sigma per axis, deg (default 0.05)")
+    p.add_argument("--n-sigma", type=float, default=3.0, help="search distance in sigma (default 3)")
+    p.add_argument("--max-search-px", type=int, default=48, help="largest search distance, px (default 48)")
+    p.add_argument("--peak", choices=["retina_3x3", "parabola_1d", "quadric_2d", "gaussian", "upsampled"],
+                   help="peak finder (default: retina_3x3 for retina, quadric_2d for spc)")
+    p.add_argument("--min-correlation", type=float, default=0.3, help="correlation threshold (default 0.3)")
+    p.add_argument("--psf-sigma-px", type=float, default=0.0, help="Retina's PSF sigma, px (default 0)")
+    p.add_argument("--campaign", default="", help="campaign name written in every row")
+    p.add_argument("--overwrite", action="store_true", help="replace FILE if it exists")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args) -> int:
+    from pathlib import Path
+
+    import numpy as np
+
+    from estimators.flags import NO_RESULT_MASK
+    from renderlab.errors import UserError
+    from renderlab.measure import MeasureOptions, measure_truthset, write_table
+    from renderlab.truthset import TruthSet
+
+    if args.seed < 0:
+        raise UserError(f"--seed must be >= 0, got {args.seed}")
+    for name in ("sigma_pos_m", "sigma_att_deg", "n_sigma", "psf_sigma_px"):
+        v = getattr(args, name)
+        if not math.isfinite(v) or v < 0:
+            raise UserError(f"--{name.replace('_', '-')} must be a finite non-negative number, got {v}")
+    ts = TruthSet.open(args.truthset)
+    if not (ts.path / "landmarks.parquet").is_file():
+        raise UserError(f"truth set {ts.path} has no landmark catalog (landmarks.parquet); "
+                        "measure needs an EV5 truth set")
+    try:
+        from renderlab.worlds.ev5.catalog import read_catalog
+    except ImportError:
+        raise UserError("the EV5 catalog reader (renderlab.worlds.ev5.catalog) is not installed") from None
+    maplets = read_catalog(ts.path)
+    opts = MeasureOptions(sigma_pos_m=(args.sigma_pos_m,) * 3, sigma_att_rad=(math.radians(args.sigma_att_deg),) * 3,
+                          n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
+                          min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
+                          campaign=args.campaign)
+    out = Path(args.out) if args.out else ts.path / f"measurements_{args.method}.parquet"
+    if out.exists() and not args.overwrite:
+        raise UserError(f"output {out} exists (use --overwrite to replace it)")
+    table = measure_truthset(ts, maplets, args.method, opts, np.random.default_rng(args.seed), progress=not args.quiet)
+    write_table(table, out, overwrite=args.overwrite)
+    ok = sum(1 for f in table.column("flags").to_pylist() if not f & NO_RESULT_MASK)
+    print(f"renderlab: {table.num_rows} {args.method} measurements ({ok} with a result) -> {out}")
+    return 0

@@ -1,0 +1,98 @@
+"""``renderlab visibility``: coastline visibility vs inclination and FOV (Straub & Christian Fig. 4)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from renderlab.errors import UserError
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        vals = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise UserError(f"expected a comma-separated list of numbers, got {text!r}") from None
+    if not vals:
+        raise UserError(f"expected a comma-separated list of numbers, got {text!r}")
+    return vals
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("visibility", help="share of nadir images containing coastline vs inclination and FOV")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder (table, contour plot)")
+    p.add_argument("--altitude-km", type=float, default=1000.0)
+    p.add_argument("--inclinations", default="0,10,20,30,40,50,60,70,80,90", help="degrees, comma-separated")
+    p.add_argument("--fovs", default="5,10,15,20,30,40,50,60", help="full FOV in degrees, comma-separated")
+    p.add_argument("--hours", type=float, default=24.0)
+    p.add_argument("--cadence-s", type=float, default=30.0)
+    p.add_argument("--epoch", default="2024-03-20T00:00:00Z", help="UTC epoch of the elements (sun, Earth angle)")
+    p.add_argument("--daylight", action="store_true", help="count only coast lit by the sun")
+    p.add_argument("--cloud-cover", type=float, default=0.0, help="cloud cover fraction in [0, 1)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--quiet", action="store_true")
+
+
+def run(args) -> int:
+    import numpy as np
+
+    from renderlab.worlds.earth import wgs84
+    from renderlab.worlds.earth.gshhg import load_gshhg
+    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep
+
+    incs, fovs = _floats(args.inclinations), _floats(args.fovs)
+    if not all(0 <= i <= 180 for i in incs):
+        raise UserError("--inclinations must be within 0..180 degrees")
+    if not all(0 < f < 120 for f in fovs):
+        raise UserError("--fovs must be within (0, 120) degrees")
+    if not (150 <= args.altitude_km <= 40000) or args.hours <= 0 or args.cadence_s <= 0:
+        raise UserError("--altitude-km must be 150..40000, --hours and --cadence-s positive")
+    if not (0 <= args.cloud_cover < 1):
+        raise UserError(f"--cloud-cover must be in [0, 1), got {args.cloud_cover}")
+    try:
+        wgs84.parse_epoch(args.epoch)
+    except ValueError:
+        raise UserError(f"--epoch: not an ISO 8601 time: {args.epoch!r}") from None
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a folder")
+    opt = VisibilityOptions(altitude_m=args.altitude_km * 1e3, hours=args.hours, cadence_s=args.cadence_s,
+                            epoch_utc=args.epoch, daylight_only=args.daylight, cloud_cover=args.cloud_cover,
+                            seed=args.seed)
+    rows = visibility_sweep(incs, fovs, opt, load_gshhg(), progress=not args.quiet)
+    out.mkdir(parents=True, exist_ok=True)
+    import csv
+
+    with open(out / "visibility.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    _plot(rows, out / "visibility_contour.png", opt)
+    print(f"renderlab: wrote {out / 'visibility.csv'} and {out / 'visibility_contour.png'}")
+    return 0
+
+
+def _plot(rows, path, opt) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    incs = sorted({r["inclination_deg"] for r in rows})
+    fovs = sorted({r["fov_deg"] for r in rows})
+    key = "fraction_usable" if "fraction_usable" in rows[0] else "fraction_coast"
+    Z = np.array([[next(r[key] for r in rows if r["inclination_deg"] == i and r["fov_deg"] == f) for i in incs]
+                  for f in fovs]) * 100
+    fig, ax = plt.subplots(figsize=(6, 4.5), constrained_layout=True)
+    if len(incs) > 1 and len(fovs) > 1:
+        cs = ax.contourf(incs, fovs, Z, levels=np.arange(0, 101, 10), cmap="viridis")
+        ax.contour(incs, fovs, Z, levels=np.arange(0, 101, 10), colors="k", linewidths=0.4)
+        fig.colorbar(cs, label="images with coastline [%]")
+    else:
+        ax.scatter(np.repeat(incs, len(fovs)), np.tile(fovs, len(incs)), c=Z.T.ravel())
+    ax.set_xlabel("inclination [deg]")
+    ax.set_ylabel("field of view [deg]")
+    extra = (" daylight" if opt.daylight_only else "") + (f" clouds {opt.cloud_cover:.2f}" if opt.cloud_cover else "")
+    ax.set_title(f"{opt.altitude_m / 1e3:.0f} km, {opt.hours:g} h, every {opt.cadence_s:g} s{extra}")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -1,0 +1,272 @@
+"""The landmark-measurement runner: a truth set + maplets → the measurement table (one row per landmark
+attempted per frame), for Retina or the SPC-style method.
+
+Per frame: the true camera pose (manifest ``pose``) is perturbed by a seeded draw from the a-priori
+covariance (position δt ~ N(0, Σ_t) in the body/render frame; attitude δθ ~ N(0, Σ_θ), a rotation of the
+camera frame, ``R_apriori = R_true · exp([δθ]×)``). With that a-priori pose each landmark is predicted
+(``pred``); landmarks whose predicted centre falls outside the image are not attempted (as onboard).
+The search distance is n_σ times the projected covariance (``estimators.retina.search_radius_px``).
+``meas = pred + (Δs, Δl)``; ``truth`` is the landmark_truth table's (s, l) when the set has one, else the
+projection with the true pose; ``err = meas − truth``. Rows with no result have NaN ``meas``/``err``.
+
+``flags`` is the bit mask of :mod:`estimators.flags` (``flags_text`` spells it out, ``ok`` when 0):
+off_image 1, too_few_pixels 2, flat_template 4, low_correlation 8, search_border 16, outlier 32 (final
+output phase, kept), not_visible_truth 64 (truth: not visible or occluded), facing_away 128.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+METHODS = ("retina", "spc")
+
+
+@dataclass(frozen=True)
+class MeasureOptions:
+    """Runner options (SI units).
+
+    Attributes
+    ----------
+    sigma_pos_m : tuple of 3 float
+        A-priori position 1σ per body axis, m.
+    sigma_att_rad : tuple of 3 float
+        A-priori attitude 1σ per camera axis, rad.
+    n_sigma : float
+        Search distance in σ of the projected covariance.
+    min_search_px, max_search_px : int
+        Clamp of the search distance.
+    peak : str or None
+        Peak finder (None: the method's own — Retina ``retina_3x3``, SPC ``quadric_2d``).
+    min_correlation : float
+        Correlation threshold for a result.
+    supersample : int
+        Retina's k×k rays per pixel.
+    psf_sigma_px : float
+        Retina's PSF σ, px.
+    campaign : str
+        Campaign name written in every row.
+    run : int
+        Run number written in every row.
+    """
+
+    sigma_pos_m: tuple = (0.5, 0.5, 0.5)
+    sigma_att_rad: tuple = (math.radians(0.05),) * 3
+    n_sigma: float = 3.0
+    min_search_px: int = 2
+    max_search_px: int = 48
+    peak: str | None = None
+    min_correlation: float = 0.3
+    supersample: int = 3
+    psf_sigma_px: float = 0.0
+    campaign: str = ""
+    run: int = 0
+
+    def __post_init__(self):
+        for name in ("sigma_pos_m", "sigma_att_rad"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape == ():
+                v = np.full(3, float(v))
+            if v.shape != (3,) or not np.all(np.isfinite(v)) or np.any(v < 0):
+                raise UserError(f"{name} must be 3 finite non-negative numbers, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, tuple(float(x) for x in v))
+        if not (self.n_sigma > 0 and math.isfinite(self.n_sigma)):
+            raise UserError(f"n_sigma must be positive, got {self.n_sigma!r}")
+        if not 1 <= self.min_search_px <= self.max_search_px:
+            raise UserError(f"search distance bounds must satisfy 1 <= min <= max, got "
+                            f"{self.min_search_px}, {self.max_search_px}")
+        if not -1.0 <= self.min_correlation <= 1.0:
+            raise UserError(f"min_correlation must be in [-1, 1], got {self.min_correlation!r}")
+        if self.supersample < 1:
+            raise UserError(f"supersample must be >= 1, got {self.supersample!r}")
+        if self.psf_sigma_px < 0:
+            raise UserError(f"psf_sigma_px must be >= 0, got {self.psf_sigma_px!r}")
+        if self.peak is not None:
+            from estimators.retina.peaks import FINDERS
+
+            if self.peak not in FINDERS:
+                raise UserError(f"peak must be one of {', '.join(FINDERS)}, got {self.peak!r}")
+
+
+@dataclass
+class _Frame:
+    index: int
+    camera: object
+    R: np.ndarray
+    position: np.ndarray
+    sun: np.ndarray
+    adc_max: int | None
+    extra: dict = field(default_factory=dict)
+
+
+def _frame_record(ts, i: int) -> _Frame:
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.geometry.rotations import rotation_from_quat_xyzw
+
+    rec = ts.frames[i]
+    where = f"truth set {ts.path}: frames[{i}]"
+    try:
+        cam = CameraModel.from_dict(rec["camera"])
+        pose, sun = rec["pose"], rec["sun"]["direction_render"]
+        R = rotation_from_quat_xyzw(pose["quat_render_from_cam_xyzw"], f"{where}.pose").as_matrix()
+        pos = np.asarray(pose["position_m"], float)
+        sun = np.asarray(sun, float)
+    except KeyError as exc:
+        raise UserError(f"{where} has no {exc.args[0]!r} (camera, pose and sun are needed)") from None
+    if pos.shape != (3,) or sun.shape != (3,) or not np.all(np.isfinite(pos)) or not np.linalg.norm(sun) > 0:
+        raise UserError(f"{where}: pose.position_m and sun.direction_render must be finite 3-vectors")
+    bits = (rec.get("sensor") or {}).get("bits")
+    return _Frame(int(rec["index"]), cam, R, pos, sun / np.linalg.norm(sun), (1 << int(bits)) - 1 if bits else None)
+
+
+def _truth_lookup(ts) -> dict:
+    """{(frame, landmark_id): row dict} from landmark_truth.parquet, or {} when the set has none."""
+    if not (ts.path / "landmark_truth.parquet").is_file():
+        return {}
+    t = ts.read_table("landmark_truth").to_pydict()
+    need = ("frame", "landmark_id", "s", "l")
+    missing = [k for k in need if k not in t]
+    if missing:
+        raise UserError(f"truth set {ts.path}: landmark_truth.parquet lacks column {missing[0]!r}")
+    keys = list(t)
+    return {(int(t["frame"][k]), int(t["landmark_id"][k])): {c: t[c][k] for c in keys} for k in range(len(t["frame"]))}
+
+
+def draw_apriori(R_true: np.ndarray, pos_true: np.ndarray, options: MeasureOptions, rng: np.random.Generator):
+    """(R_apriori, pos_apriori, dpos, drot): the true pose perturbed by one draw (module docstring)."""
+    from scipy.spatial.transform import Rotation
+
+    dpos = rng.normal(0.0, 1.0, 3) * np.asarray(options.sigma_pos_m)
+    drot = rng.normal(0.0, 1.0, 3) * np.asarray(options.sigma_att_rad)
+    return R_true @ Rotation.from_rotvec(drot).as_matrix(), pos_true + dpos, dpos, drot
+
+
+def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = MeasureOptions(),
+                     rng: np.random.Generator | None = None, progress: bool = False):
+    """Measure every landmark of every frame of an open :class:`~renderlab.truthset.TruthSet`.
+
+    Parameters
+    ----------
+    ts : TruthSet
+        The truth set (frames with camera, pose, sun; DN images).
+    maplets : list of Maplet
+        The landmark catalog (in memory).
+    method : {"retina", "spc"}
+    options : MeasureOptions
+    rng : numpy.random.Generator
+        Source of the a-priori pose draws (one draw of 6 normals per frame, in frame order).
+    progress : bool
+        Show a tqdm bar over frames.
+
+    Returns
+    -------
+    pyarrow.Table
+        One row per landmark attempted per frame (columns: module docstring and design.md).
+    """
+    import pyarrow as pa
+    from tqdm import tqdm
+
+    from estimators import flags as F
+    from estimators.retina import CameraPoseEstimate, RetinaOptions, TemplateOptions, build_mesh, search_radius_px
+    from estimators.retina import measure_frame as retina_frame
+    from estimators.spc import SpcOptions
+    from estimators.spc import measure_frame as spc_frame
+
+    if method not in METHODS:
+        raise UserError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if not maplets:
+        raise UserError(f"truth set {ts.path}: the landmark catalog is empty")
+    rng = np.random.default_rng(0) if rng is None else rng
+    if method == "retina":
+        opts = RetinaOptions(template=TemplateOptions(supersample=options.supersample, psf_sigma_px=options.psf_sigma_px),
+                             peak=options.peak or "retina_3x3", min_correlation=options.min_correlation)
+        items = [build_mesh(m) for m in maplets]
+        frame_fn = retina_frame
+    else:
+        opts = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation)
+        items = list(maplets)
+        frame_fn = spc_frame
+    truth = _truth_lookup(ts)
+    cov_p = np.diag(np.square(options.sigma_pos_m))
+    cov_r = np.diag(np.square(options.sigma_att_rad))
+    rows: list[dict] = []
+    for i in tqdm(range(len(ts)), desc=f"measure {method}", unit="frame", disable=not progress):
+        fr = _frame_record(ts, i)
+        R_ap, p_ap, dpos, drot = draw_apriori(fr.R, fr.position, options, rng)
+        apriori = CameraPoseEstimate(R_ap, p_ap)
+        true_pose = CameraPoseEstimate(fr.R, fr.position)
+        cam = fr.camera
+        centres = np.array([m.center_m for m in maplets], float)
+        pred = cam.project(apriori.to_camera(centres))
+        attempt = np.flatnonzero(cam.in_image(pred))
+        if attempt.size == 0:
+            continue
+        image = ts.load(i).dn.astype(np.float64)
+        a_valid = image < fr.adc_max if fr.adc_max is not None else None
+        radii = [search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
+                                  options.min_search_px, options.max_search_px) for k in attempt]
+        results = frame_fn(image, [items[k] for k in attempt], cam, apriori, fr.sun, radii, opts, a_valid)
+        truth_px = cam.project(true_pose.to_camera(centres[attempt]))
+        for k, res, tp in zip(attempt, results, truth_px):
+            lid = int(maplets[k].landmark_id)
+            trow = truth.get((fr.index, lid))
+            row = {"campaign": options.campaign, "run": int(options.run), "frame": fr.index, "item": lid,
+                   "method": method, "pred_s": res.pred_s, "pred_l": res.pred_l}
+            ts_, tl_ = (float(trow["s"]), float(trow["l"])) if trow else (float(tp[0]), float(tp[1]))
+            visible = bool(cam.in_image(tp)) if trow is None else bool(trow.get("visible", True)) and not bool(trow.get("occluded", False))
+            flags = res.flags | (0 if visible else F.NOT_VISIBLE_TRUTH)
+            ok = res.has_result
+            ms, ml = (res.meas_s, res.meas_l) if ok else (math.nan, math.nan)
+            row.update(meas_s=ms, meas_l=ml, truth_s=ts_, truth_l=tl_, err_s=ms - ts_, err_l=ml - tl_,
+                       score=res.score, flags=int(flags), flags_text=F.describe(flags), t_ms=res.t_ms,
+                       peak=opts.peak, search_px=int(res.search_px), n_pixels=int(res.n_pixels),
+                       pred_shadow_fraction=res.shadow_fraction, truth_visible=visible,
+                       apriori_dpos_x_m=dpos[0], apriori_dpos_y_m=dpos[1], apriori_dpos_z_m=dpos[2],
+                       apriori_drot_x_rad=drot[0], apriori_drot_y_rad=drot[1], apriori_drot_z_rad=drot[2])
+            for c in ("gsd_ratio", "phase_deg", "incidence_deg", "emission_deg", "shadow_fraction"):
+                row[c] = float(trow[c]) if trow and c in trow and trow[c] is not None else math.nan
+            rows.append(row)
+    return pa.Table.from_pylist(rows, schema=_schema())
+
+
+def _schema():
+    import pyarrow as pa
+
+    f64, i64 = pa.float64(), pa.int64()
+    cols = [("campaign", pa.string()), ("run", i64), ("frame", i64), ("item", i64), ("method", pa.string()),
+            ("pred_s", f64), ("pred_l", f64), ("meas_s", f64), ("meas_l", f64), ("truth_s", f64), ("truth_l", f64),
+            ("err_s", f64), ("err_l", f64), ("score", f64), ("flags", i64), ("flags_text", pa.string()),
+            ("t_ms", f64), ("peak", pa.string()), ("search_px", i64), ("n_pixels", i64),
+            ("pred_shadow_fraction", f64), ("truth_visible", pa.bool_()),
+            ("apriori_dpos_x_m", f64), ("apriori_dpos_y_m", f64), ("apriori_dpos_z_m", f64),
+            ("apriori_drot_x_rad", f64), ("apriori_drot_y_rad", f64), ("apriori_drot_z_rad", f64),
+            ("gsd_ratio", f64), ("phase_deg", f64), ("incidence_deg", f64), ("emission_deg", f64),
+            ("shadow_fraction", f64)]
+    return pa.schema(cols)
+
+
+def write_table(table, out_path, overwrite: bool = False) -> None:
+    """Write a Parquet table atomically (temporary sibling, then rename)."""
+    import os
+    from pathlib import Path
+
+    import pyarrow.parquet as pq
+
+    out = Path(out_path)
+    if out.exists() and not overwrite:
+        raise UserError(f"output {out} exists (use --overwrite to replace it)")
+    if not out.parent.is_dir():
+        raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
+    tmp = out.with_name(f".{out.name}.tmp-{os.getpid()}")
+    try:
+        pq.write_table(table, str(tmp))
+        os.replace(tmp, out)
+    except OSError as exc:
+        raise UserError(f"cannot write {out}: {exc.strerror or exc}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()

@@ -1,0 +1,349 @@
+r"""Geometric coastline-navigation Monte Carlo, the way Straub & Christian simulated it (Section III.B).
+
+Truth: a circular orbit from classical elements (RAAN, ω, ν = 0 in the paper), propagated by
+:func:`renderlab.dynamics.orbits.propagate` (two-body, eq. 10-12, optionally + J2); a nadir-pointing
+camera with a square field of view (30° in the paper; ground footprint eq. 1); the Earth turning at
+ω⊕ from GMST ``gmst0_rad`` at t = 0. At every measurement time the database coastline points
+(:mod:`.coastline_database`, real GSHHG) that lie inside the camera's field of view and face the
+camera are found; the image is cut into a g×g grid (g² ≤ ``points_per_image``) and the point nearest each
+occupied cell's centre is taken, so matched points spread over the image. All of this depends on the
+truth only and is shared by every run.
+
+Per run (its own ``numpy.random.Generator`` from one spawned ``SeedSequence``, draws in a fixed layout so
+run k replays alone bit-identically): the initial estimate is the truth plus N(0, diag(σ_r², σ_v²))
+(500 m / 5 mm/s per axis in the paper); each LOS is the true camera-frame unit vector tilted by σθ
+(eq. 18 noise model); the star tracker reports the attitude rotated by N(0, σ_att² I). The filter is
+:class:`estimators.coastline.ekf.BatchCoastlineEKF`, all runs in lock-step.
+
+Output (design's filter-study schema), one row per run and time: ``run, t_s, err_r_m, err_i_m, err_c_m,
+err_vr_mps, err_vi_mps, err_vc_mps, sig_r_m, sig_i_m, sig_c_m, sig_vr_mps, sig_vi_mps, sig_vc_mps, nees,
+nis, n_meas``. RIC = radial, in-track (ĥ × r̂), cross-track (ĥ = r × v/|r × v|) of the *true* state; velocity
+errors are the inertial velocity error resolved on those axes. ``nees`` has 6 degrees of freedom, ``nis``
+2·n_meas (NaN where n_meas = 0; row t = 0 is the initial estimate, before any image).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import asdict, dataclass, fields, replace
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+__all__ = ["CoastlineGeometricOptions", "Geometry", "PAPER_ORBITS", "paper_orbit", "truth_geometry",
+           "draws_for_runs", "measurements", "run_batch", "run", "ric_axes", "FILTER_COLUMNS"]
+
+R_EARTH_M = 6378137.0
+OMEGA_EARTH = 7.292115e-5
+
+FILTER_COLUMNS = ["run", "t_s", "err_r_m", "err_i_m", "err_c_m", "err_vr_mps", "err_vi_mps", "err_vc_mps",
+                  "sig_r_m", "sig_i_m", "sig_c_m", "sig_vr_mps", "sig_vi_mps", "sig_vc_mps", "nees", "nis",
+                  "n_meas"]
+
+
+@dataclass(frozen=True)
+class CoastlineGeometricOptions:
+    """Options of one geometric coastline-EKF study (SI units; angles in rad).
+
+    The defaults are the paper's where it states them (30° FOV, 500 m / 5 mm/s dispersion, RAAN = ω = ν = 0,
+    two-body truth, 30 s cadence from Section III.A); the rest are stated assumptions: σθ = 0.5 mrad (one pixel
+    of a 1024-px, 30° camera), a 5″ star tracker, 16 matched points per image, no process noise, one orbit.
+    """
+
+    altitude_m: float = 1.0e6
+    inclination_rad: float = 0.0
+    raan_rad: float = 0.0
+    argp_rad: float = 0.0
+    nu0_rad: float = 0.0
+    gmst0_rad: float = 0.0
+    truth_j2: bool = False
+    duration_s: float | None = None          # None: one orbital period
+    cadence_s: float = 30.0
+    fov_rad: float = math.radians(30.0)
+    points_per_image: int = 16
+    db_spacing_m: float = 2000.0
+    sigma_theta_rad: float = 5.0e-4
+    sigma_star_tracker_rad: float = 2.424e-5  # 5 arcsec per axis
+    sigma_r0_m: float = 500.0
+    sigma_v0_mps: float = 0.005
+    q_acc_m2_s3: float = 0.0
+    filter_step_s: float = 10.0
+
+    def validate(self) -> "CoastlineGeometricOptions":
+        checks = [
+            ("altitude_m", 1.0e5 <= self.altitude_m <= 5.0e7, "between 100 km and 50000 km"),
+            ("cadence_s", self.cadence_s > 0, "> 0"),
+            ("fov_rad", 0 < self.fov_rad < math.radians(120), "in (0, 120°)"),
+            ("points_per_image", self.points_per_image >= 1, ">= 1"),
+            ("db_spacing_m", self.db_spacing_m >= 100.0, ">= 100 m"),
+            ("sigma_theta_rad", self.sigma_theta_rad > 0, "> 0 (the filter needs R, eq. 18)"),
+            ("sigma_star_tracker_rad", self.sigma_star_tracker_rad >= 0, ">= 0"),
+            ("sigma_r0_m", self.sigma_r0_m > 0, "> 0"),
+            ("sigma_v0_mps", self.sigma_v0_mps > 0, "> 0"),
+            ("q_acc_m2_s3", self.q_acc_m2_s3 >= 0, ">= 0"),
+            ("filter_step_s", self.filter_step_s > 0, "> 0"),
+        ]
+        if self.duration_s is not None:
+            checks.append(("duration_s", self.duration_s >= self.cadence_s, ">= cadence_s"))
+        for name, ok, what in checks:
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and ok):
+                raise UserError(f"coastline study option {name} = {value!r} must be {what}")
+        return self
+
+    @property
+    def period_s(self) -> float:
+        from renderlab.dynamics.orbits import MU_EARTH
+
+        a = R_EARTH_M + self.altitude_m
+        return 2.0 * math.pi * math.sqrt(a**3 / MU_EARTH)
+
+
+PAPER_ORBITS = {  # name -> (altitude_m, inclination_deg), Table 1
+    "i00_h1000": (1.0e6, 0.0), "i45_h1000": (1.0e6, 45.0), "i90_h1000": (1.0e6, 90.0),
+    "i45_h500": (5.0e5, 45.0), "i90_h500": (5.0e5, 90.0),
+}
+
+
+def paper_orbit(name: str, **overrides) -> CoastlineGeometricOptions:
+    """Options for one of the paper's five orbits (``PAPER_ORBITS``) with any option overridden."""
+    if name not in PAPER_ORBITS:
+        raise UserError(f"unknown coastline orbit {name!r}; choose one of {', '.join(PAPER_ORBITS)}")
+    h, inc = PAPER_ORBITS[name]
+    return replace(CoastlineGeometricOptions(altitude_m=h, inclination_rad=math.radians(inc)), **overrides).validate()
+
+
+@dataclass
+class Geometry:
+    """Truth shared by all runs: times (K,), states (K, 6), T_cam_from_eci (K, 3, 3), matched points per time."""
+
+    t_s: np.ndarray
+    x_true: np.ndarray
+    T_cam_from_eci: np.ndarray
+    points_eci: list[np.ndarray]     # per time (m_k, 3); m_0 = 0 (initial estimate only)
+    n_meas: np.ndarray               # (K,)
+    n_visible: np.ndarray            # (K,) database points in the field of view before the grid pick
+
+
+def ric_axes(x: np.ndarray) -> np.ndarray:
+    """Rows r̂, î, ĉ of the RIC frame of states x (..., 6) → C_ric_from_eci (..., 3, 3)."""
+    r, v = x[..., :3], x[..., 3:]
+    rh = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    h = np.cross(r, v)
+    ch = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    ih = np.cross(ch, rh)
+    return np.stack([rh, ih, ch], axis=-2)
+
+
+def _R3(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])   # ECEF = R3(θ) ECI
+
+
+def _geometry_key(o: CoastlineGeometricOptions) -> CoastlineGeometricOptions:
+    """Options with the per-run noise fields reset, so runs differing only in noise share the truth."""
+    return replace(o, sigma_theta_rad=1.0, sigma_star_tracker_rad=0.0, sigma_r0_m=1.0, sigma_v0_mps=1.0,
+                   q_acc_m2_s3=0.0, filter_step_s=1.0)
+
+
+def truth_geometry(options: CoastlineGeometricOptions) -> Geometry:
+    """Truth orbit, attitude and the matched coastline points at every measurement time (cached per process)."""
+    return _truth_geometry_cached(_geometry_key(options.validate()))
+
+
+@functools.lru_cache(maxsize=8)
+def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
+    from renderlab.dynamics.orbits import nadir_attitude, propagate, state_from_elements
+
+    from .coastline_database import coastline_points
+
+    duration = o.period_s if o.duration_s is None else o.duration_s
+    K = int(math.floor(duration / o.cadence_s + 1e-9)) + 1
+    t = np.arange(K) * o.cadence_s
+    r0, v0 = state_from_elements(R_EARTH_M + o.altitude_m, 0.0, o.inclination_rad, o.raan_rad, o.argp_rad,
+                                 o.nu0_rad)
+    x = propagate(np.concatenate([r0, v0]), t, j2=o.truth_j2, max_step_s=1.0)
+    T = np.swapaxes(nadir_attitude(x[:, :3], x[:, 3:]), -1, -2)          # cam_from_eci
+    db = coastline_points(o.db_spacing_m)
+    tan_half = math.tan(0.5 * o.fov_rad)
+    # footprint radius: Earth central angle of the FOV's corner ray (sphere of radius R_EARTH_M)
+    a_d = math.atan(math.sqrt(2.0) * tan_half)
+    rs = R_EARTH_M + o.altitude_m
+    lam = math.asin(min(1.0, rs / R_EARTH_M * math.sin(a_d))) - a_d
+    query_r = 2.0 * R_EARTH_M * math.sin(0.5 * lam) * 1.1 + 30e3
+    g = max(1, int(math.isqrt(o.points_per_image)))
+    points, n_meas, n_vis = [np.zeros((0, 3))], [0], [0]
+    for k in range(1, K):
+        R_ecef_from_eci = _R3(o.gmst0_rad + OMEGA_EARTH * t[k])
+        r_ecef = R_ecef_from_eci @ x[k, :3]
+        sub = r_ecef / np.linalg.norm(r_ecef) * R_EARTH_M
+        idx = np.asarray(db.tree.query_ball_point(sub, query_r), dtype=np.int64)
+        if idx.size:
+            p_ecef = db.ecef_m[idx]
+            facing = np.einsum("ij,ij->i", db.normal[idx], r_ecef - p_ecef) > 0
+            p_eci = (p_ecef @ R_ecef_from_eci)                               # Rᵀ p
+            pc = (p_eci - x[k, :3]) @ T[k].T
+            u, w = pc[:, 0] / pc[:, 2], pc[:, 1] / pc[:, 2]
+            inside = facing & (pc[:, 2] > 0) & (np.abs(u) <= tan_half) & (np.abs(w) <= tan_half)
+            p_eci, u, w = p_eci[inside], u[inside], w[inside]
+        else:
+            p_eci, u, w = np.zeros((0, 3)), np.zeros(0), np.zeros(0)
+        n_vis.append(len(p_eci))
+        if len(p_eci):
+            cu = np.clip(((u / tan_half + 1.0) * 0.5 * g).astype(int), 0, g - 1)
+            cw = np.clip(((w / tan_half + 1.0) * 0.5 * g).astype(int), 0, g - 1)
+            cell = cw * g + cu
+            centre_u = ((cu + 0.5) / g * 2.0 - 1.0) * tan_half
+            centre_w = ((cw + 0.5) / g * 2.0 - 1.0) * tan_half
+            d2 = (u - centre_u) ** 2 + (w - centre_w) ** 2
+            order = np.lexsort((d2, cell))                                   # by cell, then distance
+            first = order[np.r_[True, cell[order][1:] != cell[order][:-1]]]
+            p_eci = p_eci[first]
+        points.append(p_eci)
+        n_meas.append(len(p_eci))
+    return Geometry(t, x, T, points, np.asarray(n_meas), np.asarray(n_vis))
+
+
+def _draws(seed_sequence: np.random.SeedSequence, K: int, m_max: int) -> dict[str, np.ndarray]:
+    """All random numbers of one run, in a fixed layout (independent of the batch it runs in)."""
+    rng = np.random.Generator(np.random.PCG64(seed_sequence))
+    return {"x0": rng.standard_normal(6), "los": rng.standard_normal((K, m_max, 2)),
+            "att": rng.standard_normal((K, 3))}
+
+
+def draws_for_runs(seed_sequences, K: int, points_per_image: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stacked per-run draws: initial-state (N, 6), LOS (N, K, m_max, 2), attitude (N, K, 3) standard normals."""
+    m_max = max(1, int(math.isqrt(points_per_image)) ** 2)
+    draws = [_draws(s, K, m_max) for s in seed_sequences]
+    return (np.stack([d["x0"] for d in draws]), np.stack([d["los"] for d in draws]),
+            np.stack([d["att"] for d in draws]))
+
+
+def measurements(geo: Geometry, k: int, z_los_k: np.ndarray, z_att_k: np.ndarray, sigma_los: float,
+                 sigma_att: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Image k for N runs: measured camera-frame LOS (N, m, 3), database points (m, 3), star-tracker T̂ (N, 3, 3).
+
+    The camera truly points with ``geo.T_cam_from_eci[k]``; the LOS to each matched point from the true position
+    is tilted by σ_los (eq. 18); the star tracker reports exp([σ_att z×]) T_true.
+    """
+    from estimators.coastline.los import los_predict, perturb_unit_vectors, small_rotation_matrices
+
+    pts = geo.points_eci[k]
+    m, N = len(pts), len(z_los_k)
+    e_true, _, _ = los_predict(geo.x_true[k:k + 1, :3], pts, geo.T_cam_from_eci[k])
+    y = perturb_unit_vectors(np.broadcast_to(e_true, (N, m, 3)), sigma_los, z_los_k[:, :m])
+    T_hat = np.matmul(small_rotation_matrices(sigma_att * z_att_k), geo.T_cam_from_eci[k])
+    return y, pts, T_hat
+
+
+def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=None, *, noise_free: bool = False,
+              progress: bool = False, keep_history: bool = False) -> dict:
+    """Run N filters (one per seed sequence) through the same truth, vectorised across runs.
+
+    Parameters
+    ----------
+    options : CoastlineGeometricOptions
+    seed_sequences : sequence of numpy.random.SeedSequence
+        One spawned child per run (``SeedSequence(seed).spawn(N)``).
+    run_indices : sequence of int, optional
+        Values of the ``run`` column (default 0..N-1).
+    noise_free : bool
+        Measurements and attitude exact (the filter still assumes σθ, σ_att); the initial dispersion stays.
+    progress : bool
+        Show a tqdm bar over measurement times.
+    keep_history : bool
+        Also return ``x_hat`` (N, K, 6) and ``P`` (N, K, 6, 6).
+
+    Returns
+    -------
+    dict with ``table`` (pyarrow.Table, :data:`FILTER_COLUMNS`), ``geometry`` (:class:`Geometry`) and, when asked,
+    the histories.
+    """
+    import pyarrow as pa
+
+    from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
+
+    o = options.validate()
+    geo = truth_geometry(o)
+    seeds = list(seed_sequences)
+    N, K = len(seeds), len(geo.t_s)
+    if N == 0:
+        raise UserError("coastline study: no runs requested")
+    runs = np.arange(N) if run_indices is None else np.asarray(list(run_indices), dtype=np.int64)
+    z_x0, z_los, z_att = draws_for_runs(seeds, K, o.points_per_image)
+    sd0 = np.array([o.sigma_r0_m] * 3 + [o.sigma_v0_mps] * 3)
+    P0 = np.diag(sd0**2)
+    ekf = BatchCoastlineEKF(geo.x_true[0] + z_x0 * sd0, P0,
+                            EKFOptions(sigma_theta_rad=o.sigma_theta_rad, sigma_attitude_rad=o.sigma_star_tracker_rad,
+                                       q_acc_m2_s3=o.q_acc_m2_s3, max_step_s=o.filter_step_s))
+    xs = np.empty((N, K, 6))
+    Ps = np.empty((N, K, 6, 6))
+    nis = np.full((N, K), np.nan)
+    xs[:, 0], Ps[:, 0] = ekf.x, ekf.P
+    steps = range(1, K)
+    if progress:
+        from tqdm import tqdm
+
+        steps = tqdm(steps, desc=f"coastline EKF x{N}", unit="image")
+    sig_los = 0.0 if noise_free else o.sigma_theta_rad
+    sig_att = 0.0 if noise_free else o.sigma_star_tracker_rad
+    for k in steps:
+        ekf.propagate(geo.t_s[k] - geo.t_s[k - 1])
+        if geo.n_meas[k]:
+            y, pts, T_hat = measurements(geo, k, z_los[:, k], z_att[:, k], sig_los, sig_att)
+            nis[:, k] = ekf.update(y, pts, T_hat).nis
+        xs[:, k], Ps[:, k] = ekf.x, ekf.P
+    err = xs - geo.x_true[None]
+    C = ric_axes(geo.x_true)                                                  # (K, 3, 3)
+    e_r = np.einsum("kij,nkj->nki", C, err[..., :3])
+    e_v = np.einsum("kij,nkj->nki", C, err[..., 3:])
+    C6 = np.zeros((K, 6, 6))
+    C6[:, :3, :3] = C
+    C6[:, 3:, 3:] = C
+    sig = np.sqrt(np.sum(np.matmul(C6[None], Ps) * C6[None], axis=-1))      # sqrt diag(C P Cᵀ)
+    nees_v = nees(err.reshape(N * K, 6), Ps.reshape(N * K, 6, 6)).reshape(N, K)
+    cols = {"run": np.repeat(runs, K), "t_s": np.tile(geo.t_s, N)}
+    names = ["err_r_m", "err_i_m", "err_c_m", "err_vr_mps", "err_vi_mps", "err_vc_mps"]
+    vals = np.concatenate([e_r, e_v], axis=-1)
+    for j, name in enumerate(names):
+        cols[name] = vals[..., j].ravel()
+    for j, name in enumerate(["sig_r_m", "sig_i_m", "sig_c_m", "sig_vr_mps", "sig_vi_mps", "sig_vc_mps"]):
+        cols[name] = sig[..., j].ravel()
+    cols["nees"] = nees_v.ravel()
+    cols["nis"] = nis.ravel()
+    cols["n_meas"] = np.tile(geo.n_meas.astype(np.int32), N)
+    out = {"table": pa.table(cols), "geometry": geo}
+    if keep_history:
+        out.update(x_hat=xs, P=Ps)
+    return out
+
+
+def options_from_mapping(scenario) -> CoastlineGeometricOptions:
+    """Options from a dataclass or a mapping of option names (unknown names → UserError)."""
+    if isinstance(scenario, CoastlineGeometricOptions):
+        return scenario.validate()
+    if not hasattr(scenario, "keys"):
+        raise UserError("coastline geometric study: expected CoastlineGeometricOptions or a mapping of its fields, "
+                        f"got {type(scenario).__name__} (no scenario section for this study exists yet)")
+    known = {f.name for f in fields(CoastlineGeometricOptions)}
+    unknown = sorted(set(scenario) - known)
+    if unknown:
+        raise UserError(f"unknown coastline study option(s): {', '.join(unknown)}")
+    return CoastlineGeometricOptions(**dict(scenario)).validate()
+
+
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
+    """Campaign-engine study function: one run → ``{"coastline_filter": pyarrow.Table}``.
+
+    ``scenario`` is a :class:`CoastlineGeometricOptions` or a mapping of its fields (a scenario section may
+    replace it later); ``base_dir`` and ``workdir`` are unused (the study writes no files).
+    """
+    o = options_from_mapping(scenario)
+    return {"coastline_filter": run_batch(o, [seed_sequence], [run_index])["table"]}
+
+
+def options_dict(o: CoastlineGeometricOptions) -> dict:
+    """JSON-friendly options (for README/summary files)."""
+    return asdict(o)

@@ -1,0 +1,198 @@
+"""The Earth world's :class:`~renderlab.worlds.base.WorldPlan`: LEO frames, one ENU tile per frame.
+
+Frame k is taken at t_k = start_s + k·dt_s after the epoch. The orbit is two-body (Kepler, paper eqs.
+10-12) or numerically propagated with J2; the true attitude is nadir (plus an optional seeded pointing
+error); the star tracker's reported attitude (noise σ) goes to the manifest for the estimators. Per frame
+the manifest gets the tile's render frame (origin, R_ecef_from_render: P AOVs → ECEF → lat/lon), the epoch,
+the true ECI/ECEF state, the ECI→ECEF rotation and the sun.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from renderlab.dynamics.camera_paths import CameraPose
+from renderlab.dynamics.orbits import OrbitElements, nadir_attitude, propagate, star_tracker_attitude
+from renderlab.geometry.camera import CameraModel
+from renderlab.photometry import make_law
+from renderlab.render.scene import BodySpec, FrameSpec, SceneDescription, SunSpec
+from renderlab.worlds.base import WorldPlan
+from renderlab.worlds.earth import sun as sunmod
+from renderlab.worlds.earth import tiles, wgs84
+from renderlab.worlds.earth.clouds import CloudField
+
+GROUND_ID, CLOUD_ID = 0, 1
+
+
+@dataclass
+class EarthPlan(WorldPlan):
+    world: object = None
+    traj: object = None
+    epoch: object = None
+    states: list = field(default_factory=list)  # per frame dict of arrays
+    _scene_cache: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_scenario(cls, scenario) -> "EarthPlan":
+        w, tr = scenario.world, scenario.trajectory
+        if tr.fov_deg is not None:
+            c = scenario.camera
+            camera = CameraModel.from_fov(c.width, c.height, tr.fov_deg, model=c.model, distortion=c.distortion)
+        else:
+            camera = CameraModel.from_dict(scenario.camera.model_dump())
+        epoch = wgs84.parse_epoch(tr.epoch_utc)
+        el = OrbitElements(wgs84.A + tr.altitude_km * 1e3, tr.eccentricity, np.radians(tr.inclination_deg),
+                           np.radians(tr.raan_deg), np.radians(tr.argp_deg), np.radians(tr.true_anomaly_deg))
+        t = tr.start_s + tr.dt_s * np.arange(tr.frames)
+        if tr.j2:
+            r0, v0 = el.state(0.0)
+            x = propagate(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), j2=True)[1:]
+            r, v = x[:, :3], x[:, 3:]
+        else:
+            r, v = el.state(t)
+        jd = wgs84.julian_date(epoch, t)
+        R_ef = wgs84.R_ecef_from_eci(jd)
+        R_eci_cam = nadir_attitude(r, v)
+        rng = np.random.default_rng(np.random.SeedSequence([w.seed, 0xA77]))
+        if tr.pointing_error_deg > 0:
+            R_eci_cam = star_tracker_attitude(R_eci_cam, np.radians(tr.pointing_error_deg), rng)
+        R_st = star_tracker_attitude(R_eci_cam, np.radians(tr.star_tracker_sigma_arcsec / 3600.0), rng)
+        s_eci, dist_au = sunmod.sun_eci(jd)
+        frames, states = [], []
+        for k in range(len(t)):
+            pos = R_ef[k] @ r[k]
+            vel = R_ef[k] @ v[k] - np.cross([0.0, 0.0, wgs84.OMEGA_EARTH], pos)
+            R_ecef_cam = R_ef[k] @ R_eci_cam[k]
+            tile = tiles.TileFrame.at_boresight(pos, R_ecef_cam)
+            R_ren = tile.R_ecef_from_render
+            s_ecef = R_ef[k] @ s_eci[k]
+            pose = CameraPose(float(t[k]), tile.to_render(pos), Rotation.from_matrix(R_ren.T @ R_ecef_cam))
+            sun = SunSpec(R_ren.T @ s_ecef, float(sunmod.sun_irradiance(dist_au[k])))
+            frames.append(FrameSpec(k, pose, camera, sun))
+            states.append(dict(t=float(t[k]), jd=float(jd[k]), r_eci=r[k], v_eci=v[k], r_ecef=pos, v_ecef=vel,
+                               R_ecef_from_eci=R_ef[k], R_ecef_from_cam=R_ecef_cam, R_eci_from_cam_st=R_st[k],
+                               sun_eci=s_eci[k], sun_ecef=s_ecef, tile=tile))
+        return cls(frames=frames, render_frame={"name": "ENU_TILE"}, world=w, traj=tr, epoch=epoch, states=states)
+
+    # ------------------------------------------------------------------ scenes
+    def scene_key(self, spec: FrameSpec):
+        return spec.index
+
+    def gsd_m(self, k: int) -> float:
+        """Smallest ground sample distance of frame k (nadir range / largest focal length), metres."""
+        st = self.states[k]
+        rng = float(np.linalg.norm(st["r_ecef"] - st["tile"].origin_ecef_m))
+        cam = self.frames[k].camera
+        return rng / max(cam.fx, cam.fy)
+
+    def scene(self, key) -> SceneDescription:
+        from renderlab.errors import UserError
+        from renderlab.worlds.earth.gshhg import load_gshhg
+
+        k = int(key)
+        if k in self._scene_cache:
+            return self._scene_cache[k]
+        w, st, spec = self.world, self.states[k], self.frames[k]
+        tile, cam = st["tile"], spec.camera
+        V, F = tiles.grid_mesh(cam, st["r_ecef"], st["R_ecef_from_cam"], tile, w.tile_grid, w.tile_margin_px)
+        cell = self.gsd_m(k) / w.texture_oversample
+        e0, e1 = V[:, 0].min() - cell, V[:, 0].max() + cell
+        n0, n1 = V[:, 1].min() - cell, V[:, 1].max() + cell
+        shape = (int(np.ceil((n1 - n0) / cell)), int(np.ceil((e1 - e0) / cell)))
+        if max(shape) * w.antialias > 32768:
+            raise UserError(f"world.texture_oversample: albedo raster {shape} x{w.antialias} is too large")
+        region = tiles.region_of(V, w.tile_grid, tile)
+        cov = tiles.land_coverage(tile, region, load_gshhg(), e0, n1, cell, shape, w.antialias)
+        amap = w.water_albedo + (w.land_albedo - w.water_albedo) * cov
+        bodies = [BodySpec(name="ground", body_id=GROUND_ID, shape="trimesh", center_m=np.zeros(3),
+                           R_render_from_body=np.eye(3), law=make_law("lambert"), albedo=1.0, vertices=V, faces=F,
+                           albedo_map=amap, vertex_uv=tiles.texture_uv(V, e0, n1, cell, shape))]
+        if w.cloud_cover > 0:
+            bodies.append(self._cloud_body(k))
+        scene = SceneDescription(bodies=bodies, render_frame=tile.to_dict())
+        self._scene_cache = {k: scene}
+        return scene
+
+    def _cloud_body(self, k: int) -> BodySpec:
+        w, st, spec = self.world, self.states[k], self.frames[k]
+        n = w.cloud_grid
+        V, F = tiles.grid_mesh(spec.camera, st["r_ecef"], st["R_ecef_from_cam"], st["tile"], n, w.tile_margin_px,
+                               h_m=w.cloud_altitude_m)
+        quads = len(F) // 2
+        centre = (V[F[:quads, 0]] + V[F[:quads, 2]]) / 2
+        cloudy = CloudField(w.cloud_cover, w.seed, scale_min_m=w.cloud_scale_m).cloudy(st["tile"].to_ecef(centre))
+        keep = np.concatenate([cloudy, cloudy])
+        if not keep.any():  # a clear sky: one degenerate-free tiny facet far outside the view is not needed;
+            keep[:] = False  # Mitsuba accepts an empty mesh poorly, so keep one facet outside the image
+            keep[0] = True
+        return BodySpec(name="clouds", body_id=CLOUD_ID, shape="trimesh", center_m=np.zeros(3),
+                        R_render_from_body=np.eye(3), law=make_law("lambert"), albedo=w.cloud_albedo,
+                        vertices=V, faces=F[keep])
+
+    # ------------------------------------------------------------------ metadata and truth
+    def frame_meta(self, spec: FrameSpec, scene: SceneDescription) -> dict:
+        st = self.states[spec.index]
+        vec = lambda a: [float(x) for x in np.ravel(a)]  # noqa: E731
+        mat = lambda a: [[float(x) for x in row] for row in a]  # noqa: E731
+        from datetime import timedelta
+
+        return {
+            "bodies": {b.name: b.state() for b in scene.bodies},
+            "render_frame": st["tile"].to_dict(),
+            "epoch_utc": (self.epoch + timedelta(seconds=st["t"])).isoformat().replace("+00:00", "Z"),
+            "julian_date_utc": st["jd"],
+            "spacecraft": {"r_eci_m": vec(st["r_eci"]), "v_eci_mps": vec(st["v_eci"]),
+                           "r_ecef_m": vec(st["r_ecef"]), "v_ecef_mps": vec(st["v_ecef"]),
+                           "R_ecef_from_eci": mat(st["R_ecef_from_eci"]),
+                           "quat_ecef_from_cam_xyzw": vec(Rotation.from_matrix(st["R_ecef_from_cam"]).as_quat()),
+                           "star_tracker_quat_eci_from_cam_xyzw":
+                               vec(Rotation.from_matrix(st["R_eci_from_cam_st"]).as_quat()),
+                           "star_tracker_sigma_arcsec": float(self.traj.star_tracker_sigma_arcsec)},
+            "sun_eci": vec(st["sun_eci"]), "sun_ecef": vec(st["sun_ecef"]),
+            "gsd_m": self.gsd_m(spec.index),
+        }
+
+    def footprint_region(self, k: int, margin_px: float = 0.0):
+        from renderlab.worlds.earth import footprint
+
+        st, cam = self.states[k], self.frames[k].camera
+        dirs = footprint.boundary_dirs_camera(cam, 32, margin_px)
+        return footprint.footprint_polygons(st["r_ecef"], st["R_ecef_from_cam"], dirs)[0]
+
+    def frame_rows(self, spec: FrameSpec, rendered) -> dict[str, list[dict]]:
+        import shapely
+
+        from renderlab.worlds.earth.coastline_truth import coastline_pixels
+        from renderlab.worlds.earth.gshhg import load_gshhg
+
+        st = self.states[spec.index]
+        region = self.footprint_region(spec.index, margin_px=2.0)
+        pieces = shapely.get_parts(load_gshhg().coast_in(region))
+        lines = [np.asarray(p.coords) for p in pieces if p.geom_type == "LineString"]
+        s, ln, lon, lat, piece = coastline_pixels(spec.camera, st["r_ecef"], st["R_ecef_from_cam"], lines)
+        rows = [{"frame": spec.index, "s": float(a), "l": float(b), "lon_deg": float(c), "lat_deg": float(d),
+                 "piece": int(e)} for a, b, c, d, e in zip(s, ln, lon, lat, piece)]
+        return {"coastline_truth": rows}
+
+    def write_static(self, writer) -> None:
+        import json
+
+        import pyarrow as pa
+        import shapely
+
+        from renderlab.worlds.earth.coast_db import CoastDBOptions, build_coast_db
+        from renderlab.worlds.earth.gshhg import load_gshhg
+
+        w = self.world
+        region = shapely.union_all([self.footprint_region(k) for k in range(len(self.frames))])
+        region = region.buffer(w.coast_db_margin_deg)
+        opt = CoastDBOptions(w.coast_db_tolerance_m, w.coast_db_error_m, w.coast_db_error_scale_m, w.seed)
+        cols = build_coast_db(load_gshhg(), region, opt)
+        writer.add_table("coast_db", pa.table(cols))
+        info = {"source": "GSHHG full resolution (roaring-landmask)", "tolerance_m": opt.tolerance_m,
+                "map_error_m_1sigma_per_axis": opt.error_m, "map_error_scale_m": opt.scale_m, "seed": opt.seed,
+                "region_bounds_lonlat_deg": [float(v) for v in region.bounds]}
+        writer.add_file("coast_db.json", (json.dumps(info, indent=1) + "\n").encode())

@@ -1,0 +1,206 @@
+"""The high-resolution landing site: a square DEM patch laid on the global mesh.
+
+Site frame S: origin o on the global surface above (lat, lon), +z the area-weighted mean facet
+normal within half an extent of o, +x east (z_body × z, or body +x at a pole), +y = z × x
+(north). Grid point (row j, column i) is at x = x0 + i·c, y = x0 + j·c (x0 = −extent/2) and
+height h[j, i] along +z:  p_body = o + R_body_from_site @ [x, y, h].
+
+    h = base + taper · detail
+
+``base`` is the global mesh itself, rasterised along −z onto the grid (exact on its facets), so
+the patch border meets the global surface without a step; ``detail`` = craters + boulders
+(with a 2–4 m target boulder at the centre) + fractal regolith roughness; ``taper`` is 0 in an
+outer strip of 1.5 global facets and rises (smoothstep) to 1 over ``taper_m``. Relative albedo:
+the global albedo blended into a correlated field × per-boulder factors with the same taper.
+
+The global mesh must not poke through the patch: global facets with all three vertices inside
+the zero-taper strip's inner edge are removed (cut) and every remaining global vertex inside it
+is lowered along −z by the patch's deepest detail + 5 cm, so the facets straddling the strip
+slope under the patch. Outside the patch the global surface is unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from renderlab.errors import UserError
+from renderlab.worlds.ev5 import terrain
+from renderlab.worlds.ev5.shape import GlobalShape
+
+
+@dataclass
+class Site:
+    """The landing-site DEM (see the module docstring)."""
+
+    origin_m: np.ndarray  # (3,) body frame
+    R_body_from_site: np.ndarray  # (3, 3) columns: site x (east), y (north), z (up)
+    x0_m: float  # coordinate of the first row/column
+    cell_m: float
+    heights_m: np.ndarray  # (n, n) float64
+    albedo: np.ndarray  # (n, n) float32 relative albedo
+    target_center_xy: np.ndarray  # (2,) site x, y of the target boulder
+    target_diameter_m: float
+    n_boulders: int
+    n_craters: int
+
+    @property
+    def n(self) -> int:
+        return self.heights_m.shape[0]
+
+    @property
+    def extent_m(self) -> float:
+        return (self.n - 1) * self.cell_m
+
+    def height_at(self, x, y) -> np.ndarray:
+        """Height along site +z of the triangulated DEM at site (x, y), m."""
+        return terrain.grid_interp(self.heights_m, self.x0_m, self.cell_m, x, y)
+
+    def albedo_at(self, x, y) -> np.ndarray:
+        return terrain.grid_interp(self.albedo, self.x0_m, self.cell_m, x, y)
+
+    def to_body(self, p_site) -> np.ndarray:
+        return np.asarray(p_site, float) @ self.R_body_from_site.T + self.origin_m
+
+    def to_site(self, p_body) -> np.ndarray:
+        return (np.asarray(p_body, float) - self.origin_m) @ self.R_body_from_site
+
+    def surface_point(self, x, y) -> np.ndarray:
+        """Body-frame surface point(s) at site (x, y)."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        return self.to_body(np.stack([x, y, self.height_at(x, y)], -1))
+
+    def mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """Vertices (n², 3) float64 in the body frame and faces (int32) of the DEM."""
+        n = self.n
+        t = self.x0_m + np.arange(n) * self.cell_m
+        R, o = self.R_body_from_site, self.origin_m
+        v = np.empty((n, n, 3))
+        for k in range(3):
+            v[..., k] = o[k] + R[k, 0] * t[None, :] + R[k, 1] * t[:, None] + R[k, 2] * self.heights_m
+        return v.reshape(-1, 3), terrain.grid_faces(n)
+
+
+def _ray_mesh_far_hit(shape: GlobalShape, u: np.ndarray) -> np.ndarray:
+    """Farthest intersection of the ray from the body centre along ``u`` with the mesh."""
+    v = shape.vertices
+    a, b, c = v[shape.faces[:, 0]], v[shape.faces[:, 1]], v[shape.faces[:, 2]]
+    e1, e2 = b - a, c - a
+    p = np.cross(u, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    ok = np.abs(det) > 1e-12
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    s = -a
+    bu = np.einsum("ij,ij->i", s, p) * inv
+    q = np.cross(s, e1)
+    bv = (q @ u) * inv
+    t = np.einsum("ij,ij->i", e2, q) * inv
+    hit = ok & (bu >= 0) & (bv >= 0) & (bu + bv <= 1) & (t > 0)
+    if not hit.any():
+        raise UserError("world.site: the ray from the body centre toward (lat, lon) misses the shape model")
+    return u * t[hit].max()
+
+
+def site_frame(shape: GlobalShape, lat_deg: float, lon_deg: float, extent_m: float):
+    """Origin (on the mesh) and R_body_from_site of a site at (lat, lon)."""
+    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
+    u = np.array([math.cos(lat) * math.cos(lon), math.cos(lat) * math.sin(lon), math.sin(lat)])
+    o = _ray_mesh_far_hit(shape, u)
+    v = shape.vertices
+    tri = v[shape.faces]
+    cen = tri.mean(1)
+    near = np.linalg.norm(cen - o, axis=1) < extent_m / 2
+    nrm = np.cross(tri[near, 1] - tri[near, 0], tri[near, 2] - tri[near, 0]).sum(0)
+    z = nrm / np.linalg.norm(nrm)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    x = x - (x @ z) * z
+    x /= np.linalg.norm(x)
+    return o, np.column_stack([x, np.cross(z, x), z])
+
+
+def build_site(shape: GlobalShape, cfg, facet_m: float, rng_terrain: np.random.Generator,
+               rng_boulders: np.random.Generator) -> tuple[Site, GlobalShape]:
+    """The landing site of ``cfg`` (:class:`EV5Site`) on ``shape`` and the global shape with the
+    facets under the patch cut and lowered (module docstring)."""
+    n = int(round(cfg.extent_m / cfg.cell_m)) + 1
+    cell = cfg.cell_m
+    x0 = -(n - 1) * cell / 2
+    half = -x0
+    o, R = site_frame(shape, cfg.lat_deg, cfg.lon_deg, cfg.extent_m)
+    # global mesh in site coordinates, facets near the patch
+    vs = (shape.vertices - o) @ R
+    near_v = (np.abs(vs[:, 0]) < half + 3 * facet_m) & (np.abs(vs[:, 1]) < half + 3 * facet_m) \
+        & (np.abs(vs[:, 2]) < half + 50 * facet_m)
+    fsel = near_v[shape.faces].all(1)
+    tri = vs[shape.faces[fsel]]
+    base = np.full((n, n), np.nan)
+    base_alb = np.zeros((n, n))
+    terrain.rasterize_facets(tri, shape.vertex_albedo[shape.faces[fsel]].astype(float), x0, cell, n, base, base_alb)
+    if np.isnan(base).any():
+        raise UserError(f"world.site: the global surface does not cover the {cfg.extent_m:g} m site at "
+                        f"({cfg.lat_deg:g}, {cfg.lon_deg:g}) seen along its normal (overhang or hole)")
+
+    # taper: 0 in the outer strip (1.5 facets), smoothstep to 1 over taper_m
+    t = x0 + np.arange(n) * cell
+    w0 = 1.5 * facet_m
+    d_edge = half - np.maximum(np.abs(t)[None, :], np.abs(t)[:, None])
+    s = np.clip((d_edge - w0) / cfg.taper_m, 0, 1)
+    taper = (s * s * (3 - 2 * s)).astype(np.float32)
+    inner = half - w0 - cfg.taper_m  # features live inside |x|, |y| < inner
+    if inner < cfg.target_boulder_m:
+        raise UserError(f"world.site.extent_m {cfg.extent_m:g} m is too small: less than the target boulder is left "
+                        f"inside the border strip (1.5 global facets = {w0:g} m) and taper_m ({cfg.taper_m:g} m)")
+
+    detail = np.zeros((n, n), np.float64)
+    # craters
+    area = (2 * inner) ** 2
+    dc = terrain.power_law_diameters(rng_terrain, cfg.crater_density_per_m2, area, 2.0, cfg.crater_min_m, cfg.crater_max_m)
+    lim = np.maximum(inner - 0.75 * dc, 0)
+    cxy = rng_terrain.uniform(-1, 1, (len(dc), 2)) * lim[:, None]
+    terrain.stamp_craters(detail, x0, cell, cxy[:, 0].copy(), cxy[:, 1].copy(), dc)
+    # boulders (target first, at the centre)
+    alb = np.ones((n, n), np.float32)
+    db = terrain.power_law_diameters(rng_boulders, cfg.boulder_density_per_m2, area, cfg.boulder_sfd_slope,
+                                     cfg.boulder_min_m, cfg.boulder_max_m)
+    bxy = rng_boulders.uniform(-1, 1, (len(db), 2)) * np.maximum(inner - db / 2, 0)[:, None]
+    keep = np.hypot(bxy[:, 0], bxy[:, 1]) > cfg.target_boulder_m / 2 + db / 2 + 0.1
+    db, bxy = db[keep], bxy[keep]
+    nb = len(db)
+    aspect_b = rng_boulders.uniform(0.6, 1.0, nb)
+    aspect_c = rng_boulders.uniform(0.4, 0.8, nb)
+    theta = rng_boulders.uniform(0, math.pi, nb)
+    bury = rng_boulders.uniform(0.05, 0.35, nb)
+    factor = np.exp(rng_boulders.normal(0.0, 0.15, nb)).astype(np.float32)
+    a_t = cfg.target_boulder_m / 2
+    order = np.argsort(-db)  # big first: small boulders sit on the ground, not inside big ones
+    terrain.stamp_boulders(detail, alb, x0, cell,
+                           np.r_[0.0, bxy[order, 0]], np.r_[0.0, bxy[order, 1]],
+                           np.r_[a_t, db[order] / 2], np.r_[0.8 * a_t, db[order] / 2 * aspect_b[order]],
+                           np.r_[0.6 * a_t, db[order] / 2 * aspect_c[order]], np.r_[0.3, theta[order]],
+                           np.r_[0.15, bury[order]], np.r_[np.float32(1.1), factor[order]])
+    detail += terrain.fractal_field(n, cell, cfg.roughness_hurst, cfg.roughness_rms_m, rng_terrain)
+    var = terrain.smooth_field(n, cell, cfg.albedo_corr_m, rng_terrain)
+    var *= np.float32(cfg.albedo_rms)
+    var += np.float32(1.0)
+    np.clip(var, 0.2, None, out=var)
+    alb *= var
+    del var
+    heights = base + taper * detail
+    albedo = (base_alb * (1 - taper) + base_alb * alb * taper).astype(np.float32)
+    drop = max(0.0, -float((taper * detail).min())) + 0.05
+    del detail, alb, taper, base_alb
+
+    # cut / lower the global facets under the patch
+    inside = (np.abs(vs[:, 0]) < half - w0) & (np.abs(vs[:, 1]) < half - w0) & near_v
+    faces = shape.faces[~inside[shape.faces].all(1)]
+    verts = shape.vertices.copy()
+    verts[inside] -= drop * R[:, 2]
+    used = np.zeros(len(verts), bool)
+    used[faces] = True
+    remap = np.cumsum(used) - 1
+    cut = GlobalShape(verts[used], remap[faces].astype(np.int32), shape.vertex_albedo[used], shape.radius_fn)
+    site = Site(o, R, float(x0), float(cell), heights, albedo, np.zeros(2), float(cfg.target_boulder_m), nb, len(dc))
+    return site, cut

@@ -1,0 +1,96 @@
+"""Example EV5 descent frames with landmark overlays, from a rendered truth set.
+
+    .venv/bin/python -m renderlab render scenes/ev5_descent.toml --out OUT \
+        --set 'trajectory.altitudes_m=[1000.0, 200.0, 50.0]'
+    .venv/bin/python results/ev5_descent/make_figures.py OUT
+
+writes ``frame_<alt>m.png`` (sensor DN image; each landmark's maplet outline projected with the
+true pose, coloured by tier; solid = visible, dashed = occluded; the label is gsd_ratio) and
+``landmarks_summary.csv`` (per frame and tier: in view, visible, occluded, median gsd_ratio,
+median shadow fraction) next to this script.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parents[1]))
+COLORS = {"regional": "#ffb000", "approach": "#00d0ff", "site": "#ff4fd8"}
+
+
+def main(truthset: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pyarrow.parquet as pq
+    from scipy.spatial.transform import Rotation
+
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.imageio import read_dn_png
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    root = Path(truthset)
+    manifest = json.loads((root / "manifest.json").read_text())
+    maplets = {m.landmark_id: m for m in read_catalog(root)}
+    lt = pq.read_table(str(root / "landmark_truth.parquet")).to_pydict()
+    summary = []
+    for frame in manifest["frames"]:
+        cam = CameraModel.from_dict(frame["camera"])
+        R = Rotation.from_quat(frame["pose"]["quat_render_from_cam_xyzw"]).as_matrix()
+        t = np.array(frame["pose"]["position_m"])
+        dn = read_dn_png(root / frame["dn"])
+        alt = frame["ev5"]["altitude_m"]
+        fig, ax = plt.subplots(figsize=(8, 8), dpi=110)
+        ax.imshow(dn, cmap="gray", vmin=0, vmax=max(1, int(np.percentile(dn, 99.9))), interpolation="nearest")
+        rows = [i for i, f in enumerate(lt["frame"]) if f == frame["index"]]
+        per_tier: dict[str, list[int]] = {}
+        for i in rows:
+            per_tier.setdefault(lt["tier"][i], []).append(i)
+            if not lt["in_view"][i]:
+                continue
+            m = maplets[lt["landmark_id"][i]]
+            h = m.half_width_m
+            edge = np.linspace(-h, h, 9)
+            ring = np.concatenate([np.column_stack([edge, -h + 0 * edge]), np.column_stack([h + 0 * edge, edge]),
+                                   np.column_stack([edge[::-1], h + 0 * edge]), np.column_stack([-h + 0 * edge, edge[::-1]])])
+            outline = cam.project((m.to_body(np.column_stack([ring, np.zeros(len(ring))])) - t) @ R)
+            color = COLORS.get(lt["tier"][i], "w")
+            ax.plot(outline[:, 0], outline[:, 1], color=color, lw=1.0, ls="-" if lt["visible"][i] else "--")
+            ax.plot(lt["s"][i], lt["l"][i], "+", color=color, ms=5)
+            ax.annotate(f"{lt['gsd_ratio'][i]:.2f}", (lt["s"][i], lt["l"][i]), color=color, fontsize=6,
+                        xytext=(3, 3), textcoords="offset points")
+        ax.set_xlim(-0.5, dn.shape[1] - 0.5)
+        ax.set_ylim(dn.shape[0] - 0.5, -0.5)
+        gsd = float(np.linalg.norm(t - np.array(json.loads((root / "site.json").read_text())["origin_m"]))) / cam.fx
+        ax.set_title(f"EV5 descent, altitude {alt:.0f} m, GSD {100 * gsd:.1f} cm at the site  "
+                     f"(maplets: regional orange, approach cyan, site magenta; dashed = occluded; label = GSD/spacing)",
+                     fontsize=7)
+        ax.axis("off")
+        fig.tight_layout()
+        fig.savefig(HERE / f"frame_{alt:.0f}m.png")
+        plt.close(fig)
+        for tier, idx in sorted(per_tier.items()):
+            view = [i for i in idx if lt["in_view"][i]]
+            summary.append({"frame": frame["index"], "altitude_m": round(alt, 2), "tier": tier, "landmarks": len(idx),
+                            "in_view": len(view), "visible": sum(lt["visible"][i] for i in idx),
+                            "occluded": sum(lt["occluded"][i] for i in idx),
+                            "median_gsd_ratio": round(float(np.median([lt["gsd_ratio"][i] for i in idx])), 3),
+                            "median_shadow_fraction": round(float(np.median([lt["shadow_fraction"][i] for i in idx])), 3)})
+    with open(HERE / "landmarks_summary.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(summary[0]))
+        w.writeheader()
+        w.writerows(summary)
+    print(f"wrote {len(manifest['frames'])} figures and landmarks_summary.csv to {HERE}")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) != 2:
+        sys.exit(__doc__)
+    main(sys.argv[1])

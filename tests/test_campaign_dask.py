@@ -1,0 +1,26 @@
+"""Dask executors: a LocalCluster with 1 and with 2 worker processes gives tables identical (timings
+excluded) to each other and to the in-process executor, for the same seed."""
+
+from __future__ import annotations
+
+from renderlab.campaign import store
+from renderlab.campaign.executors import DaskExecutor, InProcessExecutor
+from renderlab.campaign.plan import make_plan
+from renderlab.campaign.runner import run_campaign
+from renderlab.scenario import load_scenario
+from test_campaign_engine import SCENE, TINY, tables_equal
+
+
+def test_local_cluster_1_and_2_workers_identical(tmp_path):
+    sc, base = load_scenario(SCENE, TINY)
+    plan = make_plan(sc, base, runs=3, seed=21)
+    out = {}
+    for name, ex in (("inproc", InProcessExecutor()), ("dask1", DaskExecutor(workers=1)),
+                     ("dask2", DaskExecutor(workers=2))):
+        res = run_campaign(plan, tmp_path / name, executor=ex, progress=False)
+        assert (res.executed, res.failed) == (3, [])
+        out[name] = store.load_tables(tmp_path / name)
+    for name in ("dask1", "dask2"):
+        assert sorted(out[name]) == sorted(out["inproc"])
+        for t in out[name]:
+            assert tables_equal(out[name][t], out["inproc"][t]), (name, t)

@@ -1,0 +1,248 @@
+"""Coastline EKF (Straub & Christian eq. 3-19): Jacobians vs finite differences, dynamics vs solve_ivp,
+the eq. 19 gain vs a numpy pseudo-inverse, noise-free convergence, χ² consistency over seeded runs on the
+real GSHHG coastline, and bit-identical replay of one run."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from scipy.spatial.transform import Rotation
+
+from estimators.coastline.dynamics import MU_EARTH, dynamics_jacobian, propagate_state_stm, two_body_rhs
+from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions
+from estimators.coastline.los import los_jacobian_position, los_predict, small_rotation_matrices
+from renderlab.errors import UserError
+
+A_1000 = 6378137.0 + 1.0e6
+
+
+def _circular_state(a=A_1000, inc=math.radians(45.0)):
+    v = math.sqrt(MU_EARTH / a)
+    return np.array([a, 0.0, 0.0, 0.0, v * math.cos(inc), v * math.sin(inc)])
+
+
+def test_dynamics_jacobian_eq13_matches_central_differences():
+    rng = np.random.default_rng(3)
+    x = _circular_state() + np.r_[rng.normal(0, 5e4, 3), rng.normal(0, 50, 3)]
+    F = dynamics_jacobian(x)
+    Ffd = np.empty((6, 6))
+    steps = np.r_[np.full(3, 1.0), np.full(3, 1e-3)]
+    for j in range(6):
+        d = np.zeros(6)
+        d[j] = steps[j]
+        Ffd[:, j] = (two_body_rhs(x + d) - two_body_rhs(x - d)) / (2 * steps[j])
+    scale = np.abs(F).max(axis=1, keepdims=True)
+    assert np.allclose(F, Ffd, rtol=0, atol=1e-7 * scale.max())
+    assert np.allclose(F[3:, :3], Ffd[3:, :3], rtol=1e-6, atol=1e-15)
+
+
+def test_los_jacobian_eq17_matches_central_differences():
+    rng = np.random.default_rng(4)
+    r = _circular_state()[:3]
+    o = r * (6378137.0 / np.linalg.norm(r)) + rng.normal(0, 2e5, (5, 3))
+    T = Rotation.from_rotvec(rng.normal(0, 1, 3)).as_matrix()
+    e_c, e_i, rho = los_predict(r[None], o, T)
+    H = los_jacobian_position(e_i, rho, T)[0]                 # (m, 3, 3)
+    for j in range(3):
+        d = np.zeros(3)
+        d[j] = 1.0
+        fd = (los_predict((r + d)[None], o, T)[0] - los_predict((r - d)[None], o, T)[0])[0] / 2.0
+        assert np.allclose(H[:, :, j], fd, rtol=1e-6, atol=1e-15)
+    # eq. 20: Hᵢᵀ eᵢ = 0 — the LOS direction carries no information
+    assert np.max(np.abs(np.einsum("mij,mi->mj", H, e_c[0]))) < 1e-18
+
+
+def test_state_and_stm_match_solve_ivp_and_finite_differences():
+    x0 = _circular_state()
+    period = 2 * math.pi * math.sqrt(A_1000**3 / MU_EARTH)
+    x1, phi = propagate_state_stm(x0[None], period, max_step_s=10.0)
+    ref = solve_ivp(lambda t, x: two_body_rhs(x), (0, period), x0, method="DOP853", rtol=1e-13, atol=1e-8)
+    assert np.linalg.norm(x1[0, :3] - ref.y[:3, -1]) < 0.05          # metres after one 105-min orbit
+    assert np.linalg.norm(x1[0, 3:] - ref.y[3:, -1]) < 5e-5
+    # STM over 600 s vs central differences of solve_ivp (the oracle)
+    def flow(x):
+        return solve_ivp(lambda t, y: two_body_rhs(y), (0, 600.0), x, method="DOP853", rtol=1e-13, atol=1e-9).y[:, -1]
+    _, phi600 = propagate_state_stm(x0[None], 600.0, max_step_s=10.0)
+    steps = np.r_[np.full(3, 10.0), np.full(3, 0.01)]
+    fd = np.column_stack([(flow(x0 + np.eye(6)[j] * steps[j]) - flow(x0 - np.eye(6)[j] * steps[j])) / (2 * steps[j])
+                          for j in range(6)])
+    assert np.allclose(phi600[0], fd, rtol=1e-5, atol=1e-7)
+
+
+def _random_filter_problem(seed, N=4, m=5, sigma_att=3e-5, method="woodbury"):
+    rng = np.random.default_rng(seed)
+    x = np.tile(_circular_state(), (N, 1)) + np.c_[rng.normal(0, 500, (N, 3)), rng.normal(0, 0.005, (N, 3))]
+    L = rng.normal(size=(N, 6, 6)) * np.r_[np.full(3, 300.0), np.full(3, 0.3)][None, :, None]
+    P0 = L @ np.swapaxes(L, 1, 2) + np.diag(np.r_[np.full(3, 100.0), np.full(3, 1e-4)])
+    o = x[0, :3] * (6378137.0 / A_1000) + rng.normal(0, 1.5e5, (m, 3))
+    T = np.tile(Rotation.from_rotvec(rng.normal(0, 1, 3)).as_matrix(), (N, 1, 1))
+    y = los_predict(x[:, :3] + rng.normal(0, 300, (N, 3)), o, T)[0]
+    f = BatchCoastlineEKF(x, P0, EKFOptions(sigma_theta_rad=4e-4, sigma_attitude_rad=sigma_att, gain_method=method))
+    return f, y, o, T
+
+
+@pytest.mark.parametrize("sigma_att", [0.0, 3e-5])
+def test_modified_gain_eq19_equals_pseudo_inverse_update(sigma_att):
+    """Both implementations of eq. 19 give the gain P Hᵀ S⁺, the Joseph covariance and the NIS νᵀS⁺ν that a
+    plain numpy.linalg.pinv computation gives."""
+    fw, y, o, T = _random_filter_problem(7, sigma_att=sigma_att)
+    fd, *_ = _random_filter_problem(7, sigma_att=sigma_att, method="direct")
+    x_prior, P_prior = fw.x.copy(), fw.P.copy()
+    rw, rd = fw.update(y, o, T), fd.update(y, o, T)
+    m = len(o)
+    for n in range(fw.n_runs):
+        e_c, e_i, rho = los_predict(x_prior[n:n + 1, :3], o, T[n])
+        H = np.zeros((3 * m, 6))
+        H[:, :3] = los_jacobian_position(e_i, rho, T[n]).reshape(3 * m, 3)
+        R = np.zeros((3 * m, 3 * m))
+        G = np.zeros((3 * m, 3))
+        for i, e in enumerate(e_c[0]):
+            R[3 * i:3 * i + 3, 3 * i:3 * i + 3] = 4e-4**2 * (np.eye(3) - np.outer(e, e))
+            G[3 * i:3 * i + 3] = np.cross(np.eye(3), e)        # rows of [e×] up to sign
+        R += sigma_att**2 * G @ G.T
+        S = H @ P_prior[n] @ H.T + R
+        Sp = np.linalg.pinv(S, rcond=1e-9, hermitian=True)
+        K = P_prior[n] @ H.T @ Sp
+        nu = (y[n] - e_c[0]).ravel()
+        IKH = np.eye(6) - K @ H
+        P_ref = IKH @ P_prior[n] @ IKH.T + K @ R @ K.T
+        assert np.allclose(fw.x[n], x_prior[n] + K @ nu, rtol=0, atol=1e-6)
+        assert np.allclose(fd.x[n], x_prior[n] + K @ nu, rtol=0, atol=1e-6)
+        for P in (fw.P[n], fd.P[n]):
+            assert np.allclose(P, P_ref, rtol=1e-7, atol=1e-12 * np.abs(P_ref).max())
+        assert rw.nis[n] == pytest.approx(nu @ Sp @ nu, rel=1e-6)
+        assert rd.nis[n] == pytest.approx(nu @ Sp @ nu, rel=1e-6)
+    assert rw.dof == 2 * m
+
+
+def test_star_tracker_rotation_is_small_and_orthonormal():
+    R = small_rotation_matrices(np.array([[1e-4, -2e-4, 3e-4], [0.0, 0.0, 0.0]]))
+    assert np.allclose(R @ np.swapaxes(R, 1, 2), np.eye(3), atol=1e-14)
+    assert np.allclose(R[0], Rotation.from_rotvec([1e-4, -2e-4, 3e-4]).as_matrix(), atol=1e-15)
+
+
+# --- Monte Carlo on the real GSHHG coastline (geometry loaded once for this module) -----------------------
+
+@pytest.fixture(scope="module")
+def polar_1000():
+    from renderlab.studies.coastline_geometric import paper_orbit, truth_geometry
+
+    o = paper_orbit("i90_h1000")
+    geo = truth_geometry(o)
+    assert (geo.n_meas > 0).sum() > 50, "a polar orbit should see coastline in many images"
+    return o, geo
+
+
+def test_matched_points_are_inside_the_camera_footprint(polar_1000):
+    from renderlab.geometry import CameraModel
+
+    o, geo = polar_1000
+    W = 1024
+    f = (W / 2) / math.tan(o.fov_rad / 2)
+    cam = CameraModel(width=W, height=W, fx=f, fy=f, cx=(W - 1) / 2, cy=(W - 1) / 2)
+    for k in np.flatnonzero(geo.n_meas)[::10]:
+        p_cam = (geo.points_eci[k] - geo.x_true[k, :3]) @ geo.T_cam_from_eci[k].T
+        sl = cam.project(p_cam)
+        assert np.all((sl > -0.5 - 1.0) & (sl < W - 0.5 + 1.0))
+        # ground distance from nadir within the footprint's half-diagonal (eq. 1 gives the flat-Earth side)
+        nadir = -geo.x_true[k, :3] / np.linalg.norm(geo.x_true[k, :3])
+        ang = np.arccos(np.clip((p_cam / np.linalg.norm(p_cam, axis=1, keepdims=True)) @ (geo.T_cam_from_eci[k] @ nadir),
+                                -1, 1))
+        assert np.all(ang <= math.atan(math.sqrt(2) * math.tan(o.fov_rad / 2)) + 1e-9)
+        # every matched point is on the WGS-84 surface and in front of the Earth's limb
+        lat_scale = np.array([1.0, 1.0, 1.0 / (1.0 - 1.0 / 298.257223563)])
+        assert np.allclose(np.linalg.norm(geo.points_eci[k] * lat_scale, axis=1), 6378137.0, rtol=0, atol=1e-3)
+        assert np.all(np.linalg.norm(geo.points_eci[k] - geo.x_true[k, :3], axis=1) < math.sqrt(
+            np.linalg.norm(geo.x_true[k, :3]) ** 2 - 6356752.0**2))
+
+
+def test_noise_free_stream_converges_to_truth(polar_1000):
+    """Noise-free LOS, dispersed start: the error shrinks to the linear-theory value
+    x̂_K − x_K = P_K Φ(t_K, t_0)⁻ᵀ P_0⁻¹ (x̂_0 − x_0) (information form, Q = 0)."""
+    from renderlab.studies.coastline_geometric import run_batch
+
+    o, geo = polar_1000
+    N = 6
+    out = run_batch(o, np.random.SeedSequence(11).spawn(N), noise_free=True, keep_history=True)
+    err = out["x_hat"] - geo.x_true[None]
+    e0, eK = err[:, 0], err[:, -1]
+    _, phi = propagate_state_stm(geo.x_true[:1], geo.t_s[-1] - geo.t_s[0], max_step_s=10.0)
+    P0inv = np.linalg.inv(out["P"][0, 0])
+    lin = np.einsum("nij,nj->ni", out["P"][:, -1], (np.linalg.inv(phi[0]).T @ P0inv @ e0.T).T)
+    pos0, posK = np.linalg.norm(e0[:, :3], axis=1), np.linalg.norm(eK[:, :3], axis=1)
+    assert np.all(posK < 0.1 * pos0)
+    assert np.all(np.linalg.norm(eK[:, :3] - lin[:, :3], axis=1) < 0.05 * np.linalg.norm(lin[:, :3], axis=1) + 0.5)
+
+
+def test_anees_and_anis_inside_99_percent_chi2_band(polar_1000):
+    """200 seeded runs, one orbit: ANEES at four times inside [χ²₀.₀₀₅(6N)/N, χ²₀.₉₉₅(6N)/N] and the summed
+    NIS of all images inside the 99 % band of χ²(N Σ 2mₖ); the MC RMS does not beat the PCRB."""
+    from renderlab.report.coastline_scoring import chi2_band, nis_total_test, pcrb_ric_sigma, per_time_summary
+    from renderlab.studies.coastline_geometric import run_batch
+
+    o, geo = polar_1000
+    N = 200
+    table = run_batch(o, np.random.SeedSequence(2026).spawn(N))["table"]
+    s = per_time_summary(table, pcrb_ric_sigma(geo, o))
+    lo, hi = chi2_band(6.0, N)
+    assert s["anees_lo"].to_numpy()[0] == pytest.approx(lo) and lo == pytest.approx(5.388, abs=1e-3)
+    K = len(geo.t_s)
+    anees = s["anees"].to_numpy()
+    for k in (K // 4, K // 2, 3 * K // 4, K - 1):
+        assert lo <= anees[k] <= hi, (k, anees[k], lo, hi)
+    nis = nis_total_test(table)
+    assert nis["inside"], nis
+    for ax in ("r_m", "i_m", "c_m", "vr_mps", "vi_mps", "vc_mps"):
+        mc, pcrb, filt = (s[f"{p}{ax}"].to_numpy()[-1] for p in ("mc_rms_", "pcrb_sig_", "filter_sig_"))
+        assert mc > 0.8 * pcrb                       # sampling scatter of an RMS over 200 runs is ~5 %
+        assert filt == pytest.approx(pcrb, rel=0.02)  # EKF linearised at the estimate vs PCRB at the truth
+
+
+def test_run_k_replays_alone_bit_identically(polar_1000):
+    from renderlab.studies.coastline_geometric import run, run_batch
+
+    o, _ = polar_1000
+    seeds = np.random.SeedSequence(99).spawn(5)
+    batch = run_batch(o, seeds)["table"]
+    again = run_batch(o, np.random.SeedSequence(99).spawn(5))["table"]
+    for c in batch.column_names:                   # same seed → same numbers (NaN-aware: nis is NaN without an image)
+        assert np.array_equal(batch[c].to_numpy(), again[c].to_numpy(), equal_nan=True), c
+    k = 3
+    alone = run(o, None, k, seeds[k], None)["coastline_filter"]
+    rows = batch.filter(batch["run"].to_numpy() == k)
+    for c in batch.column_names:
+        assert np.array_equal(rows[c].to_numpy(), alone[c].to_numpy(), equal_nan=True), c
+
+
+@pytest.mark.parametrize("bad", [{"sigma_theta_rad": 0.0}, {"cadence_s": -1.0}, {"altitude_m": float("nan")},
+                                 {"no_such_option": 1}])
+def test_bad_options_raise_one_line_user_error(bad):
+    from renderlab.studies.coastline_geometric import options_from_mapping
+
+    with pytest.raises(UserError) as ei:
+        options_from_mapping(bad)
+    assert "\n" not in str(ei.value) and next(iter(bad)) in str(ei.value)
+
+
+def test_publish_writes_table1_figures_and_summary(tmp_path):
+    """The publication command on a tiny case: files exist, figures are PNGs, summary numbers are finite."""
+    import csv
+
+    import pyarrow.parquet as pq
+
+    from renderlab.report.coastline_publish import main
+
+    assert main(["--out", str(tmp_path), "--runs", "12", "--orbits", "i45_h500", "--revolutions", "0.25",
+                 "--chunk", "5"]) == 0
+    for name in ("summary.csv", "table1.md", "i45_h500_timeseries.parquet", "i45_h500_errors.png",
+                 "i45_h500_consistency.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    assert (tmp_path / "i45_h500_errors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    row = next(csv.DictReader(open(tmp_path / "summary.csv")))
+    assert row["case"] == "i45_h500" and int(row["runs"]) == 12
+    assert all(math.isfinite(float(row[f"mc_3sig_{a}"])) for a in ("r_m", "i_m", "c_m", "vr_mps", "vi_mps", "vc_mps"))
+    ts = pq.read_table(tmp_path / "i45_h500_timeseries.parquet")
+    assert ts.num_rows == int(row["images"]) + 1 and int(ts["n_runs"][0].as_py()) == 12

@@ -1,0 +1,74 @@
+"""WGS-84, sun ephemeris and footprints against independent closed forms (paper eq. 1, spherical geometry,
+scipy root finding on the ellipsoid)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import brentq
+
+from renderlab.dynamics.orbits import nadir_attitude
+from renderlab.worlds.earth import footprint, wgs84
+from renderlab.worlds.earth.sun import sun_eci
+
+
+def test_geodetic_round_trip():
+    rng = np.random.default_rng(1)
+    lat, lon, h = rng.uniform(-1.5, 1.5, 200), rng.uniform(-3, 3, 200), rng.uniform(-1e3, 2e6, 200)
+    la, lo, hh = wgs84.ecef_to_geodetic(wgs84.geodetic_to_ecef(lat, lon, h))
+    assert np.abs(la - lat).max() < 1e-10 and np.abs(lo - lon).max() < 1e-12 and np.abs(hh - h).max() < 1e-4
+
+
+def test_ray_ellipsoid_matches_root_finding():
+    rng = np.random.default_rng(2)
+    o = wgs84.geodetic_to_ecef(0.7, 0.3, 800e3)
+    for _ in range(20):
+        d = -o / np.linalg.norm(o) + rng.normal(0, 0.3, 3)
+        d /= np.linalg.norm(d)
+        t = wgs84.ray_ellipsoid(o, d)
+        if not np.isfinite(t):
+            continue
+        f = lambda s: (((o + s * d) / [wgs84.A, wgs84.A, wgs84.B]) ** 2).sum() - 1  # noqa: E731
+        assert abs(t - brentq(f, 0, t * 1.0000001 + 1)) < 1e-3 or abs(t - brentq(f, 0, t + 1e-3)) < 1e-3
+
+
+def test_sun_at_june_solstice_and_march_equinox():
+    jd_solstice = wgs84.julian_date(wgs84.parse_epoch("2024-06-20T20:51:00Z"))  # published solstice time
+    u, r = sun_eci(jd_solstice)
+    assert abs(np.degrees(np.arcsin(u[2])) - 23.44) < 0.01 and abs(r - 1.0163) < 1e-3
+    jd_eq = wgs84.julian_date(wgs84.parse_epoch("2024-03-20T03:06:00Z"))
+    assert abs(np.degrees(np.arcsin(sun_eci(jd_eq)[0][2]))) < 0.01
+
+
+def test_footprint_vs_eq1_and_spherical_closed_form():
+    h, fov = 1000e3, np.radians(30)
+    pos = wgs84.geodetic_to_ecef(0.0, 0.0, h)[None]
+    R = nadir_attitude(pos, np.array([[0, 0, 7000.0]]))
+    dirs = footprint.boundary_dirs_fov(fov, n_per_edge=2)  # corners and edge midpoints
+    pts = footprint.footprint_points(pos, R, dirs)[0]
+    lat, lon, hh = wgs84.ecef_to_geodetic(pts)
+    assert np.abs(hh).max() < 1e-3
+    # edge midpoints: along-track (north-south) and cross-track (east-west) ground half-widths
+    mid_y = np.linalg.norm(pts[0 + 1] - pts[4 + 1])  # top-edge midpoint to bottom-edge midpoint (chord)
+    mid_x = np.linalg.norm(pts[2 + 1] - pts[6 + 1])
+    # sphere of the local radius of curvature (east-west: N = a; north-south at the equator: M = a(1-e²)): central half angle lam = asin((R+h)/R sin(eta)) - eta
+    for chord, Rloc in ((mid_x, wgs84.A), (mid_y, wgs84.A * (1 - wgs84.E2))):
+        lam = np.arcsin((Rloc + h) / Rloc * np.sin(fov / 2)) - fov / 2
+        assert abs(chord - 2 * Rloc * np.sin(lam)) / chord < 2e-3
+    # eq. 1 is the flat-Earth size: the exact ground arc is larger by the curvature (0.54 % at 1000 km, 30 deg)
+    gfov = footprint.gfov_eq1(h, fov)
+    assert abs(gfov - 535.9e3) < 0.1e3  # the paper's "approximately 536 km"
+    arc = 2 * wgs84.A * np.arcsin(mid_x / (2 * wgs84.A))
+    assert 1.004 < arc / gfov < 1.007
+    # small FOV: exact → eq. 1
+    pts = footprint.footprint_points(pos, R, footprint.boundary_dirs_fov(np.radians(1), n_per_edge=2))[0]
+    assert abs(np.linalg.norm(pts[3] - pts[7]) / footprint.gfov_eq1(h, np.radians(1)) - 1) < 1e-4
+
+
+def test_footprint_polygons_antimeridian_and_pole():
+    pos = wgs84.geodetic_to_ecef(np.radians([0, 89.8, 10]), np.radians([0, 20, 179.9]), 1000e3)
+    R = nadir_attitude(pos, np.cross([0, 0, 1.0], pos) + [0, 0, 7000.0])
+    polys = footprint.footprint_polygons(pos, R, footprint.boundary_dirs_fov(np.radians(30)))
+    assert polys[0].geom_type == "Polygon" and polys[0].contains(__import__("shapely").Point(0, 0))
+    assert polys[1].bounds[3] == 90.0 and polys[1].bounds[0] == -180.0  # pole cap
+    assert polys[2].geom_type == "MultiPolygon" and polys[2].bounds[0] == -180.0 and polys[2].bounds[2] == 180.0
+    assert all(p.is_valid for p in polys)

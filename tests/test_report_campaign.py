@@ -1,0 +1,51 @@
+"""``renderlab report``: summary.csv equals statistics computed directly from the runs' Parquet files
+with numpy/scipy; the HTML page links every figure, and every figure is a readable PNG."""
+
+from __future__ import annotations
+
+import csv
+import re
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+from scipy import stats
+
+from renderlab.cli import main
+from test_campaign_engine import SCENE, TINY
+
+
+def test_report_from_tables(tmp_path, capsys):
+    import cv2
+
+    camp = tmp_path / "camp"
+    args = ["campaign", str(SCENE), "--runs", "4", "--out", str(camp), "--workers", "0", "--quiet", "--seed", "2",
+            *[a for kv in TINY for a in ("--set", kv)]]
+    assert main(args) == 0
+    assert main(["report", str(camp), "--out", str(tmp_path / "rep")]) == 0
+    rep = tmp_path / "rep"
+    t = pa.concat_tables([pq.read_table(p) for p in sorted(camp.glob("runs/*/measurements.parquet"))])
+    rows = list(csv.DictReader((rep / "summary.csv").open()))
+    assert {(r["method"], r["axis"]) for r in rows} == {(m, a) for m in ("centroid", "ellipse") for a in "sl"}
+    for r in rows:
+        sel = np.array(t.column("method").to_pylist()) == r["method"]
+        e = np.array(t.column(f"err_{r['axis']}").to_pylist(), float)[sel]
+        fl = np.array(t.column("flags").to_pylist())[sel]
+        good = e[(fl & 1) == 0]
+        good = good[np.isfinite(good)]
+        assert int(r["n_rows"]) == sel.sum() and int(r["n_result"]) == len(good)
+        assert abs(float(r["no_result_rate"]) - (1 - len(good) / sel.sum())) < 1e-5
+        if len(good) >= 2:
+            assert abs(float(r["mean"]) - good.mean()) <= 1e-5 * max(1, abs(good.mean()))
+            assert abs(float(r["std"]) - good.std(ddof=1)) <= 1e-5 * max(1, good.std())
+            assert abs(float(r["mad"]) - stats.median_abs_deviation(good, scale="normal")) <= 1e-5
+    page = (rep / "index.html").read_text()
+    imgs = re.findall(r'src="([^"]+\.png)"', page)
+    assert len(imgs) >= 5
+    for name in imgs:
+        img = cv2.imread(str(rep / name))
+        assert img is not None and img.shape[0] > 100 and img.std() > 0
+    assert "summary.csv" in page and "renderlab report camp --out rep" in page
+    assert (rep / "measurements_breakdown.csv").is_file()
+    assert main(["report", str(tmp_path / "nowhere"), "--out", str(rep)]) == 2
+    assert "not a campaign folder" in capsys.readouterr().err
