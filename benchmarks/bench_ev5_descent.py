@@ -16,6 +16,7 @@ World building (shape, site, catalog) is timed separately and excluded from the 
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import sys
 import time
@@ -46,7 +47,8 @@ def main() -> None:
     plan = make_plan(sc, base)
     t_world = time.perf_counter() - t0
     n_tri = sum(len(b.faces) for b in plan.static_scene.bodies)
-    print(f"world {args.world}: {n_tri / 1e6:.2f} M facets, built in {t_world:.1f} s")
+    print(f"world {args.world}: {n_tri / 1e6:.2f} M facets, built in {t_world:.1f} s; "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
 
     t0 = time.perf_counter()
     backend = make_backend(sc, plan.static_scene, "mitsuba")
@@ -86,7 +88,7 @@ def main() -> None:
     t_mp = (time.perf_counter() - t0) / reps
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
     print(f"1 MP (1024²) frame at 16 spp: {t_mp:.2f} s/frame (mean of {reps}, scene loaded)")
-    print(f"peak resident memory of this process: {peak:.2f} GB")
+    print(f"peak resident memory of this process: {peak:.2f} GB; load average now {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

@@ -16,7 +16,10 @@ the global albedo blended into a correlated field × per-boulder factors with th
 The global mesh must not poke through the patch: global facets with all three vertices inside
 the zero-taper strip's inner edge are removed (cut) and every remaining global vertex inside it
 is lowered along −z by the patch's deepest detail + 5 cm, so the facets straddling the strip
-slope under the patch. Outside the patch the global surface is unchanged.
+slope under the patch; global vertices inside the patch's outer strip (where both surfaces
+coincide) are lowered by 2 cm, so the global facets' convex kinks stay under the DEM's chords
+(the facets straddling the patch edge dip by < 2 cm just outside it; elsewhere outside the patch
+the global surface is unchanged).
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ import numpy as np
 from renderlab.errors import UserError
 from renderlab.worlds.ev5 import terrain
 from renderlab.worlds.ev5.shape import GlobalShape
+
+STRIP_DROP_M = 0.02  # global vertices in the patch's outer strip sit this much below the base
 
 
 @dataclass
@@ -198,6 +203,9 @@ def build_site(shape: GlobalShape, cfg, facet_m: float, rng_terrain: np.random.G
     faces = shape.faces[~inside[shape.faces].all(1)]
     verts = shape.vertices.copy()
     verts[inside] -= drop * R[:, 2]
+    # in the outer strip the surfaces coincide; 2 cm lower keeps the global kinks under the DEM's chords
+    strip = (np.abs(vs[:, 0]) < half) & (np.abs(vs[:, 1]) < half) & near_v & ~inside
+    verts[strip] -= STRIP_DROP_M * R[:, 2]
     used = np.zeros(len(verts), bool)
     used[faces] = True
     remap = np.cumsum(used) - 1
