@@ -6,7 +6,7 @@ A row with any of ``NO_RESULT_MASK`` set has no measured shift (``meas_s``/``mea
 
 from __future__ import annotations
 
-OFF_IMAGE = 1          # predicted landmark behind the camera or its template misses the image
+OFF_IMAGE = 1          # predicted landmark behind the camera, template off the image or too large to make
 TOO_FEW_PIXELS = 2     # fewer valid overlapping pixels than the minimum at the peak
 FLAT_TEMPLATE = 4      # predicted (or extracted) image has no contrast (all shadow / uniform)
 LOW_CORRELATION = 8    # peak correlation under the threshold

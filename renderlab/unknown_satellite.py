@@ -95,7 +95,8 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
 
     from estimators.pose import (DetectOptions, EstimationError, Stage1Options, Stage1Problem, Stage2Options,
                                  TrackOptions, build_database, detect_points, observability, run_stage2,
-                                 solve_stage1, track_points, with_full_inertia)
+                                 track_points, with_full_inertia)
+    from estimators.pose.rigidity import solve_rigid
     from estimators.pose.onboard_model import exp_so3, log_so3
     from renderlab.geometry.camera import CameraModel
     from renderlab.truthset import TruthSet
@@ -136,7 +137,9 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         raise UserError(f"{ts_path}: {exc}") from None
     if db.frame.min() != 0:
         raise UserError(f"{ts_path}: no reference point tracked from the first frame")
-    s1 = solve_stage1(problem, r0g, v0g, w0g, ratios_g)
+    db_all = db
+    s1, problem, rigid = solve_rigid(problem, r0g, v0g, w0g, ratios_g)
+    db = problem.db
     obs = observability(problem, with_full_inertia(s1.theta), "full", prior=True)
     obs_noprior = observability(problem, with_full_inertia(s1.theta), "full", prior=False)
     # ---- scores, stage 1
@@ -202,6 +205,12 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     summary = {
         "run": run, "frames": len(ts), "tracks": len(tracks), "database_points": npts,
         "dropped_short_tracks": db.dropped_tracks, "matched_points": int(ok.sum()),
+        "database_tracks_before_rigidity": db_all.n_points,
+        "rigidity_rejected_tracks": rigid.rejected.tolist(),
+        "rigidity_rejected_matched_knob": [int(v) for v in _match_tracks(tracks, db_all, ft, opts.match_px)[
+            np.isin(db_all.track_ids, rigid.rejected)]],
+        "rigidity_sigma_eff_px": rigid.sigma_eff_px, "rigidity_rounds": rigid.rounds,
+        "stage1_inertia_fallback": s1.inertia_fallback,
         "stage1_rms_px": s1.rms_px, "stage1_nfev": s1.nfev, "stage1_njev": s1.njev,
         "stage1_status": s1.status, "stage1_converged": s1.converged, "stage1_message": s1.message,
         "stage1_cost0": s1.cost0, "stage1_cost": s1.cost, "stage1_gradient_inf_norm": s1.optimality,
@@ -237,7 +246,8 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     tables = {"points": pa.table(pt_rows), "stage1_history": pa.table({k: [r.get(k, np.nan) for r in hist_rows]
                                                                       for k in hist_rows[0]}),
               "stage2": pa.table(s2_rows)}
-    lines = ["with range prior: " + s for s in obs.lines()] + ["images only: " + s for s in obs_noprior.lines()]
+    lines = (rigid.lines() + ["with range prior: " + s for s in obs.lines()]
+             + ["images only: " + s for s in obs_noprior.lines()])
     return SequenceResult(tables, summary, lines, s1, s2)
 
 

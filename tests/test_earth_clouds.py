@@ -30,7 +30,8 @@ def cloudy_frame(repo, gshhg):  # noqa: F811
     from renderlab.worlds.earth import make_plan
 
     sc, base = earth_scenario(repo, "camera.width=64", "camera.height=64", "trajectory.frames=1",
-                              "render.spp=1", f"world.cloud_cover={COVER}", "world.seed=1")
+                              "render.spp=1", f"world.cloud_cover={COVER}", "world.seed=1",
+                              "trajectory.epoch_utc=2024-06-21T19:00:00Z", "trajectory.raan_deg=135.37")
     plan = make_plan(sc, base)
     spec = plan.frames[0]
     scene = plan.scene(plan.scene_key(spec))
@@ -72,10 +73,35 @@ def test_rendered_cloud_ids_match_field_along_pixel_rays(cloudy_frame):
     P = out.position.reshape(-1, 3).astype(np.float64)
     _, _, h = wgs84.ecef_to_geodetic(P @ np.asarray(rf["R_ecef_from_render"]).T + np.asarray(rf["origin_ecef_m"]))
     assert np.all(np.abs(h[got] - w.cloud_altitude_m) < 10.0) and np.all(np.abs(h[~got]) < 10.0)
-    # lit clouds (albedo 0.7) outshine any ground (albedo ≤ 0.25) under the same sun (normals within ~3°)
-    rad = out.radiance.ravel()
-    lit_ground = rad[~got]
-    assert np.median(rad[got]) > 2.0 * np.percentile(lit_ground, 99)
+    # direct sunlight only (max_depth 2): a cloud pixel away from cloud edges (3×3 ids alike, so every
+    # sub-pixel sample hits cloud) shows Lambert radiance albedo·E·cos(i)/π, cos(i) from the normal AOV
+    same = np.ones_like(ids, bool)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            same &= np.roll(np.roll(ids, dy, 0), dx, 1) == ids
+    same[[0, -1], :] = same[:, [0, -1]] = False
+    cos_i = out.normal.reshape(-1, 3).astype(np.float64) @ spec.sun.direction_render
+    lam = w.cloud_albedo * spec.sun.irradiance_w_m2 * cos_i / np.pi
+    inner_cloud = same.ravel() & got
+    assert inner_cloud.sum() > 100
+    assert np.abs(out.radiance.ravel()[inner_cloud] / lam[inner_cloud] - 1).max() < 0.01
+    # clouds cast shadows: a ground point is dark where its ray to the sun crosses a cloudy part of the shell
+    ecef = P @ np.asarray(rf["R_ecef_from_render"]).T + np.asarray(rf["origin_ecef_m"])
+    lat, lon, _ = wgs84.ecef_to_geodetic(ecef)
+    up = wgs84.R_ecef_from_enu(lat, lon)[..., 2]
+    s = np.asarray(st["sun_ecef"], float)
+    s = s / np.linalg.norm(s)
+    to_shell = ecef + (w.cloud_altitude_m / (up @ s))[:, None] * s  # flat over the few km to the shell
+    shadow = CloudField(w.cloud_cover, w.seed, scale_min_m=w.cloud_scale_m).cloudy(to_shell)
+    inner_ground = same.ravel() & ~got
+    ground_lit = w.water_albedo * spec.sun.irradiance_w_m2 * cos_i / np.pi  # the darkest lit ground
+    dark = out.radiance.ravel() < 0.5 * ground_lit
+    in_shadow, lit = inner_ground & shadow, inner_ground & ~shadow
+    print(f"ground pixels {inner_ground.sum()}: predicted shadow {in_shadow.sum()} ({dark[in_shadow].mean():.3f} dark), "
+          f"predicted lit {lit.sum()} ({dark[lit].mean():.3f} dark)")
+    assert in_shadow.sum() >= 20, "the test frame (sun 9° high) must contain cloud shadows"
+    # misses only where a shadow edge is within a cloud-grid cell of the pixel's centre
+    assert dark[in_shadow].mean() > 0.8 and dark[lit].mean() < 0.05
 
 
 def test_cloud_layer_is_deterministic_in_the_seed(repo, gshhg):  # noqa: F811

@@ -248,3 +248,20 @@ def test_descent_trajectory_keys_are_checked():
                         ({"altitudes_m": [2.0]}, "outside"), ({"phase_deg": 95.0}, "phase_deg")):
         with pytest.raises(UserError, match=match):
             scenario_from_dict({"world": copy.deepcopy(TINY_WORLD), "trajectory": {"kind": "ev5_descent", **traj}})
+
+
+def test_descent_sampling_by_rate_and_by_altitude():
+    """3 Hz bursts are 1/3 s apart; default sampling spreads frames geometrically in altitude from
+    start to final; the altitude profile passes the waypoints at their times."""
+    from renderlab.dynamics.small_body import SpinState
+    from renderlab.worlds.ev5.config import EV5DescentTrajectory
+    from renderlab.worlds.ev5.descent import DescentProfile, descent_states
+
+    o, R = np.array([150.0, 80.0, 60.0]), np.eye(3)
+    rate = descent_states(EV5DescentTrajectory(sampling="rate", frames=5, start_time_s=1400.0), SpinState(), o, R)
+    assert np.allclose(np.diff([s.time_s for s in rate]), 1 / 3.0)
+    alt = descent_states(EV5DescentTrajectory(frames=7), SpinState(), o, R)
+    h = np.array([s.altitude_m for s in alt])
+    assert np.allclose(h, np.geomspace(1000.0, 5.0, 7), rtol=1e-9)
+    p = DescentProfile(EV5DescentTrajectory())
+    assert np.allclose(p.altitude([0.0, 900.0, 1500.0, 1500.0 + 450.0]), [1000.0, 200.0, 50.0, 5.0])

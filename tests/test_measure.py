@@ -125,8 +125,9 @@ def test_cli_errors(truthset, tmp_path, capsys):
     assert "no landmark catalog" in err and err.count("\n") == 1
     assert _cli("measure", str(path), "--method", "spc", "--sigma-pos-m", "-1") == 2
     assert "--sigma-pos-m" in capsys.readouterr().err
-    for d in (path, bare):
-        assert not any(p.name.startswith("measurements") for p in d.iterdir()), "nothing half-written"
+    for d in (path, bare, path.parent, tmp_path):
+        assert not any(p.suffix == ".parquet" and "_" in p.stem and p.stem.split("_")[-1] in ("retina", "spc")
+                       or ".tmp-" in p.name for p in d.iterdir()), "nothing half-written"
 
 
 def test_cli_measure_end_to_end(truthset, tmp_path, capsys):
@@ -148,6 +149,11 @@ def test_cli_measure_end_to_end(truthset, tmp_path, capsys):
     assert np.hypot(np.array(t["err_s"])[good], np.array(t["err_l"])[good]).max() < 0.3
     assert _cli(*argv) == 2 and "exists" in capsys.readouterr().err  # no silent overwrite
     assert _cli(*argv, "--overwrite") == 0
+    capsys.readouterr()
+    assert _cli("measure", str(path), "--method", "spc", "--quiet") == 0  # default: TRUTHSET_spc.parquet beside it
+    default = path.parent / f"{path.name}_spc.parquet"
+    assert default.is_file() and pq.read_table(default).num_rows == 6
+    default.unlink()
 
 
 def test_options_validation():

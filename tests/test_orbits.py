@@ -43,12 +43,13 @@ def test_energy_and_angular_momentum_conserved_many_states():
 
 def test_j2_nodal_regression_matches_analytic_rate():
     el = OrbitElements.circular(1000e3, 45.0)
-    t = np.linspace(0, 10 * el.period_s, 11)  # whole orbits: short-period terms average out
+    t = np.linspace(0, 4 * el.period_s, 5)  # whole orbits: the short-period terms repeat
     r0, v0 = el.state(0.0)
-    x = propagate(np.concatenate([r0, v0]), t, j2=True, max_step_s=10.0)
+    x = propagate(np.concatenate([r0, v0]), t, j2=True, max_step_s=30.0)  # ≈ 210 RK4 steps per orbit
     raan = np.unwrap(raan_of(x[:, :3], x[:, 3:]))
     rate = np.polyfit(t, raan, 1)[0]
     expect = j2_nodal_rate(el)
+    print(f"J2 nodal rate {rate:.4e} rad/s, analytic {expect:.4e}, ratio - 1 = {rate / expect - 1:.2e}")
     assert abs(rate / expect - 1) < 0.01, (rate, expect)  # ≈ -2.6 deg/day at 1000 km, 45 deg
 
 

@@ -3,9 +3,15 @@ r"""Stage 1 image processing and the measurement database (Ivanov et al. 2018, �
 1. Noise filter: Gaussian blur (σ = ``blur_sigma_px``) of the DN image.
 2. Binary image: threshold at ``bg + threshold_fraction·(peak − bg)`` (bg = image median, i.e. dark
    space); a global level fixed per frame, as the paper's "predetermined threshold".
-3. Feature points: connected components of the binary image whose area lies in
-   [``min_area_px``, ``max_area_px``] (bus and panels form large blobs and are dropped); centre =
-   intensity-weighted centroid of the *unblurred* image over the component ("centre of illumination").
+3. Feature points: connected components of the binary image that look like isolated points (the
+   paper's antenna tips), not edge segments: area in [``min_area_px``, ``max_area_px``] (bus and
+   panels form large blobs and are dropped, 1-2 px specks are noise); elongation √(λ1/λ2) of the
+   pixel second moments ≤ ``max_elongation`` (lit edges of the bus, panels and antenna shafts are
+   thin lines); fill A / (4π√(λ1λ2)) ≥ ``min_fill`` (a filled ellipse has 1, ragged or hollow
+   shapes less). Moments include the 1/12 px² of each pixel's own extent, so a single pixel is round.
+   Centre = intensity-weighted centroid of the *unblurred* image over the component ("centre of
+   illumination"). :func:`detect_blobs` returns every component with its shape numbers and the reason
+   it was rejected, :func:`detect_points` the accepted centroids.
 4. Tracking by ε-neighbourhood: a track continues with the nearest unclaimed detection within ε of
    its last position; no detection within ε ends it ("shadowed or unstable luminosity"); unclaimed
    detections start new tracks.
@@ -24,8 +30,10 @@ import numpy as np
 class DetectOptions:
     blur_sigma_px: float = 0.8
     threshold_fraction: float = 0.45
-    min_area_px: int = 1
+    min_area_px: int = 3
     max_area_px: int = 400
+    max_elongation: float = 2.5
+    min_fill: float = 0.6
 
 
 @dataclass(frozen=True)
@@ -44,30 +52,60 @@ class Track:
     ended: str = ""  # "", "lost" (no detection within ε), "end" (sequence ended)
 
 
-def detect_points(dn: np.ndarray, opts: DetectOptions = DetectOptions()) -> np.ndarray:
-    """Centroids (K, 2) as (s, l) of compact bright blobs in one image (pixel-centre convention)."""
+@dataclass
+class Blobs:
+    """Connected components of one binary image: centroid (s, l), shape numbers and the gate verdict."""
+
+    sl: np.ndarray           # (K, 2) intensity-weighted centroids
+    area: np.ndarray         # (K,) pixels
+    elongation: np.ndarray   # (K,) √(λ1/λ2)
+    fill: np.ndarray         # (K,) A / (4π√(λ1λ2))
+    reason: list[str]        # "" accepted, else "area", "elongation" or "fill"
+
+    @property
+    def accepted(self) -> np.ndarray:
+        return np.array([r == "" for r in self.reason], bool)
+
+
+def detect_blobs(dn: np.ndarray, opts: DetectOptions = DetectOptions()) -> Blobs:
+    """All bright connected components of one image, with their shape and the point-like gate (steps 1-3)."""
     import cv2
 
     img = np.asarray(dn, np.float32)
     bg = float(np.median(img))
     sm = cv2.GaussianBlur(img, (0, 0), opts.blur_sigma_px) if opts.blur_sigma_px > 0 else img
     peak = float(sm.max())
+    empty = Blobs(np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0), [])
     if peak <= bg:
-        return np.zeros((0, 2))
+        return empty
     binary = (sm > bg + opts.threshold_fraction * (peak - bg)).astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
-    out = []
     w = np.clip(img - bg, 0, None)
+    sl, area, elong, fill, reason = [], [], [], [], []
     for k in range(1, n):
-        area = stats[k, cv2.CC_STAT_AREA]
-        if not opts.min_area_px <= area <= opts.max_area_px:
-            continue
-        ys, xs = np.nonzero(labels == k)
-        wk = w[ys, xs]
+        x0, y0, bw, bh, a = stats[k]
+        lab = labels[y0:y0 + bh, x0:x0 + bw] == k
+        ys, xs = np.nonzero(lab)
+        wk = w[y0 + ys, x0 + xs]
         if wk.sum() <= 0:
             continue
-        out.append((float(xs @ wk / wk.sum()), float(ys @ wk / wk.sum())))
-    return np.array(out).reshape(-1, 2)
+        c = np.cov(np.vstack([xs, ys]), bias=True) if a > 1 else np.zeros((2, 2))
+        lam = np.linalg.eigvalsh(c + np.eye(2) / 12.0)
+        e = float(np.sqrt(lam[1] / lam[0]))
+        f = float(a / (4 * np.pi * np.sqrt(lam[0] * lam[1])))
+        why = ("area" if not opts.min_area_px <= a <= opts.max_area_px else
+               "elongation" if e > opts.max_elongation else "fill" if f < opts.min_fill else "")
+        sl.append((float(x0 + xs @ wk / wk.sum()), float(y0 + ys @ wk / wk.sum())))
+        area.append(a), elong.append(e), fill.append(f), reason.append(why)
+    if not sl:
+        return empty
+    return Blobs(np.array(sl), np.array(area, float), np.array(elong), np.array(fill), reason)
+
+
+def detect_points(dn: np.ndarray, opts: DetectOptions = DetectOptions()) -> np.ndarray:
+    """Centroids (K, 2) as (s, l) of the point-like bright blobs in one image (pixel-centre convention)."""
+    b = detect_blobs(dn, opts)
+    return b.sl[b.accepted].reshape(-1, 2)
 
 
 def track_points(detections: list[np.ndarray], opts: TrackOptions = TrackOptions(),

@@ -12,7 +12,7 @@ coordinates of the database's points. Given θ, eqs. 1-2 are integrated (:mod:`.
 
     Φ(θ) = Σ_k Σ_j ‖z_jk − ẑ_jk(θ)‖² / σ²  (+ a range prior, below)
 
-is minimised with ``scipy.optimize.least_squares`` (trust-region reflective) with the analytic
+is minimised with ``scipy.optimize.least_squares`` (LM by default) with the analytic
 Jacobian: CW (eq. 1) is linear in (r0, v0), the points enter through R_k p_j, and ∂R_k/∂(δφ0, ω0, ln I)
 comes from the variational equations integrated alongside eq. 2 (:mod:`.variational`). The old
 finite-difference Jacobian is kept (``Stage1Options.jacobian = "fd"``) as the benchmark baseline and
@@ -59,8 +59,16 @@ class Stage1Options:
     xtol: float = 1e-12
     gtol: float = 1e-10
     method: str = "lm"                    # least_squares method: "lm" (MINPACK, unbounded) or "trf" (bounded)
+    inertia_param: str = "fallback"       # "physical": solve in u (every value obeys I_i + I_j ≥ I_k,
+    #   :mod:`.inertia`); "log_ratio": ln(I1/I3), ln(I2/I3) free (may leave that set); "fallback":
+    #   log_ratio, and if the result is unphysical re-solve in u from it (Stage1Result.inertia_fallback)
+    loss: str = "linear"                  # least_squares loss; a robust one ("cauchy", ...) implies "trf"
+    f_scale: float = 3.0                  # robust-loss scale, in whitened units (σ)
 
     def __post_init__(self):
+        if self.inertia_param not in ("physical", "log_ratio", "fallback"):
+            raise ValueError(f"Stage1Options.inertia_param must be 'physical', 'log_ratio' or 'fallback', "
+                             f"got {self.inertia_param!r}")
         if self.jacobian not in ("analytic", "fd") or self.integrator not in ("numba", "python"):
             raise ValueError(f"Stage1Options: jacobian must be 'analytic'/'fd' and integrator 'numba'/'python', "
                              f"got {self.jacobian!r}, {self.integrator!r}")
@@ -238,6 +246,7 @@ class Stage1Result:
     optimality: float = float("nan")  # ‖∇Φ‖∞ scaled as scipy reports it (first-order optimality)
     message: str = ""
     seconds: float = float("nan")
+    inertia_fallback: bool = False  # the free solve left the physical set and was re-solved in u
 
     @property
     def converged(self) -> bool:
@@ -250,15 +259,42 @@ class Stage1Result:
                 "gradient_inf_norm": self.optimality, "rms_px": self.rms_px, "seconds": self.seconds}
 
 
-def solve_stage1(problem: Stage1Problem, r0, v0, w0, inertia_ratios, points0=None) -> Stage1Result:
-    """Minimise eq. 6 from an initial guess of the dynamics (attitude guess = ``problem.R_ref``);
-    the points start from ``points0`` (M, 3) if given, else from :meth:`Stage1Problem.initial_points`."""
+def solve_stage1(problem: Stage1Problem, r0, v0, w0, inertia_ratios, points0=None, dphi0=None) -> Stage1Result:
+    """Minimise eq. 6 from an initial guess of the dynamics (attitude guess ``problem.R_ref·exp([dphi0]×)``,
+    dphi0 = 0 by default); the points start from ``points0`` (M, 3) if given, else from
+    :meth:`Stage1Problem.initial_points`. With ``inertia_param = "fallback"`` an unphysical free solution
+    (I_i + I_j < I_k) is re-solved in the physical parametrisation from where the free solve stopped."""
+    import dataclasses
+
+    from .inertia import is_physical
+
+    if problem.opts.inertia_param != "fallback":
+        return _solve(problem, r0, v0, w0, inertia_ratios, points0, dphi0)
+    free = dataclasses.replace(problem, opts=dataclasses.replace(problem.opts, inertia_param="log_ratio"))
+    res = _solve(free, r0, v0, w0, inertia_ratios, points0, dphi0)
+    if is_physical(np.r_[res.inertia_ratios, 1.0]):
+        return res
+    phys = dataclasses.replace(problem, opts=dataclasses.replace(problem.opts, inertia_param="physical"))
+    res2 = _solve(phys, res.r0_lvlh, res.v0_lvlh, res.omega0_body, res.inertia_ratios, res.points_body,
+                  res.theta[6:9])
+    res2.inertia_fallback = True
+    res2.history = res.history + res2.history
+    res2.nfev += res.nfev
+    res2.njev += res.njev
+    res2.cost0 = res.cost0
+    res2.seconds += res.seconds
+    res2.message = f"free solve unphysical (I1/I3, I2/I3 = {res.inertia_ratios.round(3).tolist()}); " + res2.message
+    return res2
+
+
+def _solve(problem: Stage1Problem, r0, v0, w0, inertia_ratios, points0=None, dphi0=None) -> Stage1Result:
     import time
 
     from scipy.optimize import least_squares
 
     t_start = time.perf_counter()
-    dyn = np.r_[r0, v0, np.zeros(3), w0, np.log(np.asarray(inertia_ratios, float))]
+    dphi0 = np.zeros(3) if dphi0 is None else np.asarray(dphi0, float)
+    dyn = np.r_[r0, v0, dphi0, w0, np.log(np.asarray(inertia_ratios, float))]
     pts0 = problem.initial_points(dyn) if points0 is None else np.asarray(points0, float)
     theta0 = np.r_[dyn, pts0.ravel()]
     history, best = [], [np.inf]
@@ -271,16 +307,49 @@ def solve_stage1(problem: Stage1Problem, r0, v0, w0, inertia_ratios, points0=Non
             history.append(th.copy())
         return res
 
-    lb = np.full(len(theta0), -np.inf)
-    ub = np.full(len(theta0), np.inf)
+    o = problem.opts
+    physical = o.inertia_param == "physical"
+    if physical:  # the solver's vector φ: θ with the log-ratios replaced by u (every u is a physical body)
+        from .inertia import log_ratios_from_u, u_from_ratios
+
+        def to_theta(ph):
+            th = ph.copy()
+            th[12:14] = log_ratios_from_u(ph[12:14])[0]
+            return th
+
+        phi0 = theta0.copy()
+        phi0[12:14] = u_from_ratios(np.exp(theta0[12:14]))
+        theta0 = to_theta(phi0)
+    else:
+        def to_theta(ph):
+            return ph
+
+        phi0 = theta0
+
+    def jac(ph):
+        J = problem.jacobian(to_theta(ph))
+        if physical:
+            J[:, 12:14] = J[:, 12:14] @ log_ratios_from_u(ph[12:14])[1]
+        return J
+
+    lb = np.full(len(phi0), -np.inf)
+    ub = np.full(len(phi0), np.inf)
     lb[6:9], ub[6:9] = -np.pi / 2, np.pi / 2      # attitude correction
     lb[9:12], ub[9:12] = -1.0, 1.0                # body rate, rad/s
-    lb[12:14], ub[12:14] = np.log(0.2), np.log(5.0)  # inertia ratios
-    theta0 = np.clip(theta0, lb + 1e-9, ub - 1e-9)
-    o = problem.opts
-    bounds = (lb, ub) if o.method == "trf" else (-np.inf, np.inf)
-    sol = least_squares(fun, theta0, jac=lambda th: problem.jacobian(th), method=o.method, bounds=bounds,
+    if not physical:
+        lb[12:14], ub[12:14] = np.log(0.2), np.log(5.0)  # inertia ratios
+    method = "trf" if o.loss != "linear" else o.method
+    bounded = method == "trf"
+    if bounded:
+        phi0 = np.clip(phi0, lb + 1e-9, ub - 1e-9)
+        theta0 = to_theta(phi0)
+    sol = least_squares(lambda ph: fun(to_theta(ph)), phi0, jac=jac, method=method,
+                        bounds=(lb, ub) if bounded else (-np.inf, np.inf), loss=o.loss, f_scale=o.f_scale,
                         x_scale="jac", max_nfev=o.max_nfev, xtol=o.xtol, ftol=o.ftol, gtol=o.gtol)
+    sol.x = to_theta(sol.x)
+    if o.loss != "linear":
+        sol.fun = problem.residuals(sol.x)
+        sol.cost = 0.5 * float(sol.fun @ sol.fun)
     th = sol.x
     J = problem.jacobian(th)
     try:

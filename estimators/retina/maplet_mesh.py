@@ -13,7 +13,9 @@ Acceleration structure: the regular grid itself, with the minimum and maximum he
 A ray is clipped to the maplet's bounding box and walked cell by cell with a 2-D DDA (Amanatides &
 Woo 1987); only cells whose height interval overlaps the ray's height interval over that cell are
 tested against their two triangles (Möller–Trumbore). The first cell with a hit holds the nearest hit,
-because cells are visited in order of the ray parameter. See :mod:`.raytrace`.
+because cells are visited in order of the ray parameter. A coarse level (min / max height of 8 × 8-cell
+blocks) is walked first, so rays skip whole blocks they pass above or below (shadow rays leaving the
+terrain, oblique lines of sight). See :mod:`.raytrace`.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.retina.raytrace import BLOCK, block_bounds
 from renderlab.geometry.maplet import Maplet
 
 
@@ -41,6 +44,10 @@ class MapletMesh:
         (n−1, n−1, 2, 3) unit facet normals in the maplet frame (tri 0, tri 1 of each cell).
     cell_min, cell_max : numpy.ndarray
         (n−1, n−1) min / max height of each cell's four corners, m.
+    block_min, block_max : numpy.ndarray
+        Min / max height of every ``BLOCK × BLOCK`` block of cells (coarse level of the two-level grid).
+    points_body : numpy.ndarray
+        (n, n, 3) grid points in the body frame (for projecting the maplet with a pose).
     """
 
     maplet: Maplet
@@ -49,6 +56,9 @@ class MapletMesh:
     normals: np.ndarray
     cell_min: np.ndarray
     cell_max: np.ndarray
+    block_min: np.ndarray
+    block_max: np.ndarray
+    points_body: np.ndarray
 
     @property
     def n(self) -> int:
@@ -83,6 +93,8 @@ def build_mesh(maplet: Maplet) -> MapletMesh:
     normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
     cmin = np.minimum(np.minimum(hA, hB), np.minimum(hC, hD))
     cmax = np.maximum(np.maximum(hA, hB), np.maximum(hC, hD))
+    cmin, cmax = np.ascontiguousarray(cmin), np.ascontiguousarray(cmax)
+    bmin, bmax = block_bounds(cmin, cmax, BLOCK)
     return MapletMesh(maplet=maplet, heights=h, albedo=np.ascontiguousarray(maplet.albedo, dtype=np.float64),
-                      normals=np.ascontiguousarray(normals), cell_min=np.ascontiguousarray(cmin),
-                      cell_max=np.ascontiguousarray(cmax))
+                      normals=np.ascontiguousarray(normals), cell_min=cmin, cell_max=cmax, block_min=bmin,
+                      block_max=bmax, points_body=np.ascontiguousarray(maplet.points_body(), dtype=np.float64))

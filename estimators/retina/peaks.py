@@ -90,9 +90,14 @@ def upsampled(C, a, b, factor: int = 10):
     Z = spl(g, g)
     i, j = np.unravel_index(np.argmax(Z), Z.shape)
     y, x = float(g[i]), float(g[j])
-    for _ in range(4):
-        gy, gx = spl(y, x, dx=1)[0, 0], spl(y, x, dy=1)[0, 0]
-        hyy, hxx, hxy = spl(y, x, dx=2)[0, 0], spl(y, x, dy=2)[0, 0], spl(y, x, dx=1, dy=1)[0, 0]
+    f = lambda yy, xx: float(spl(yy, xx)[0, 0])  # noqa: E731
+    hd = 1e-3  # central differences: valid for the biquadratic 3×3 spline too (its 2nd derivatives are
+    for _ in range(4):  # not available from the spline itself, dx must stay below the degree)
+        gy, gx = (f(y + hd, x) - f(y - hd, x)) / (2 * hd), (f(y, x + hd) - f(y, x - hd)) / (2 * hd)
+        f0 = f(y, x)
+        hyy = (f(y + hd, x) - 2 * f0 + f(y - hd, x)) / hd ** 2
+        hxx = (f(y, x + hd) - 2 * f0 + f(y, x - hd)) / hd ** 2
+        hxy = (f(y + hd, x + hd) - f(y + hd, x - hd) - f(y - hd, x + hd) + f(y - hd, x - hd)) / (4 * hd * hd)
         Hm = np.array([[hxx, hxy], [hxy, hyy]])
         if np.linalg.det(Hm) <= 0 or hxx >= 0:
             break

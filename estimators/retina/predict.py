@@ -14,7 +14,9 @@ Synthetic image (Retina "Synthetic Image Generation"): the pixels covering the m
 its projected grid points) are taken through the inverse camera model at k×k sub-pixel positions, the
 lines of sight are intersected with the maplet facets, a shadow ray is cast from every hit toward the
 sun, and each unshadowed hit is lit with McEwen's law (eqs. 5–8) and the maplet albedo. The k² samples
-are averaged (supersampling) and an optional Gaussian PSF matching the camera is applied
+are averaged (supersampling; one fused numba kernel, :func:`~.raytrace.shade_pixels`, or
+:func:`~.raytrace.shade_pinhole`, which also makes the rays, for a distortion-free camera) and an optional
+Gaussian PSF matching the camera is applied
 (normalised over the valid pixels). A pixel is valid when all its samples hit the maplet.
 """
 
@@ -27,7 +29,7 @@ import numpy as np
 
 from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
 from estimators.retina.maplet_mesh import MapletMesh
-from estimators.retina.raytrace import shade_pixels, trace_rays_numpy
+from estimators.retina.raytrace import shade_pinhole, shade_pixels, trace_rays_numpy
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import skew
 
@@ -101,7 +103,8 @@ class TemplateOptions:
 
 @dataclass
 class Template:
-    """A predicted landmark image. ``image[y, x]`` is pixel (s0 + x, l0 + y) of the camera image."""
+    """A predicted landmark image. ``image[y, x]`` is pixel (s0 + x, l0 + y) of the camera image;
+    ``shadow_fraction`` is the fraction of maplet-hitting samples facing the sun but in cast shadow."""
 
     image: np.ndarray
     valid: np.ndarray
@@ -112,7 +115,16 @@ class Template:
 
 def template_box(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate) -> tuple[int, int, int, int] | None:
     """Integer pixel box (s_min, l_min, s_max, l_max) covering the projected maplet grid, or None."""
-    sl = project_point(camera, pose, mesh.maplet.points_body().reshape(-1, 3))
+    pts = mesh.points_body.reshape(-1, 3)
+    if camera.model == "pinhole":  # eqs. 1–4 without distortion, vectorised directly
+        pc = (pts - np.asarray(pose.position_m, float)) @ np.asarray(pose.R_body_from_cam, float)
+        if not np.all(pc[:, 2] > 0):
+            return None
+        x, y = pc[:, 0] / pc[:, 2], pc[:, 1] / pc[:, 2]
+        sl = np.column_stack([camera.fx * x + camera.skew * y + camera.cx,
+                              camera.skew_yx * x + camera.fy * y + camera.cy])
+    else:
+        sl = project_point(camera, pose, pts)
     if not np.all(np.isfinite(sl)):
         return None
     lo = np.floor(sl.min(axis=0)).astype(int)
@@ -131,27 +143,32 @@ def render_template(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstim
     if w > options.max_size_px or h > options.max_size_px or w < 2 or h < 2:
         return None
     k = int(options.supersample)
-    off = (np.arange(k) + 0.5) / k - 0.5
-    ox, oy = np.meshgrid(off, off)
-    ls, ss = np.meshgrid(np.arange(l_min, l_max + 1, dtype=float), np.arange(s_min, s_max + 1, dtype=float),
-                         indexing="ij")
-    sl = np.stack([ss[..., None] + ox.ravel(), ls[..., None] + oy.ravel()], axis=-1).reshape(-1, 2)
-    d_cam = camera.unproject(sl)
     M = mesh.maplet
     R_mb = np.asarray(M.R_body_from_maplet, float).T
     R_bc = np.asarray(pose.R_body_from_cam, float)
-    d_m = d_cam @ (R_mb @ R_bc).T
     o_m = R_mb @ (np.asarray(pose.position_m, float) - np.asarray(M.center_m, float))
     sun_m = R_mb @ (np.asarray(sun_body, float) / np.linalg.norm(sun_body))
-    ok_ray = np.all(np.isfinite(d_m), axis=1)
     eps = 1e-6 * mesh.spacing + 1e-9
-    if options.tracer == "numpy":
-        img, cover, shadow_fraction = _shade_numpy(mesh, o_m, d_m, ok_ray, sun_m, options, eps, k * k)
+    kernel_args = (mesh.heights, mesh.cell_min, mesh.cell_max, mesh.block_min, mesh.block_max, mesh.spacing,
+                   mesh.normals, mesh.albedo, sun_m, bool(options.shadow_rays), float(options.alpha0),
+                   float(options.ls_weight), eps)
+    if options.tracer != "numpy" and camera.model == "pinhole":  # rays made inside the kernel
+        val, nhit, nsh = shade_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), np.linalg.inv(camera.K_matrix),
+                                       s_min, l_min, w, h, k, *kernel_args)
     else:
-        d_m[~ok_ray] = np.nan
-        val, nhit, nsh = shade_pixels(o_m, np.ascontiguousarray(d_m), k * k, mesh.heights, mesh.cell_min,
-                                      mesh.cell_max, mesh.spacing, mesh.normals, mesh.albedo, sun_m,
-                                      bool(options.shadow_rays), float(options.alpha0), float(options.ls_weight), eps)
+        off = (np.arange(k) + 0.5) / k - 0.5
+        ox, oy = np.meshgrid(off, off)
+        ls, ss = np.meshgrid(np.arange(l_min, l_max + 1, dtype=float), np.arange(s_min, s_max + 1, dtype=float),
+                             indexing="ij")
+        sl = np.stack([ss[..., None] + ox.ravel(), ls[..., None] + oy.ravel()], axis=-1).reshape(-1, 2)
+        d_m = camera.unproject(sl) @ (R_mb @ R_bc).T
+        ok_ray = np.all(np.isfinite(d_m), axis=1)
+        if options.tracer == "numpy":
+            img, cover, shadow_fraction = _shade_numpy(mesh, o_m, d_m, ok_ray, sun_m, options, eps, k * k)
+        else:
+            d_m[~ok_ray] = np.nan
+            val, nhit, nsh = shade_pixels(o_m, np.ascontiguousarray(d_m), k * k, *kernel_args)
+    if options.tracer != "numpy":
         img, cover = val, nhit / (k * k)
         shadow_fraction = float(nsh.sum() / max(nhit.sum(), 1))
     img, cover = img.reshape(h, w), cover.reshape(h, w)

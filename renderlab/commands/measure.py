@@ -10,7 +10,7 @@ def add_parser(subparsers) -> None:
     p = subparsers.add_parser("measure", help="measure the landmarks of an EV5 truth set (Retina or SPC-style)")
     p.add_argument("truthset", metavar="TRUTHSET", help="truth set folder with a landmark catalog")
     p.add_argument("--method", required=True, choices=["retina", "spc"], help="measurement method")
-    p.add_argument("--out", metavar="FILE", help="output Parquet (default TRUTHSET/measurements_<method>.parquet)")
+    p.add_argument("--out", metavar="FILE", help="output Parquet (default: TRUTHSET_<method>.parquet next to the truth set folder)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the a-priori pose draws (default 0)")
     p.add_argument("--sigma-pos-m", type=float, default=0.5, metavar="M",
                    help="a-priori position 1-sigma per axis, m (default 0.5)")
@@ -56,7 +56,7 @@ def run(args) -> int:
                           n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
                           min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
                           campaign=args.campaign)
-    out = Path(args.out) if args.out else ts.path / f"measurements_{args.method}.parquet"
+    out = Path(args.out) if args.out else ts.path.parent / f"{ts.path.name}_{args.method}.parquet"
     if out.exists() and not args.overwrite:
         raise UserError(f"output {out} exists (use --overwrite to replace it)")
     table = measure_truthset(ts, maplets, args.method, opts, np.random.default_rng(args.seed), progress=not args.quiet)

@@ -6,14 +6,15 @@
 
 writes ``frame_<alt>m.png`` (sensor DN image; each landmark's maplet outline projected with the
 true pose, coloured by tier; solid = visible, dashed = occluded; the label is gsd_ratio) and
-``landmarks_summary.csv`` (per frame and tier: in view, visible, occluded, median gsd_ratio,
-median shadow fraction) next to this script.
+``summary.csv`` (per frame and tier: in view, visible, occluded, median gsd_ratio, median shadow
+fraction) and a copy of the truth set's ``landmark_truth.parquet`` next to this script.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -83,11 +84,12 @@ def main(truthset: str) -> None:
                             "occluded": sum(lt["occluded"][i] for i in idx),
                             "median_gsd_ratio": round(float(np.median([lt["gsd_ratio"][i] for i in idx])), 3),
                             "median_shadow_fraction": round(float(np.median([lt["shadow_fraction"][i] for i in idx])), 3)})
-    with open(HERE / "landmarks_summary.csv", "w", newline="") as fh:
+    with open(HERE / "summary.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(summary[0]))
         w.writeheader()
         w.writerows(summary)
-    print(f"wrote {len(manifest['frames'])} figures and landmarks_summary.csv to {HERE}")
+    shutil.copyfile(root / "landmark_truth.parquet", HERE / "landmark_truth.parquet")
+    print(f"wrote {len(manifest['frames'])} figures, summary.csv and landmark_truth.parquet to {HERE}")
 
 
 if __name__ == "__main__":

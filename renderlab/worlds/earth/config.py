@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import datetime, timezone
 from typing import Annotated, Literal
 
 from pydantic import Field, field_validator
@@ -68,6 +68,16 @@ class LEOTrajectory(Strict):
     fov_deg: Annotated[float, Field(gt=0, lt=120, allow_inf_nan=False)] | None = 30.0
     pointing_error_deg: NonNegative = 0.0
     star_tracker_sigma_arcsec: NonNegative = 5.0
+
+    @field_validator("epoch_utc", mode="before")
+    @classmethod
+    def _toml_datetime(cls, v):
+        """An unquoted TOML date-time (``--set trajectory.epoch_utc=2024-06-21T18:00:00Z``) → ISO text."""
+        if isinstance(v, datetime):
+            if v.tzinfo is None:
+                raise ValueError(f"give the epoch in UTC with a Z suffix: {v.isoformat()}")
+            return v.astimezone(timezone.utc).isoformat().replace("+00:00", "Z")
+        return v
 
     @field_validator("epoch_utc")
     @classmethod

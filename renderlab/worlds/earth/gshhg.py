@@ -75,11 +75,23 @@ class GSHHG:
         return shapely.intersection(self.land[idx], region)
 
     def coast_in(self, region) -> np.ndarray:
-        """Coastline pieces (LineStrings/MultiLineStrings) clipped to ``region``."""
+        """Coastline pieces (LineStrings/MultiLineStrings) clipped to ``region``.
+
+        Built from the chunks of only the land polygons that meet ``region`` (cached per polygon), so a
+        render never pays for the global coastline index; the chunks are those of :attr:`coast`."""
         import shapely
 
-        idx = self.coast_tree.query(region, predicate="intersects")
-        out = shapely.intersection(self.coast[idx], region)
+        idx = np.sort(self.land_tree.query(region, predicate="intersects"))
+        if len(idx) == 0:
+            return np.empty(0, dtype=object)
+        cache = self._once("_poly_chunks", dict)
+        with self._lock:
+            for i in idx:
+                if i not in cache:
+                    cache[i] = _coast_chunks(self.land[i:i + 1])
+        chunks = np.concatenate([cache[i] for i in idx])
+        shapely.prepare(region)
+        out = shapely.intersection(chunks[shapely.intersects(region, chunks)], region)
         return out[~shapely.is_empty(out)]
 
 
