@@ -11,9 +11,10 @@ about a cell of the pixel centre.
 
 from __future__ import annotations
 
+import earth_fixtures
 import numpy as np
 import pytest
-from earth_fixtures import earth_scenario, gshhg  # noqa: F401  (session fixture)
+from earth_fixtures import earth_scenario
 
 from renderlab.render.pipeline import make_backend
 from renderlab.worlds.earth import wgs84
@@ -24,9 +25,11 @@ COVER = 0.67  # about two thirds of Earth is cloudy
 # world.seed 1 gives the default frame (Portugal) both cloud (≈ 39 % of pixels) and ground; with seed 0 the
 # same frame lies under one large cloud system (≈ 99 %) and could not show whether the ground is occluded
 
+gshhg = earth_fixtures.gshhg  # session fixture: GSHHG parsed once for all Earth tests
+
 
 @pytest.fixture(scope="module")
-def cloudy_frame(repo, gshhg):  # noqa: F811
+def cloudy_frame(repo, gshhg):
     from renderlab.worlds.earth import make_plan
 
     sc, base = earth_scenario(repo, "camera.width=64", "camera.height=64", "trajectory.frames=1",
@@ -104,7 +107,7 @@ def test_rendered_cloud_ids_match_field_along_pixel_rays(cloudy_frame):
     assert dark[in_shadow].mean() > 0.8 and dark[lit].mean() < 0.05
 
 
-def test_cloud_layer_is_deterministic_in_the_seed(repo, gshhg):  # noqa: F811
+def test_cloud_layer_is_deterministic_in_the_seed(repo, gshhg):
     from renderlab.worlds.earth.plan import EarthPlan
 
     def cloud_faces(seed):

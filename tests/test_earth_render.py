@@ -9,19 +9,21 @@ ellipsoid at the lat/lon the projection predicts.
 
 from __future__ import annotations
 
+import earth_fixtures
 import numpy as np
 import pytest
+from earth_fixtures import earth_scenario
 from scipy.spatial import cKDTree
 
 from renderlab.render.pipeline import make_backend
-from renderlab.scenario import load_scenario
 from renderlab.worlds.earth import wgs84
+
+gshhg = earth_fixtures.gshhg  # session fixture: GSHHG parsed once for all Earth tests
 
 
 @pytest.fixture(scope="module")
-def rendered(repo):
-    sc, base = load_scenario(repo / "scenes/earth_leo.toml", ["camera.width=128", "camera.height=128",
-                                                               "trajectory.frames=1", "render.spp=8"])
+def rendered(repo, gshhg):
+    sc, base = earth_scenario(repo, "camera.width=128", "camera.height=128", "trajectory.frames=1", "render.spp=8")
     from renderlab.worlds.earth import make_plan
 
     plan = make_plan(sc, base)

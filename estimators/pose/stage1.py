@@ -29,6 +29,10 @@ separation mechanism's known speed; ref. [28]). Here that assumption is made exp
 prior on the initial range ‖r0 − d‖ (``range_prior_m``, σ = ``range_prior_sigma_m``, the a-priori
 uncertainty of the separation geometry). Points start, unlike the paper's random values, from
 back-projection of their first measurement to the a-priori range (same minimum, fewer iterations).
+
+Inertia: the free log-ratios can leave the set of physical bodies (I_i + I_j < I_k) where the arc is
+short and the ratios barely seen; ``Stage1Options.inertia_param`` = "fallback" (default) re-solves such
+a result in the parametrisation of :mod:`.inertia`, where every value is physical.
 """
 
 from __future__ import annotations

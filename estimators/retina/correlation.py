@@ -14,7 +14,9 @@ inside the image and is not masked out (e.g. saturated).
 
 :func:`correlation_surface` evaluates the six masked sums (N, Σp, Σp², Σe, Σe², Σpe) for every shift as
 cross-correlations by FFT (Lewis 1995, the paper's ref. 19, "fast normalized cross-correlation"), after
-removing the means (C is invariant to offsets; this keeps the sums well conditioned).
+removing the means (C is invariant to offsets; this keeps the sums well conditioned). When every image
+pixel of the search window is usable, N, Σp and Σp² do not depend on the shift and only three
+cross-correlations are needed; all of them go through one batched forward and one inverse real FFT.
 :func:`correlation_surface_direct` is the direct numba loop (same numbers to ~1e-12) and
 :func:`correlation_surface_numpy` the plain-numpy version (benchmark baseline).
 """
@@ -119,7 +121,10 @@ def correlation_surface(image, template, valid=None, s0: int = 0, l0: int = 0, r
     :func:`correlation_surface_direct`."""
     from scipy import fft
 
-    image, template, valid, image_ok = _prep(image, template, valid, image_valid)
+    image = np.asarray(image, dtype=np.float64)
+    template = np.asarray(template, dtype=np.float64)
+    valid = np.ones(template.shape, bool) if valid is None else np.asarray(valid, dtype=bool)
+    image_ok = None if image_valid is None else np.asarray(image_valid, dtype=bool)
     H, W = image.shape
     h, w = template.shape
     r = int(radius)
@@ -132,7 +137,7 @@ def correlation_surface(image, template, valid=None, s0: int = 0, l0: int = 0, r
     if ya < yb and xa < xb:
         ry, rx = ya - (l0 - r), xa - (s0 - r)
         E[ry:ry + yb - ya, rx:rx + xb - xa] = image[ya:yb, xa:xb]
-        OK[ry:ry + yb - ya, rx:rx + xb - xa] = image_ok[ya:yb, xa:xb]
+        OK[ry:ry + yb - ya, rx:rx + xb - xa] = 1.0 if image_ok is None else image_ok[ya:yb, xa:xb]
     n = 2 * r + 1
     C = np.full((n, n), np.nan)
     if not OK.any() or not valid.any():
@@ -141,14 +146,25 @@ def correlation_surface(image, template, valid=None, s0: int = 0, l0: int = 0, r
     v = valid.astype(np.float64)
     P = (template - template[valid].mean()) * v
     shape = (Hr, Wr)
-    # all six masked sums in one forward and one inverse batched real FFT (no per-product call overhead)
-    stack = np.zeros((6, Hr, Wr))
-    stack[0, :h, :w], stack[1, :h, :w], stack[2, :h, :w] = v, P, P * P
-    stack[3], stack[4], stack[5] = OK, E, E * E
-    f = fft.rfft2(stack, workers=1)
-    fa, fb = np.conj(f[:3]), f[3:]
-    prod = np.stack([fa[0] * fb[0], fa[1] * fb[0], fa[2] * fb[0], fa[0] * fb[1], fa[0] * fb[2], fa[1] * fb[1]])
-    N, Sp, Spp, Se, See, Spe = fft.irfft2(prod, s=shape, workers=1)[:, :n, :n]
+    if OK.all():
+        # every image pixel of the window usable (the common case): N, Σp, Σp² do not depend on the shift,
+        # three cross-correlations remain (one forward, one inverse batched real FFT)
+        stack = np.zeros((4, Hr, Wr))
+        stack[0, :h, :w], stack[1, :h, :w] = v, P
+        stack[2], stack[3] = E, E * E
+        f = fft.rfft2(stack, workers=1)
+        fv, fp = np.conj(f[0]), np.conj(f[1])
+        Se, See, Spe = fft.irfft2(np.stack([fv * f[2], fv * f[3], fp * f[2]]), s=shape, workers=1)[:, :n, :n]
+        N, Sp, Spp = (np.full((n, n), float(x)) for x in (v.sum(), P.sum(), (P * P).sum()))
+    else:
+        # all six masked sums in one forward and one inverse batched real FFT
+        stack = np.zeros((6, Hr, Wr))
+        stack[0, :h, :w], stack[1, :h, :w], stack[2, :h, :w] = v, P, P * P
+        stack[3], stack[4], stack[5] = OK, E, E * E
+        f = fft.rfft2(stack, workers=1)
+        fa, fb = np.conj(f[:3]), f[3:]
+        prod = np.stack([fa[0] * fb[0], fa[1] * fb[0], fa[2] * fb[0], fa[0] * fb[1], fa[0] * fb[2], fa[1] * fb[1]])
+        N, Sp, Spp, Se, See, Spe = fft.irfft2(prod, s=shape, workers=1)[:, :n, :n]
     N = np.rint(N)
     cnt = N.astype(np.int64)
     ok = cnt >= max(int(min_count), 1)

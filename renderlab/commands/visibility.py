@@ -33,8 +33,6 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    import numpy as np
-
     from renderlab.worlds.earth import wgs84
     from renderlab.worlds.earth.gshhg import load_gshhg
     from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep

@@ -1,0 +1,60 @@
+"""Retina's error on rendered EV5 frames: truth photometry (McEwen = Retina's own model, or the EV5
+default Hapke) × peak finder, on the landmarks selected by ``tests/test_measure_ev5.py`` (well lit,
+unoccluded, ≥ 300 template pixels, maplet spacing ≤ 2 px) and on the rest.
+
+Same two 128 × 128 frames (65 m, 45 m) and perfect maplets as the test; a-priori pose = true pose.
+
+    NUMBA_NUM_THREADS=1 .venv/bin/python benchmarks/bench_retina_ev5_accuracy.py [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from test_measure_ev5 import SCENARIO, select_well_measurable  # noqa: E402
+
+FINDERS = ("retina_3x3", "upsampled", "quadric_2d", "gaussian", "parabola_1d")
+
+
+def main():
+    from renderlab.measure import MeasureOptions, measure_truthset
+    from renderlab.render.pipeline import render_truthset
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.truthset import TruthSet
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", help="folder for the truth sets (default: a temporary one)")
+    args = ap.parse_args()
+    root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="retina_ev5_"))
+    print(f"{'law':8s} {'finder':12s} {'n sel':>5s} {'max sel':>8s} {'rms sel':>8s} {'n >= 0.3':>8s}   "
+          f"{'n rest':>6s} {'median rest':>11s}")
+    for law in ("mcewen", "hapke"):
+        sc = copy.deepcopy(SCENARIO)
+        sc["world"]["law"] = law
+        path = render_truthset(scenario_from_dict(sc), ".", root / law, progress=False)
+        ts, maplets = TruthSet.open(path), read_catalog(path)
+        truth = ts.read_table("landmark_truth").to_pydict()
+        sel = select_well_measurable(truth, {int(m.landmark_id): int(m.n) for m in maplets})
+        keys = list(zip(truth["frame"], truth["landmark_id"]))
+        for finder in FINDERS:
+            opts = MeasureOptions(sigma_pos_m=(0.0,) * 3, sigma_att_rad=(0.0,) * 3, peak=finder, supersample=2)
+            m = measure_truthset(ts, maplets, "retina", opts, np.random.default_rng(0)).to_pydict()
+            row = {(f, i): k for k, (f, i) in enumerate(zip(m["frame"], m["item"]))}
+            e = np.array([np.hypot(m["err_s"][row[k]], m["err_l"][row[k]]) if k in row else np.nan for k in keys])
+            es, er = e[sel], e[~sel & np.isfinite(e)]
+            print(f"{law:8s} {finder:12s} {sel.sum():5d} {np.nanmax(es):8.3f} {np.sqrt(np.nanmean(es ** 2)):8.3f} "
+                  f"{int(np.sum(es >= 0.3)):8d}   {er.size:6d} {np.median(er):11.3f}")
+    print(f"truth sets in {root}")
+
+
+if __name__ == "__main__":
+    main()
