@@ -6,7 +6,11 @@ independent per-pixel prediction: the pixel-centre ray (CameraModel.unproject + 
 cloud shell (WGS-84 raised by the cloud altitude; ``ray_ellipsoid`` is checked against root finding in
 test_earth_geometry) and the field is evaluated there. The mesh only samples the field once per cloud-grid
 cell (≈ 1.5 km here against ≈ 8.5 km pixels), so pixels may disagree only where a cloud edge passes within
-about a cell of the pixel centre.
+about a cell of the pixel centre (measured: 0.4 % of pixels); (3) cloud radiance against Lambert's law with
+the normal AOV and the sun; (4) cloud shadows: a ground pixel is dark exactly where the ray from its
+position AOV towards the sun crosses a cloudy part of the shell. The frame is taken with the sun 9° high so
+that shadows fall ≈ 2 pixels from their clouds: the epoch moves to 19:00 UTC and the RAAN by the Earth's
+rotation in 9 h (15.041°/h), which keeps the default ground track (Portugal).
 """
 
 from __future__ import annotations
@@ -87,7 +91,9 @@ def test_rendered_cloud_ids_match_field_along_pixel_rays(cloudy_frame):
     lam = w.cloud_albedo * spec.sun.irradiance_w_m2 * cos_i / np.pi
     inner_cloud = same.ravel() & got
     assert inner_cloud.sum() > 100
-    assert np.abs(out.radiance.ravel()[inner_cloud] / lam[inner_cloud] - 1).max() < 0.01
+    rel = np.abs(out.radiance.ravel()[inner_cloud] / lam[inner_cloud] - 1).max()
+    print(f"cloud radiance vs Lambert: max relative error {rel:.2e} over {inner_cloud.sum()} pixels")
+    assert rel < 0.01  # float32 radiance and facet normals only
     # clouds cast shadows: a ground point is dark where its ray to the sun crosses a cloudy part of the shell
     ecef = P @ np.asarray(rf["R_ecef_from_render"]).T + np.asarray(rf["origin_ecef_m"])
     lat, lon, _ = wgs84.ecef_to_geodetic(ecef)

@@ -173,7 +173,8 @@ def test_rigidity_test_keeps_only_rigid_tracks():
     rng = np.random.default_rng(6)
     prob = Stage1Problem(CAM, s["R_lc"], s["d"], s["n"], s["times"], db,
                          s["R"][0] @ exp_so3(rng.normal(0, np.radians(3), 3)),
-                         np.linalg.norm(s["rv"][0, :3] - s["d"]), Stage1Options(sigma_px=SIGMA, range_prior_sigma_m=0.02))
+                         np.linalg.norm(s["rv"][0, :3] - s["d"]),
+                         Stage1Options(sigma_px=SIGMA, range_prior_sigma_m=0.02))
     ratios = s["I"][:2] / s["I"][2]
     res, kept_prob, rep = solve_rigid(prob, s["rv"][0, :3] + rng.normal(0, 0.03, 3),
                                       s["rv"][0, 3:] + rng.normal(0, 0.01, 3),
@@ -234,3 +235,18 @@ def test_short_arc_free_solve_unphysical_fallback_physical():
     assert fb.inertia_fallback and is_physical(np.r_[fb.inertia_ratios, 1.0]), fb.inertia_ratios
     dof = 2 * len(db.frame) + 1 - len(fb.theta)
     assert 2 * fb.cost < chi2.ppf(0.999, dof) and fb.cost < 1.05 * free.cost, (fb.cost, free.cost, dof)
+
+
+def test_rigidity_test_refuses_too_few_rigid_tracks():
+    """3 rigid points + the 3 sliding ones: the database passes the ≥ 4 count, the rigidity test must not."""
+    from estimators.pose.rigidity import solve_rigid
+
+    s = _sliding_sequence(frames=20)
+    s["det"] = [d[3:] for d in s["det"]]          # drop rigid points 0-2
+    db = build_database(track_points(s["det"], TrackOptions(epsilon_px=15.0)), TrackOptions())
+    assert db.n_points == 6
+    prob = Stage1Problem(CAM, s["R_lc"], s["d"], s["n"], s["times"], db, s["R"][0],
+                         np.linalg.norm(s["rv"][0, :3] - s["d"]),
+                         Stage1Options(sigma_px=SIGMA, range_prior_sigma_m=0.02))
+    with pytest.raises(EstimationError, match="rigidity test kept 3 of 6"):
+        solve_rigid(prob, s["rv"][0, :3], s["rv"][0, 3:], s["W"][0], s["I"][:2] / s["I"][2])

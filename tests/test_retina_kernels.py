@@ -145,20 +145,25 @@ def test_pixel_covariance_matches_finite_differences():
     np.testing.assert_allclose(pixel_covariance(cam, pose, p, Sp, Sr), ref, rtol=1e-4)
 
 
-def test_fused_template_kernel_matches_numpy_pipeline():
+@pytest.mark.parametrize("lens", [{"model": "brown", "distortion": {"k1": -0.05}},
+                                  {"model": "pinhole", "skew": 0.4, "skew_yx": -0.3}])
+def test_fused_template_kernel_matches_numpy_pipeline(lens):
     """The fused numba synthetic image (trace + shadow + McEwen + supersampling) equals the plain-numpy
-    pipeline (brute-force tracer, vectorised ``mcewen_relative``)."""
+    pipeline (brute-force tracer, vectorised ``mcewen_relative``, rays from ``CameraModel.unproject``).
+    Pinhole: the kernel makes its own rays (and the template box its own projection)."""
     from estimators.retina import TemplateOptions, render_template
 
     M = _rough_maplet(n=17)
     mesh = build_mesh(M)
-    cam = CameraModel.from_dict({"width": 60, "height": 50, "fx": 40.0, "fy": 42.0, "cx": 29.0, "cy": 24.0,
-                                 "model": "brown", "distortion": {"k1": -0.05}})
+    cam = CameraModel.from_dict({"width": 60, "height": 50, "fx": 40.0, "fy": 42.0, "cx": 29.0, "cy": 24.0, **lens})
     pos = np.array([0.7, -0.4, 6.0])
     pose = CameraPoseEstimate(look_at(pos, np.zeros(3), np.array([0.0, 1.0, 0.0])).as_matrix(), pos)
     sun = np.array([0.7, 0.2, 0.5]) / np.linalg.norm([0.7, 0.2, 0.5])
     a = render_template(mesh, cam, pose, sun, TemplateOptions(supersample=2))
     b = render_template(mesh, cam, pose, sun, TemplateOptions(supersample=2, tracer="numpy"))
+    sl = cam.project(pose.to_camera(M.points_body().reshape(-1, 3)))  # the box from the camera model itself
+    lo, hi = np.floor(sl.min(axis=0)).astype(int), np.ceil(sl.max(axis=0)).astype(int)
+    assert (a.s0, a.l0, a.s0 + a.image.shape[1] - 1, a.l0 + a.image.shape[0] - 1) == (lo[0], lo[1], hi[0], hi[1])
     assert a.valid.sum() > 100 and (a.image[a.valid] == 0).any() and a.shadow_fraction > 0
     np.testing.assert_array_equal(a.valid, b.valid)
     np.testing.assert_allclose(a.image, b.image, rtol=1e-9, atol=1e-12)

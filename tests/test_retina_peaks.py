@@ -107,3 +107,14 @@ def test_retina_rendered_maplet_subpixel_shift(method):
         # 0.2 px: the finder's share of Retina's 0.3 px acceptance; the 1-D finders (row/column only) and the
         # linear 3x3 fit are biased on this smooth, anisotropic peak (measured 0.10-0.15 px), the 2-D ones not
         assert err < (0.05 if method in ("quadric_2d", "upsampled") else 0.2), (method, err, shift)
+
+
+def test_upsampled_finder_on_a_small_search_area():
+    """A ±2 px search (5×5 surface) with the maximum next to the border: the spline falls to the 3×3
+    neighbourhood (biquadratic; no second derivatives from the spline itself), still near the true peak."""
+    y, x = np.mgrid[-2:3, -2:3].astype(float)
+    x0, y0 = -0.7, 1.2  # integer maximum at (Δs, Δl) = (−1, 1): a = 3, b = 1, r falls to 1
+    C = np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / 2.0)
+    p = locate_peak(C, "upsampled")
+    assert not p.on_border
+    assert abs(p.ds - x0) < 0.1 and abs(p.dl - y0) < 0.1, (p.ds, p.dl)

@@ -182,8 +182,9 @@ def solve_rigid(problem: Stage1Problem, r0, v0, w0, inertia_ratios,
             break
         seen.add(tuple(new))
         if len(new) < full.opts.min_points:
+            worst3 = "; ".join(RigidityReport(tests, sigma, rnd).lines()[1:4])
             raise EstimationError(f"rigidity test kept {len(new)} of {full.db.n_points} tracks, stage 1 needs "
-                                  f"{full.opts.min_points}: " + "; ".join(RigidityReport(tests, sigma, rnd).lines()[1:4]))
+                                  f"{full.opts.min_points}: {worst3}")
         kept = new
         prob = dataclasses.replace(full, db=subset(full.db, kept),
                                    opts=dataclasses.replace(full.opts, max_nfev=opts.round_nfev))

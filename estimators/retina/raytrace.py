@@ -1,11 +1,14 @@
 r"""Ray–maplet intersection and shadow rays ("single-bounce" ray tracing, Retina synthetic image step 3–4).
 
-Kernels (numba) walk the maplet's cell grid with a 2-D DDA (see :mod:`.maplet_mesh`) and test the two
-triangles of each candidate cell with the Möller–Trumbore algorithm. Work is done in *grid units*
-(u = column index, v = row index, z in metres): an affine change of coordinates keeps the ray parameter
-t, so hit distances are metric. :func:`shade_pixels` fuses tracing, shadow rays, McEwen shading (eqs. 5–8)
-and supersampling for the synthetic image. :func:`trace_bruteforce` is the plain-numpy reference (every ray against
-every facet); the tests use it as the oracle and the benchmark as the speed baseline.
+Kernels (numba) walk the maplet's cell grid with a 2-D DDA (Amanatides & Woo; see :mod:`.maplet_mesh`)
+on two levels — 8 × 8-cell blocks first, skipping every block whose height interval the ray misses, then
+the cells of the others — and test the two triangles of each candidate cell with the Möller–Trumbore
+algorithm. Work is done in *grid units* (u = column index, v = row index, z in metres): an affine change
+of coordinates keeps the ray parameter t, so hit distances are metric. :func:`shade_pixels` fuses tracing,
+shadow rays, McEwen shading (eqs. 5–8) and supersampling for the synthetic image; :func:`shade_pinhole`
+also makes the lines of sight of a distortion-free camera (inverse of eqs. 3–4) inside the kernel.
+:func:`trace_bruteforce` is the plain-numpy reference (every ray against every facet); the tests use it
+as the oracle and the benchmark as the speed baseline.
 """
 
 from __future__ import annotations

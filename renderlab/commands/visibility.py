@@ -82,15 +82,23 @@ def _plot(rows, path, opt) -> None:
     Z = np.array([[next(r[key] for r in rows if r["inclination_deg"] == i and r["fov_deg"] == f) for i in incs]
                   for f in fovs]) * 100
     fig, ax = plt.subplots(figsize=(6, 4.5), constrained_layout=True)
+    what = "images with coastline [%]"
+    if key == "fraction_usable":
+        what = "images with " + ("lit " if opt.daylight_only else "") + ("clear " if opt.cloud_cover else "") + \
+            "coastline [%]"
     if len(incs) > 1 and len(fovs) > 1:
-        cs = ax.contourf(incs, fovs, Z, levels=np.arange(0, 101, 10), cmap="viridis")
-        ax.contour(incs, fovs, Z, levels=np.arange(0, 101, 10), colors="k", linewidths=0.4)
-        fig.colorbar(cs, label="images with coastline [%]")
+        levels = np.arange(0, 5 * np.ceil(Z.max() / 5) + 5, 5)
+        cs = ax.contourf(incs, fovs, Z, levels=levels, cmap="viridis")
+        lines = ax.contour(incs, fovs, Z, levels=levels[::2], colors="k", linewidths=0.4)
+        ax.clabel(lines, fmt="%g", fontsize=7)
+        fig.colorbar(cs, label=what)
     else:
-        ax.scatter(np.repeat(incs, len(fovs)), np.tile(fovs, len(incs)), c=Z.T.ravel())
+        sc = ax.scatter(np.repeat(incs, len(fovs)), np.tile(fovs, len(incs)), c=Z.T.ravel())
+        fig.colorbar(sc, label=what)
     ax.set_xlabel("inclination [deg]")
     ax.set_ylabel("field of view [deg]")
     extra = (" daylight" if opt.daylight_only else "") + (f" clouds {opt.cloud_cover:.2f}" if opt.cloud_cover else "")
-    ax.set_title(f"{opt.altitude_m / 1e3:.0f} km, {opt.hours:g} h, every {opt.cadence_s:g} s{extra}")
+    ax.set_title(f"{opt.altitude_m / 1e3:.0f} km, {opt.hours:g} h from {opt.epoch_utc}, every {opt.cadence_s:g} s{extra}",
+                 fontsize=9)
     fig.savefig(path, dpi=120)
     plt.close(fig)
