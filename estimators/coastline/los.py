@@ -21,18 +21,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.geometry.rotations import skew
+
 __all__ = ["los_predict", "los_jacobian_position", "stacked_measurement_covariance", "skew_batch",
            "perturb_unit_vectors", "small_rotation_matrices"]
 
 
 def skew_batch(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices [v×] for v (..., 3) → (..., 3, 3)."""
-    v = np.asarray(v, dtype=np.float64)
-    S = np.zeros(v.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
-    return S
+    """Cross-product matrices [v×] for v (..., 3) → (..., 3, 3) (``renderlab.geometry.rotations.skew``)."""
+    return skew(v)
 
 
 def los_predict(r: np.ndarray, o: np.ndarray, T_cam_from_inertial: np.ndarray):
