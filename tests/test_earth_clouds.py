@@ -7,10 +7,10 @@ cloud shell (WGS-84 raised by the cloud altitude; ``ray_ellipsoid`` is checked a
 test_earth_geometry) and the field is evaluated there. The mesh only samples the field once per cloud-grid
 cell (≈ 1.5 km here against ≈ 8.5 km pixels), so pixels may disagree only where a cloud edge passes within
 about a cell of the pixel centre (measured: 0.4 % of pixels); (3) cloud radiance against Lambert's law with
-the normal AOV and the sun; (4) cloud shadows: a ground pixel is dark exactly where the ray from its
-position AOV towards the sun crosses a cloudy part of the shell. The frame is taken with the sun 9° high so
-that shadows fall ≈ 2 pixels from their clouds: the epoch moves to 19:00 UTC and the RAAN by the Earth's
-rotation in 9 h (15.041°/h), which keeps the default ground track (Portugal).
+the normal AOV and the sun; (4) cloud shadows: ground pixels whose every point's ray towards the sun
+crosses a cloudy part of the shell are dark, those whose rays all miss the clouds are lit. The frame is
+taken with the sun 9° high so that shadows fall ≈ 2 pixels from their clouds: the epoch moves to
+19:00 UTC and the RAAN by the Earth's rotation in 9 h (15.041°/h), which keeps the default ground track (Portugal).
 """
 
 from __future__ import annotations
@@ -93,24 +93,35 @@ def test_rendered_cloud_ids_match_field_along_pixel_rays(cloudy_frame):
     assert inner_cloud.sum() > 100
     rel = np.abs(out.radiance.ravel()[inner_cloud] / lam[inner_cloud] - 1).max()
     print(f"cloud radiance vs Lambert: max relative error {rel:.2e} over {inner_cloud.sum()} pixels")
-    assert rel < 0.01  # float32 radiance and facet normals only
-    # clouds cast shadows: a ground point is dark where its ray to the sun crosses a cloudy part of the shell
-    ecef = P @ np.asarray(rf["R_ecef_from_render"]).T + np.asarray(rf["origin_ecef_m"])
-    lat, lon, _ = wgs84.ecef_to_geodetic(ecef)
-    up = wgs84.R_ecef_from_enu(lat, lon)[..., 2]
+    # the radiance sample lies up to 0.7 px (≈ 7 km) from the pixel centre whose normal gives cos(i): the
+    # normal turns by ≈ 1.1e-3 rad there, and with the sun 9° high that changes cos(i) by ≈ 0.7 % (max 0.9 %
+    # measured)
+    assert rel < 0.015
+    # clouds cast shadows: a ground point is dark where its ray to the sun crosses a cloudy part of the shell.
+    # The render samples one random point per pixel (spp 1), so judge only pixels that the oracle finds wholly
+    # shadowed or wholly lit: at the centre and the four corners (±½ px) of the pixel
+    field = CloudField(w.cloud_cover, w.seed, scale_min_m=w.cloud_scale_m)
     s = np.asarray(st["sun_ecef"], float)
     s = s / np.linalg.norm(s)
-    to_shell = ecef + (w.cloud_altitude_m / (up @ s))[:, None] * s  # flat over the few km to the shell
-    shadow = CloudField(w.cloud_cover, w.seed, scale_min_m=w.cloud_scale_m).cloudy(to_shell)
+    grid = spec.camera.pixel_grid().reshape(-1, 2)
+    votes = []
+    for off in ((0, 0), (-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)):
+        d = spec.camera.unproject(grid + off) @ st["R_ecef_from_cam"].T
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        g = st["r_ecef"] + wgs84.ray_ellipsoid(st["r_ecef"][None], d)[:, None] * d
+        lat, lon, _ = wgs84.ecef_to_geodetic(g)
+        up = wgs84.R_ecef_from_enu(lat, lon)[..., 2]
+        votes.append(field.cloudy(g + (w.cloud_altitude_m / (up @ s))[:, None] * s))  # flat over a few km
+    votes = np.array(votes)
     inner_ground = same.ravel() & ~got
+    in_shadow, lit = inner_ground & votes.all(0), inner_ground & ~votes.any(0)
     ground_lit = w.water_albedo * spec.sun.irradiance_w_m2 * cos_i / np.pi  # the darkest lit ground
     dark = out.radiance.ravel() < 0.5 * ground_lit
-    in_shadow, lit = inner_ground & shadow, inner_ground & ~shadow
-    print(f"ground pixels {inner_ground.sum()}: predicted shadow {in_shadow.sum()} ({dark[in_shadow].mean():.3f} dark), "
-          f"predicted lit {lit.sum()} ({dark[lit].mean():.3f} dark)")
-    assert in_shadow.sum() >= 20, "the test frame (sun 9° high) must contain cloud shadows"
-    # misses only where a shadow edge is within a cloud-grid cell of the pixel's centre
-    assert dark[in_shadow].mean() > 0.8 and dark[lit].mean() < 0.05
+    print(f"ground pixels {inner_ground.sum()}: wholly in shadow {in_shadow.sum()} ({dark[in_shadow].mean():.3f} "
+          f"dark), wholly lit {lit.sum()} ({dark[lit].mean():.3f} dark)")
+    assert in_shadow.sum() >= 10, "the test frame (sun 9° high) must contain cloud shadows"
+    # misses only where a shadow edge passes within a cloud-grid cell (1.5 km ≈ 0.2 px) of a pixel's corner
+    assert dark[in_shadow].mean() > 0.9 and dark[lit].mean() < 0.02
 
 
 def test_cloud_layer_is_deterministic_in_the_seed(repo, gshhg):

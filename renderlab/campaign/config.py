@@ -46,6 +46,7 @@ class PerturbationConfig(Strict):
     attitude_sigma_deg: NonNegative = 0.0  # truth pointing: rotation vector per camera axis
     apriori_position_sigma_m: NonNegVec3 = [0.0, 0.0, 0.0]  # estimator prior error
     apriori_velocity_sigma_mps: NonNegVec3 = [0.0, 0.0, 0.0]
+    apriori_attitude_sigma_deg: NonNegative = 0.0  # estimator prior pointing error, per camera axis
     apriori_cov: Matrix | None = None  # full 6x6 [position m, velocity m/s]; replaces the two above
     focal_length_sigma_frac: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = 0.0
     principal_point_sigma_px: NonNegative = 0.0

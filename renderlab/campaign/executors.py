@@ -44,12 +44,47 @@ def _validate_tables(tables, task) -> dict:
     return out
 
 
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
+_thread_limit_applied: list[int] = []
+
+
+def thread_env(threads: int) -> dict[str, str]:
+    """Worker environment capping every thread pool of a run at ``threads``."""
+    t = str(max(1, int(threads)))
+    return {"RENDERLAB_THREADS": t, **{k: t for k in THREAD_ENV}}
+
+
+def apply_thread_limit() -> int | None:
+    """Cap Dr.Jit's thread pool (Mitsuba) and numba at ``$RENDERLAB_THREADS`` in this process (once).
+
+    BLAS/OpenMP read their variables at start-up; the worker's environment already holds them.
+    Returns the limit, or None when the variable is not set (the in-process executor: all cores).
+    """
+    raw = os.environ.get("RENDERLAB_THREADS", "")
+    if not raw.isdigit() or int(raw) < 1:
+        return None
+    n = int(raw)
+    if n not in _thread_limit_applied:
+        import drjit as dr
+
+        dr.set_thread_count(n)
+        try:
+            import numba
+
+            numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+        except ImportError:  # pragma: no cover - numba is a dependency
+            pass
+        _thread_limit_applied.append(n)
+    return n
+
+
 def execute_run(task) -> dict:
     """Execute one run (a :class:`renderlab.campaign.plan.RunTask`) and store it; return its status."""
     from renderlab.campaign import store
     from renderlab.campaign.studies import resolve_study
     from renderlab.scenario import scenario_from_dict
 
+    apply_thread_limit()
     t0 = time.perf_counter()
     status = {"run": task.index, "status": "ok", "error": "", "seconds": 0.0}
     tables = {}
@@ -99,10 +134,12 @@ class DaskExecutor:
 
     name = "dask"
 
-    def __init__(self, workers: int | None = None, scheduler: str | None = None, connect_timeout_s: float = 10.0):
+    def __init__(self, workers: int | None = None, scheduler: str | None = None, connect_timeout_s: float = 10.0,
+                 threads_per_run: int | None = None):
         if workers is not None and scheduler is not None:
             raise UserError("give either --workers or --scheduler, not both")
         self.workers = workers or default_workers()
+        self.threads_per_run = threads_per_run or max(1, default_workers() // self.workers)
         self.scheduler = scheduler
         self.connect_timeout_s = connect_timeout_s
         self._cluster = self._client = None
@@ -122,7 +159,8 @@ class DaskExecutor:
             self.workers = max(1, len(self._client.scheduler_info().get("workers", {})))
         else:
             self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                         dashboard_address=None, silence_logs=logging.ERROR)
+                                         dashboard_address=None, silence_logs=logging.ERROR,
+                                         env=thread_env(self.threads_per_run))
             self._client = Client(self._cluster)
         return self
 

@@ -21,11 +21,13 @@ from renderlab.errors import UserError
 #: study name → "module:function" (imported lazily)
 STUDIES: dict[str, str] = {
     "analytic_pointing": "renderlab.campaign.study_analytic:run",
+    "retina_vs_spc": "renderlab.campaign.study_retina_spc:run",
 }
 
 #: world kind → the study a campaign runs when ``campaign.study`` is empty
 DEFAULT_STUDY: dict[str, str] = {
     "analytic": "analytic_pointing",
+    "ev5": "retina_vs_spc",
 }
 
 

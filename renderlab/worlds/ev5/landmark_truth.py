@@ -25,7 +25,7 @@ import numpy as np
 from renderlab.worlds.ev5.site import Site
 
 
-@numba.njit(cache=False)
+@numba.njit(cache=True)
 def _march(heights, x0, cell, px, py, pz, sx, sy, sz, zmax):  # pragma: no cover - numba
     """True where the ray p + t s (site frame) passes below the DEM before leaving it or rising
     above ``zmax``. The first step skips 2 cells so a point does not shadow itself."""

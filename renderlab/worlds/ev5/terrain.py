@@ -65,7 +65,7 @@ def power_law_diameters(rng: np.random.Generator, density_1m: float, area_m2: fl
     return (a - u * (a - b)) ** (-1.0 / slope)
 
 
-@numba.njit(cache=False)
+@numba.njit(cache=True)
 def stamp_craters(h, x0, cell, cx, cy, diam):  # pragma: no cover - numba
     """Add simple-crater profiles to the height grid ``h`` (rows y, columns x)."""
     n = h.shape[0]
@@ -87,7 +87,7 @@ def stamp_craters(h, x0, cell, cx, cy, diam):  # pragma: no cover - numba
                     h[j, i] += rim * (R / r) ** 3 * fade * fade
 
 
-@numba.njit(cache=False)
+@numba.njit(cache=True)
 def stamp_boulders(h, alb, x0, cell, cx, cy, a, b, c, theta, bury, factor):  # pragma: no cover - numba
     """Raise ``h`` to the tops of half-ellipsoid boulders and set their albedo factor in ``alb``."""
     n = h.shape[0]
@@ -112,7 +112,7 @@ def stamp_boulders(h, alb, x0, cell, cx, cy, a, b, c, theta, bury, factor):  # p
                         alb[j, i] = factor[k]
 
 
-@numba.njit(cache=False)
+@numba.njit(cache=True)
 def rasterize_facets(tri, val, x0, cell, n, out_h, out_v):  # pragma: no cover - numba
     """Top-most height and interpolated value of triangles ``tri`` (F, 3, 3) (site x, y, h) at the
     grid points (x0 + i·cell, x0 + j·cell); front-facing (+h) triangles only. NaN where none."""

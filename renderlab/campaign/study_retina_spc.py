@@ -1,0 +1,209 @@
+"""Study ``retina_vs_spc``: Retina and the SPC-style method on the same EV5 frames (Wright et al., Fig. 12).
+
+The truth render depends only on the nominal scenario, so it is rendered once and served by the truth
+cache (:mod:`renderlab.campaign.cache`, keyed by the scenario without its ``perturbations`` and
+``campaign`` sections). What differs between runs is what the onboard system *believes* and the sensor
+noise:
+
+* a-priori pose per frame: position δt ~ N(0, diag σ_t²) (``apriori_position_sigma_m``, or the position
+  block of ``apriori_cov``) and attitude δθ ~ N(0, σ_θ²) per camera axis (``apriori_attitude_sigma_deg``),
+  drawn by :func:`renderlab.measure.draw_apriori`; the search distance is 3σ of its projection;
+* camera knowledge (the pixel map, eq. 4): ``fx, fy ← (1+δf)·(fx, fy)``, ``(cx, cy) += δc`` and
+  distortion ``k += δk`` — the estimator projects (eqs. 1–4) with the believed camera, the image was
+  taken with the true one;
+* Sun-direction knowledge: the estimator shades its templates (eq. 9 / SPC's shading) with a rotated Sun;
+* landmark resolution: the maplets are rebuilt from the site DEM at ``spacing·(1+δs)`` (same centres and
+  frames, fresh mapping error), so the GSD ratio of the run is ``gsd_ratio/(1+δs)``;
+* sensor noise: the DN image is re-exposed from the cached radiance with the run's own Poisson + read noise
+  (:func:`renderlab.sensor.expose`), so noise statistics are over independent realisations.
+
+Truth perturbations (``position_sigma_m``, ``position_cov_m2``, ``velocity_sigma_mps``,
+``attitude_sigma_deg``) would change the rendered image per run; this study renders the nominal descent only
+and refuses them with a clear error. Both methods see the same image, the same a-priori draw and the same
+believed camera/Sun/maplets. Truth (s, l) is ``landmark_truth.parquet`` (the true centre projected with the
+true camera, pose; occlusion-aware), independent of the beliefs.
+
+Breakdown columns: ``phase_deg``, ``gsd_ratio`` (image GSD / maplet spacing), ``shadow_fraction`` (truth
+table), ``range_m`` (camera to landmark centre), ``albedo_contrast`` (Michelson contrast (p95−p5)/(p95+p5)
+of the maplet's albedo) and the registration Cramér–Rao bound ``crlb_s``/``crlb_l`` (px) of the noise-free
+truth image over the landmark's footprint (:func:`renderlab.campaign.scoring.registration_crlb`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+METHODS = ("retina", "spc")
+TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
+
+
+def truth_scenario_dict(sc_dict: dict) -> dict:
+    """The nominal scenario (what is rendered): the campaign-only sections removed."""
+    d = json.loads(json.dumps(sc_dict))
+    d.pop("perturbations", None)
+    d.pop("campaign", None)
+    return d
+
+
+def check_perturbations(p) -> None:
+    """Refuse the truth perturbations this study does not render (module docstring)."""
+    on = [n for n in TRUTH_PERTURBATIONS if getattr(p, n) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
+    if on:
+        raise UserError(f"study retina_vs_spc renders the nominal descent once; truth perturbation "
+                        f"perturbations.{on[0]} is not supported (use the apriori_* dispersions)")
+
+
+def apriori_sigmas(p) -> tuple[tuple, tuple]:
+    """(σ position m, σ attitude rad) per axis of the a-priori draw."""
+    pos = np.sqrt(np.clip(np.diag(np.asarray(p.apriori_cov, float))[:3], 0, None)) if p.apriori_cov is not None \
+        else np.asarray(p.apriori_position_sigma_m, float)
+    return tuple(float(v) for v in pos), (math.radians(p.apriori_attitude_sigma_deg),) * 3
+
+
+class BelievedTruthSet:
+    """A truth set as the onboard system sees it: believed camera and Sun in the frame records, and
+    the DN images re-exposed with this run's noise. Only what :func:`renderlab.measure.measure_truthset`
+    reads (``path``, ``frames``, ``len``, ``load``, ``read_table``)."""
+
+    def __init__(self, ts, draw, sensor_options, noise_seeds):
+        from renderlab.campaign.perturb import perturb_camera, perturb_sun
+
+        self._ts, self.path, self._opts, self._seeds, self._dn = ts, ts.path, sensor_options, noise_seeds, {}
+        self.frames = []
+        for rec in ts.frames:
+            r = dict(rec)
+            r["camera"] = perturb_camera(rec["camera"], draw)
+            r["sun"] = {**rec["sun"], "direction_render": [float(v) for v in perturb_sun(rec["sun"]["direction_render"], draw)]}
+            self.frames.append(r)
+
+    def __len__(self) -> int:
+        return len(self.frames)
+
+    def read_table(self, name: str):
+        return self._ts.read_table(name)
+
+    def sensor_options(self, i: int):
+        return dataclasses.replace(self._opts, exposure_s=float(self._ts.frames[i]["sensor"]["exposure_s"]))
+
+    def load(self, i: int):
+        from renderlab.sensor import expose
+
+        fr = self._ts.load(i)
+        if i not in self._dn:
+            if fr.radiance is None:
+                raise UserError(f"truth set {self.path}: retina_vs_spc needs a mono (radiance) truth set")
+            self._dn[i] = expose(fr.radiance, self.sensor_options(i), np.random.default_rng(self._seeds[i])).dn
+        return dataclasses.replace(fr, dn=self._dn[i])
+
+
+@functools.lru_cache(maxsize=2)
+def _site(world_json: str, base_dir: str):
+    from renderlab.worlds.ev5 import build_model
+    from renderlab.worlds.ev5.config import EV5World
+
+    return build_model(EV5World.model_validate_json(world_json), Path(base_dir)).site
+
+
+def respaced_maplets(maplets, world, base_dir, scale: float, rng: np.random.Generator) -> list:
+    """The catalog rebuilt at ``spacing·scale`` from the site DEM (same centres/frames, fresh mapping error)."""
+    from renderlab.geometry.maplet import Maplet
+    from renderlab.worlds.ev5.landmarks import cell_means, correlated_error
+
+    site = _site(world.model_dump_json(), str(Path(base_dir).resolve()))
+    out = []
+    for m in maplets:
+        n, sp = m.heights_m.shape[0], m.spacing_m * scale
+        h, a = cell_means(site, m.center_m, m.R_body_from_maplet, sp, n)
+        h = h + correlated_error(n, world.mapping_error_m, world.mapping_error_corr_cells, rng)
+        a = a / a.mean() * (1.0 + world.albedo_error_rms * rng.standard_normal(a.shape))
+        out.append(Maplet(m.landmark_id, m.center_m, m.R_body_from_maplet, float(sp), h, a))
+    return out
+
+
+def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict) -> dict:
+    """{(frame, landmark_id): (range_m, albedo_contrast, crlb_s, crlb_l)} from the truth images."""
+    from renderlab.campaign.scoring import dn_variance, registration_crlb
+    from renderlab.sensor import expected_dn
+
+    by_id = {int(m.landmark_id): m for m in maplets}
+    out, pos_of, img = {}, {}, {}
+    index_of = {int(rec["index"]): k for k, rec in enumerate(ts.frames)}
+    for f, lid, s, l, g in zip(truth["frame"], truth["landmark_id"], truth["s"], truth["l"], truth["gsd_ratio"]):
+        f, lid = int(f), int(lid)
+        m, k = by_id.get(lid), index_of.get(f)
+        if m is None or k is None:
+            continue
+        if k not in img:
+            opts = believed.sensor_options(k)
+            rad = np.asarray(ts.load(k).radiance, np.float64)
+            img[k] = (expected_dn(rad, opts), dn_variance(rad, opts))
+            pos_of[k] = np.asarray(ts.frames[k]["pose"]["position_m"], float)
+        rng_m = float(np.linalg.norm(m.center_m - pos_of[k]))
+        p5, p95 = np.percentile(m.albedo, [5, 95])
+        contrast = float((p95 - p5) / (p95 + p5)) if p95 + p5 > 0 else math.nan
+        crlb = (math.nan, math.nan)
+        edn, var = img[k]
+        if np.isfinite(s) and np.isfinite(l) and g is not None and np.isfinite(g) and g > 0:
+            half = int(max(3, math.ceil(0.5 * (m.heights_m.shape[0] - 1) / g)))
+            c0, r0 = int(round(s)), int(round(l))
+            win = (slice(max(r0 - half, 0), min(r0 + half + 1, edn.shape[0])),
+                   slice(max(c0 - half, 0), min(c0 + half + 1, edn.shape[1])))
+            if min(edn[win].shape) >= 7:
+                crlb = registration_crlb(edn[win], var[win])
+        out[(f, lid)] = (rng_m, contrast, float(crlb[0]), float(crlb[1]))
+    return out
+
+
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
+    """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``."""
+    import pyarrow as pa
+
+    from renderlab.campaign.cache import cached_truthset
+    from renderlab.campaign.perturb import draw_perturbation
+    from renderlab.measure import MeasureOptions, measure_truthset
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.sensor import SensorOptions
+    from renderlab.truthset import TruthSet
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    if scenario.world.kind != "ev5":
+        raise UserError(f"study retina_vs_spc needs world.kind 'ev5', got '{scenario.world.kind}'")
+    p = scenario.perturbations
+    check_perturbations(p)
+    ss_pert, ss_apriori, ss_noise, ss_map = seed_sequence.spawn(4)
+    draw = draw_perturbation(p, ss_pert)
+    # the a-priori pose is drawn per frame inside measure_truthset (same seed for both methods)
+    truth_sc = scenario_from_dict(truth_scenario_dict(scenario.to_dict()), "retina_vs_spc truth scenario")
+    path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
+    ts = TruthSet.open(path)
+    maplets = read_catalog(path)
+    if draw.spacing_scale != 1.0:
+        maplets = respaced_maplets(maplets, scenario.world, base_dir, draw.spacing_scale, np.random.default_rng(ss_map))
+    noise_seeds = [int(s.generate_state(1)[0]) for s in ss_noise.spawn(len(ts))]
+    believed = BelievedTruthSet(ts, draw, SensorOptions(**scenario.sensor.options_dict()), noise_seeds)
+    sig_p, sig_r = apriori_sigmas(p)
+    opts = MeasureOptions(sigma_pos_m=sig_p, sigma_att_rad=sig_r, campaign=scenario.name, run=int(run_index))
+    apriori_state = ss_apriori.generate_state(4)
+    tables = [measure_truthset(believed, maplets, m, opts, np.random.default_rng(apriori_state)) for m in METHODS]
+    meas = pa.concat_tables(tables)
+    truth = ts.read_table("landmark_truth").to_pydict()
+    extras = landmark_extras(ts, believed, maplets, truth)
+    keys = list(zip(meas.column("frame").to_pylist(), meas.column("item").to_pylist()))
+    for j, name in enumerate(("range_m", "albedo_contrast", "crlb_s", "crlb_l")):
+        meas = meas.append_column(name, pa.array([extras.get((int(f), int(i)), (math.nan,) * 4)[j] for f, i in keys],
+                                                 pa.float64()))
+    if draw.spacing_scale != 1.0:  # the run's maplets are coarser/finer: GSD / spacing changes
+        g = np.asarray(meas.column("gsd_ratio").to_numpy(zero_copy_only=False), float) / draw.spacing_scale
+        meas = meas.set_column(meas.column_names.index("gsd_ratio"), "gsd_ratio", pa.array(g, pa.float64()))
+    drawn = {k: v for k, v in draw.to_row().items() if not k.startswith("apriori_d")}  # per frame: measurements
+    prow = {"campaign": scenario.name, "run": int(run_index), **drawn,
+            "apriori_sigma_pos_m": float(max(sig_p)), "apriori_sigma_att_rad": float(sig_r[0])}
+    return {"measurements": meas, "perturbations": pa.table({k: [v] for k, v in prow.items()})}

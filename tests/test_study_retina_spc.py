@@ -1,0 +1,186 @@
+"""Study ``retina_vs_spc`` end to end: ``renderlab campaign`` → ``renderlab report`` on a tiny EV5 descent.
+
+A real Mitsuba render of a tiny EV5 site (128², 2 frames, 2 spp) is made once through the truth cache and
+measured by Retina and SPC in 3 runs that differ in the a-priori pose, camera/Sun knowledge, maplet spacing
+and sensor noise. Oracles: OpenCV ``projectPoints`` of the landmark centre with the believed camera (nominal
+camera + the run's stored focal/principal-point/k1 offsets) and the a-priori pose (the row's stored draw)
+must give each row's prediction; truth columns must be the truth set's ``landmark_truth`` table.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from renderlab.cli import main
+
+TINY = """name = "ev5_tiny_campaign"
+[world]
+kind = "ev5"
+seed = 5
+facet_m = 4.0
+[world.site]
+extent_m = 30.0
+cell_m = 0.05
+taper_m = 1.0
+crater_max_m = 3.0
+boulder_min_m = 0.3
+[[world.landmarks]]
+name = "regional"
+count = 8
+spacing_m = 0.2
+size = 15
+radius_m = 6.0
+[[world.landmarks]]
+name = "site"
+count = 8
+spacing_m = 0.1
+size = 15
+radius_m = 2.5
+[trajectory]
+kind = "ev5_descent"
+altitudes_m = [65.0, 45.0]
+[camera]
+width = 128
+height = 128
+fx = 610.0
+fy = 610.0
+cx = 63.5
+cy = 63.5
+[render]
+spp = 2
+seed = 3
+near_clip_m = 0.01
+[perturbations]
+apriori_position_sigma_m = [0.2, 0.2, 0.2]
+apriori_attitude_sigma_deg = 0.05
+focal_length_sigma_frac = 0.002
+principal_point_sigma_px = 0.3
+distortion_sigma = {k1 = 0.02}
+maplet_spacing_sigma_frac = 0.05
+sun_direction_sigma_deg = 1.0
+[campaign]
+seed = 11
+"""
+RUNS = 3
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    d = tmp_path_factory.mktemp("rvs")
+    scen = d / "tiny.toml"
+    scen.write_text(TINY)
+    assert main(["campaign", str(scen), "--runs", str(RUNS), "--out", str(d / "camp"), "--workers", "0", "--quiet"]) == 0
+    assert main(["report", str(d / "camp"), "--out", str(d / "report")]) == 0
+    runs = sorted((d / "camp" / "runs").iterdir())
+    meas = [pq.read_table(r / "measurements.parquet").to_pydict() for r in runs]
+    pert = [pq.read_table(r / "perturbations.parquet").to_pydict() for r in runs]
+    return d, meas, pert
+
+
+def _truth_set(d: Path):
+    from renderlab.truthset import TruthSet
+
+    sets = [p for p in (d / "camp" / "work" / "truth_cache").iterdir() if (p / "manifest.json").is_file()]
+    assert len(sets) == 1, "one truth render serves every run"
+    return TruthSet.open(sets[0])
+
+
+def test_both_methods_same_frames_same_apriori_and_truth_from_truth_table(campaign):
+    d, meas, _ = campaign
+    assert len(meas) == RUNS
+    truth = _truth_set(d).read_table("landmark_truth").to_pydict()
+    tmap = {(f, i): (s, l, g) for f, i, s, l, g in zip(truth["frame"], truth["landmark_id"], truth["s"], truth["l"],
+                                                       truth["gsd_ratio"])}
+    for m in meas:
+        rows = {}
+        for k, meth in enumerate(m["method"]):
+            rows.setdefault(meth, {})[(m["frame"][k], m["item"][k])] = k
+        assert set(rows) == {"retina", "spc"}
+        assert rows["retina"].keys() == rows["spc"].keys() and len(rows["retina"]) > 10
+        for key, kr in rows["retina"].items():
+            ks = rows["spc"][key]
+            for c in ("apriori_dpos_x_m", "apriori_dpos_z_m", "apriori_drot_y_rad", "pred_s", "pred_l"):
+                assert m[c][kr] == pytest.approx(m[c][ks], abs=1e-9), c
+            assert (m["truth_s"][kr], m["truth_l"][kr]) == pytest.approx(tmap[key][:2], abs=1e-9)
+        for c in ("range_m", "albedo_contrast", "phase_deg", "gsd_ratio", "crlb_s", "crlb_l"):
+            assert np.all(np.isfinite(m[c])), c
+        assert 40 < min(m["range_m"]) and max(m["range_m"]) < 80  # frames at 65 and 45 m altitude
+    # different runs draw different a-priori poses
+    assert meas[0]["apriori_dpos_x_m"][0] != meas[1]["apriori_dpos_x_m"][0]
+
+
+def test_prediction_uses_believed_camera_and_apriori_pose_opencv(campaign):
+    import cv2
+    from scipy.spatial.transform import Rotation
+
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    d, meas, pert = campaign
+    ts = _truth_set(d)
+    centres = {int(mp.landmark_id): mp.center_m for mp in read_catalog(ts.path)}
+    checked = 0
+    for m, p in zip(meas, pert):
+        for k in range(0, len(m["frame"]), 7):
+            rec = ts.frames[m["frame"][k]]
+            cam = rec["camera"]
+            R_true = Rotation.from_quat(rec["pose"]["quat_render_from_cam_xyzw"])
+            R_ap = R_true * Rotation.from_rotvec([m[f"apriori_drot_{a}_rad"][k] for a in "xyz"])
+            p_ap = np.asarray(rec["pose"]["position_m"]) + [m[f"apriori_dpos_{a}_m"][k] for a in "xyz"]
+            p_cam = R_ap.inv().apply(centres[m["item"][k]] - p_ap)
+            f = p["focal_scale"][0]
+            K = np.array([[cam["fx"] * f, 0, cam["cx"] + p["dpp_s"][0]], [0, cam["fy"] * f, cam["cy"] + p["dpp_l"][0]],
+                          [0, 0, 1]])
+            uv, _ = cv2.projectPoints(p_cam.reshape(1, 3), np.zeros(3), np.zeros(3), K,
+                                      np.array([p["ddist_k1"][0], 0, 0, 0, 0]))
+            assert (m["pred_s"][k], m["pred_l"][k]) == pytest.approx(tuple(uv.ravel()), abs=1e-6)
+            checked += 1
+    assert checked >= 6
+    assert len({p["focal_scale"][0] for p in pert}) == RUNS  # the knowledge errors differ per run
+
+
+def test_spacing_knowledge_scales_gsd_ratio_and_noise_is_redrawn(campaign):
+    from renderlab.campaign.perturb import PerturbationDraw
+    from renderlab.campaign.study_retina_spc import BelievedTruthSet
+    from renderlab.scenario import load_scenario
+    from renderlab.sensor import SensorOptions, expected_dn
+
+    d, meas, pert = campaign
+    ts = _truth_set(d)
+    truth = ts.read_table("landmark_truth").to_pydict()
+    g0 = {(f, i): g for f, i, g in zip(truth["frame"], truth["landmark_id"], truth["gsd_ratio"])}
+    for m, p in zip(meas, pert):
+        assert p["spacing_scale"][0] != 1.0
+        k = 0
+        assert m["gsd_ratio"][k] * p["spacing_scale"][0] == pytest.approx(g0[(m["frame"][k], m["item"][k])], rel=1e-9)
+    opts = SensorOptions(**load_scenario(d / "tiny.toml")[0].sensor.options_dict())
+    a, b = BelievedTruthSet(ts, PerturbationDraw(), opts, [1, 2]), BelievedTruthSet(ts, PerturbationDraw(), opts, [1, 2])
+    c = BelievedTruthSet(ts, PerturbationDraw(), opts, [3, 4])
+    dn_a, dn_c = a.load(0).dn.astype(float), c.load(0).dn.astype(float)
+    assert np.array_equal(dn_a, b.load(0).dn) and not np.array_equal(dn_a, dn_c)  # seeded, per run
+    mean = expected_dn(np.asarray(ts.load(0).radiance, float), a.sensor_options(0))
+    assert abs(np.mean(dn_a - mean)) < 0.2  # unbiased re-exposure
+    assert np.mean(np.abs(dn_a - ts.load(0).dn)) > 0.5  # a new noise realisation, not the cached one
+
+
+def test_report_has_both_methods_with_confidence_intervals(campaign):
+    d, _, _ = campaign
+    rows = list(csv.DictReader((d / "report" / "summary.csv").open()))
+    got = {(r["method"], r["axis"]) for r in rows}
+    assert {("retina", "s"), ("retina", "l"), ("spc", "s"), ("spc", "l")} <= got
+    for r in rows:
+        assert float(r["mean_lo"]) <= float(r["mean"]) <= float(r["mean_hi"])
+    html = (d / "report" / "index.html").read_text()
+    assert "retina" in html and "spc" in html
+
+
+def test_truth_perturbation_is_refused_with_one_line(tmp_path, capsys):
+    scen = tmp_path / "bad.toml"
+    scen.write_text(TINY.replace("[perturbations]\n", "[perturbations]\nposition_sigma_m = [1.0, 0.0, 0.0]\n"))
+    assert main(["campaign", str(scen), "--runs", "2", "--out", str(tmp_path / "c"), "--workers", "0", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "position_sigma_m" in err[0] and "Traceback" not in err[0]
