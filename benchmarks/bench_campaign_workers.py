@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/bench_campaign_workers.py [--runs 16] [--size 128]
 
 Each configuration gets a fresh campaign folder (no truth cache shared), the same plan and seed. The
-wall time includes starting the LocalCluster (reported separately) — what a user waits for.
+wall time includes starting the LocalCluster — what a user waits for. Each worker's thread pools
+(Dr.Jit/Mitsuba, numba, BLAS) are capped at cores // workers (``DaskExecutor.threads_per_run``).
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for n in (1, 2):
             ex = DaskExecutor(workers=n)
+            print(f"{n} worker(s) x {ex.threads_per_run} thread(s) per run", flush=True)
             t0 = time.perf_counter()
             res = run_campaign(plan, Path(tmp) / f"w{n}", executor=ex, progress=False)
             wall = time.perf_counter() - t0

@@ -43,9 +43,9 @@ def scatter(t, path: Path) -> None:
     plt = _plt()
     ms = _methods(t)
     fig, axes = plt.subplots(1, len(ms), figsize=(4.2 * len(ms), 4.2), squeeze=False, constrained_layout=True)
-    ok = ~no_result_mask(t)
     meth = _col(t, "method", object)
     es, el = _col(t, "err_s"), _col(t, "err_l")
+    ok = ~no_result_mask(t) & np.isfinite(es) & np.isfinite(el)  # a result with a truth (visible landmark)
     lim = np.nanpercentile(np.abs(np.r_[es[ok], el[ok]]), 99.5) * 1.2 if ok.any() else 1.0
     for ax, m in zip(axes[0], ms):
         sel = ok & (meth == m)
@@ -59,7 +59,8 @@ def scatter(t, path: Path) -> None:
             ax.plot(*mu, "x", color="tab:red", ms=9, mew=2, label=f"bias ({mu[0]:+.3f}, {mu[1]:+.3f}) px")
         ax.axhline(0, color="k", lw=0.5)
         ax.axvline(0, color="k", lw=0.5)
-        ax.set(title=f"{m}: {(~ok & (meth == m)).sum()} no result", xlabel="Δsample = meas − truth (px)",
+        nores = int((no_result_mask(t) & (meth == m)).sum())
+        ax.set(title=f"{m}: {nores} no result", xlabel="Δsample = meas − truth (px)",
                ylabel="Δline (px)", xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal")
         ax.legend(fontsize=7, loc="upper right")
     fig.savefig(path, dpi=110)
