@@ -102,8 +102,8 @@ def cmd_render(args) -> int:
 def cmd_demo(args) -> int:
     from renderlab.demo import run_demo
 
-    report = run_demo(Path(args.out), progress=not args.quiet)
-    print(f"renderlab: demo finished; report: {report}")
+    report, html = run_demo(Path(args.out), progress=not args.quiet)
+    print(f"renderlab: demo finished; open the campaign report {html} (summary: {report})")
     return 0
 
 

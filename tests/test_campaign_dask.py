@@ -24,3 +24,13 @@ def test_local_cluster_1_and_2_workers_identical(tmp_path):
         assert sorted(out[name]) == sorted(out["inproc"])
         for t in out[name]:
             assert tables_equal(out[name][t], out["inproc"][t]), (name, t)
+
+
+def test_local_cluster_caps_every_thread_pool_per_worker():
+    """Without the cap a worker's Dr.Jit pool has one thread per core and numba NUMBA_NUM_THREADS = cores."""
+    from renderlab.campaign.executors import thread_report
+
+    with DaskExecutor(workers=1, threads_per_run=1) as ex:
+        (rep,) = list(ex.map_unordered(thread_report, [0]))
+    assert rep == {"limit": 1, "drjit": 1, "numba": 1, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+                   "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}

@@ -78,6 +78,15 @@ def apply_thread_limit() -> int | None:
     return n
 
 
+def thread_report(_=None) -> dict:
+    """This process's thread limits after :func:`apply_thread_limit` (for diagnostics and tests)."""
+    import drjit as dr
+    import numba
+
+    return {"limit": apply_thread_limit(), "drjit": int(dr.thread_count()), "numba": int(numba.get_num_threads()),
+            **{k: os.environ.get(k) for k in THREAD_ENV}}
+
+
 def execute_run(task) -> dict:
     """Execute one run (a :class:`renderlab.campaign.plan.RunTask`) and store it; return its status."""
     from renderlab.campaign import store
