@@ -96,7 +96,7 @@ def test_shape_gate_keeps_points_drops_edges(rendered):
 
 
 def test_stage1_on_rendered_sequence(rendered):
-    from renderlab.unknown_satellite import StudyOptions, analyse_truthset
+    from renderlab.studies.unknown_satellite import StudyOptions, analyse_truthset
 
     ts, _ = rendered
     res = analyse_truthset(ts.path, np.random.default_rng(0), StudyOptions(min_track_frames=4, epsilon_px=15.0))
