@@ -14,7 +14,7 @@ from pathlib import Path
 
 from renderlab.errors import UserError
 
-DEMO_RUNS = 12
+DEMO_RUNS = 40
 
 DEMO_SCENARIO = """# renderlab demo campaign: Retina vs SPC on a tiny EV5 descent (written by renderlab.demo_campaign)
 name = "ev5_demo_campaign"
