@@ -1,6 +1,7 @@
 """Retina's error on rendered EV5 frames: truth photometry (McEwen = Retina's own model, or the EV5
-default Hapke) × peak finder, on the landmarks selected by ``tests/test_measure_ev5.py`` (well lit,
-unoccluded, ≥ 300 template pixels, maplet spacing ≤ 2 px) and on the rest.
+default Hapke) × Retina's photometry (``fixed`` β = exp(−α/60°), or ``fitted`` L(α) to the catalogued law)
+× peak finder, on the landmarks selected by ``tests/test_measure_ev5.py`` (well lit, unoccluded, ≥ 300
+template pixels, maplet spacing ≤ 2 px) and on the rest.
 
 Same two 128 × 128 frames (65 m, 45 m) and perfect maplets as the test; a-priori pose = true pose.
 
@@ -35,7 +36,7 @@ def main():
     ap.add_argument("--out", help="folder for the truth sets (default: a temporary one)")
     args = ap.parse_args()
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="retina_ev5_"))
-    print(f"{'law':8s} {'finder':12s} {'n sel':>5s} {'max sel':>8s} {'rms sel':>8s} {'n >= 0.3':>8s}   "
+    print(f"{'law':8s} {'photometry':10s} {'finder':12s} {'n sel':>5s} {'max sel':>8s} {'rms sel':>8s} {'n >= 0.3':>8s}   "
           f"{'n rest':>6s} {'median rest':>11s}")
     for law in ("mcewen", "hapke"):
         sc = copy.deepcopy(SCENARIO)
@@ -45,13 +46,14 @@ def main():
         truth = ts.read_table("landmark_truth").to_pydict()
         sel = select_well_measurable(truth, {int(m.landmark_id): int(m.n) for m in maplets})
         keys = list(zip(truth["frame"], truth["landmark_id"]))
-        for finder in FINDERS:
-            opts = MeasureOptions(sigma_pos_m=(0.0,) * 3, sigma_att_rad=(0.0,) * 3, peak=finder, supersample=2)
+        for photometry, finder in [(p, f) for p in ("fixed", "fitted") for f in FINDERS]:
+            opts = MeasureOptions(sigma_pos_m=(0.0,) * 3, sigma_att_rad=(0.0,) * 3, peak=finder, supersample=2,
+                                  photometry=photometry)
             m = measure_truthset(ts, maplets, "retina", opts, np.random.default_rng(0)).to_pydict()
             row = {(f, i): k for k, (f, i) in enumerate(zip(m["frame"], m["item"]))}
             e = np.array([np.hypot(m["err_s"][row[k]], m["err_l"][row[k]]) if k in row else np.nan for k in keys])
             es, er = e[sel], e[~sel & np.isfinite(e)]
-            print(f"{law:8s} {finder:12s} {sel.sum():5d} {np.nanmax(es):8.3f} {np.sqrt(np.nanmean(es ** 2)):8.3f} "
+            print(f"{law:8s} {m['photometry'][0]:10s} {finder:12s} {sel.sum():5d} {np.nanmax(es):8.3f} {np.sqrt(np.nanmean(es ** 2)):8.3f} "
                   f"{int(np.sum(es >= 0.3)):8d}   {er.size:6d} {np.median(er):11.3f}")
     print(f"truth sets in {root}")
 

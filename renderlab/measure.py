@@ -9,6 +9,9 @@ The search distance is n_σ times the projected covariance (``estimators.retina.
 ``meas = pred + (Δs, Δl)``; ``truth`` is the landmark_truth table's (s, l) when the set has one, else the
 projection with the true pose; ``err = meas − truth``. Rows with no result have NaN ``meas``/``err``.
 
+Retina's photometric model (``photometry`` column): McEwen with L(α) fitted to the body's catalogued
+law (``fitted:<law>``, default) or with β = exp(−α/60°) (``fixed``); SPC rows say ``spc``.
+
 ``flags`` is the bit mask of :mod:`estimators.flags` (``flags_text`` spells it out, ``ok`` when 0):
 off_image 1, too_few_pixels 2, flat_template 4, low_correlation 8, search_border 16, outlier 32 (final
 output phase, kept), not_visible_truth 64 (truth: not visible or occluded), facing_away 128.
@@ -24,6 +27,7 @@ import numpy as np
 from renderlab.errors import UserError
 
 METHODS = ("retina", "spc")
+PHOTOMETRY = ("fitted", "fixed")
 
 
 @dataclass(frozen=True)
@@ -46,6 +50,12 @@ class MeasureOptions:
         Correlation threshold for a result.
     supersample : int
         Retina's k×k rays per pixel.
+    photometry : {"fitted", "fixed"}
+        Retina's McEwen weight: ``fitted`` — L(α) least-squares fitted to the body's catalogued law
+        (``scenario.world`` law, law_params, albedo in the truth set's manifest, what the ground knows;
+        :func:`estimators.onboard_photometry.fit_lunar_lambert_L`), falling back to ``fixed`` when the
+        manifest names no law; ``fixed`` — β = exp(−α/60°) (Retina eq. 5). Column ``photometry`` records
+        which was used.
     psf_sigma_px : float
         Retina's PSF σ, px.
     campaign : str
@@ -63,6 +73,7 @@ class MeasureOptions:
     min_correlation: float = 0.3
     supersample: int = 3
     psf_sigma_px: float = 0.0
+    photometry: str = "fitted"
     campaign: str = ""
     run: int = 0
 
@@ -83,6 +94,8 @@ class MeasureOptions:
             raise UserError(f"min_correlation must be in [-1, 1], got {self.min_correlation!r}")
         if self.supersample < 1:
             raise UserError(f"supersample must be >= 1, got {self.supersample!r}")
+        if self.photometry not in PHOTOMETRY:
+            raise UserError(f"photometry must be one of {', '.join(PHOTOMETRY)}, got {self.photometry!r}")
         if self.psf_sigma_px < 0:
             raise UserError(f"psf_sigma_px must be >= 0, got {self.psf_sigma_px!r}")
         if self.peak is not None:
@@ -136,6 +149,39 @@ def _truth_lookup(ts) -> dict:
     return {(int(t["frame"][k]), int(t["landmark_id"][k])): {c: t[c][k] for c in keys} for k in range(len(t["frame"]))}
 
 
+def body_law(ts):
+    """(PhotometricLaw, mean albedo) of the body from the truth set's manifest (``scenario.world``), or
+    None when the manifest names no law (the ground's catalog knowledge for :func:`retina_photometry`)."""
+    import json
+
+    from renderlab.photometry import make_law
+
+    path = ts.path / "manifest.json"
+    try:
+        world = (json.loads(path.read_text(encoding="utf-8")).get("scenario") or {}).get("world") or {}
+    except (OSError, ValueError, AttributeError):
+        return None
+    if not isinstance(world, dict) or "law" not in world:
+        return None
+    try:
+        law = make_law(world["law"], **(world.get("law_params") or {}))
+    except UserError as err:
+        raise UserError(f"truth set {ts.path}: scenario.world law: {err}") from None
+    return law, float(world.get("albedo", 0.1))
+
+
+def retina_photometry(ts, options: MeasureOptions) -> tuple[tuple, str]:
+    """(L_table, label) for Retina's McEwen weight (``MeasureOptions.photometry``)."""
+    from estimators.onboard_photometry import fit_lunar_lambert_L
+
+    found = body_law(ts) if options.photometry == "fitted" else None
+    if found is None:
+        return (), "fixed"
+    law, albedo = found
+    fit = fit_lunar_lambert_L(lambda mu0, mu, g: law.radiance_factor(mu0, mu, g, albedo))
+    return tuple(float(v) for v in fit.L), f"fitted:{law.name}"
+
+
 def draw_apriori(R_true: np.ndarray, pos_true: np.ndarray, options: MeasureOptions, rng: np.random.Generator):
     """(R_apriori, pos_apriori, dpos, drot): the true pose perturbed by one draw (module docstring)."""
     from scipy.spatial.transform import Rotation
@@ -182,12 +228,15 @@ def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = M
         raise UserError(f"truth set {ts.path}: the landmark catalog is empty")
     rng = np.random.default_rng(0) if rng is None else rng
     if method == "retina":
-        opts = RetinaOptions(template=TemplateOptions(supersample=options.supersample, psf_sigma_px=options.psf_sigma_px),
+        L_table, photometry = retina_photometry(ts, options)
+        opts = RetinaOptions(template=TemplateOptions(supersample=options.supersample, psf_sigma_px=options.psf_sigma_px,
+                                                      L_table=L_table),
                              peak=options.peak or "retina_3x3", min_correlation=options.min_correlation)
         items = [build_mesh(m) for m in maplets]
         frame_fn = retina_frame
     else:
         opts = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation)
+        photometry = "spc"  # SPC's own photometric function (estimators.spc)
         items = list(maplets)
         frame_fn = spc_frame
     truth = _truth_lookup(ts)
@@ -215,7 +264,7 @@ def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = M
             lid = int(maplets[k].landmark_id)
             trow = truth.get((fr.index, lid))
             row = {"campaign": options.campaign, "run": int(options.run), "frame": fr.index, "item": lid,
-                   "method": method, "pred_s": res.pred_s, "pred_l": res.pred_l}
+                   "method": method, "pred_s": res.pred_s, "pred_l": res.pred_l, "photometry": photometry}
             ts_, tl_ = (float(trow["s"]), float(trow["l"])) if trow else (float(tp[0]), float(tp[1]))
             visible = bool(cam.in_image(tp)) if trow is None else bool(trow.get("visible", True)) and not bool(trow.get("occluded", False))
             flags = res.flags | (0 if visible else F.NOT_VISIBLE_TRUTH)
@@ -245,7 +294,7 @@ def _schema():
             ("apriori_dpos_x_m", f64), ("apriori_dpos_y_m", f64), ("apriori_dpos_z_m", f64),
             ("apriori_drot_x_rad", f64), ("apriori_drot_y_rad", f64), ("apriori_drot_z_rad", f64),
             ("gsd_ratio", f64), ("phase_deg", f64), ("incidence_deg", f64), ("emission_deg", f64),
-            ("shadow_fraction", f64)]
+            ("shadow_fraction", f64), ("photometry", pa.string())]
     return pa.schema(cols)
 
 

@@ -24,6 +24,8 @@ from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 from renderlab.campaign.config import CampaignConfig, PerturbationConfig
 from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
+from renderlab.studies.coastline_config import CoastlineStudyConfig
+from renderlab.studies.unknown_satellite_config import UnknownSatelliteStudyConfig
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
 from renderlab.worlds.ev5.config import EV5DescentTrajectory, EV5World
 from renderlab.worlds.microsat.config import MicrosatWorld, SeparationTrajectory
@@ -212,6 +214,8 @@ class Scenario(_Strict):
     render: RenderConfig = RenderConfig()
     perturbations: PerturbationConfig = PerturbationConfig()
     campaign: CampaignConfig = CampaignConfig()
+    coastline: CoastlineStudyConfig | None = None  # study section (renderlab.studies.coastline_config)
+    unknown_satellite: UnknownSatelliteStudyConfig | None = None  # study section (unknown_satellite_config)
 
     @model_validator(mode="after")
     def _world_fits_trajectory(self):

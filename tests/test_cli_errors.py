@@ -100,7 +100,8 @@ SCENARIO_CASES = {
                              "only OBJ and PLY"),
     "mesh_missing": (edit(BOX, 'shape = "mesh"\nfile = "nowhere.obj"\ncenter_m = [1.5, -0.6, 0.6]'), [],
                      "mesh not found"),
-    "renderer_not_available": (edit('renderer = "mitsuba"', 'renderer = "cycles"'), [], "'cycles'"),
+    "cycles_direct_light_only": (edit("max_depth = 2", "max_depth = 3"), ["--renderer", "cycles"],
+                                 "render.max_depth must be 2"),
     # --- arguments, on the valid tiny scenario
     "set_without_equals": (None, ["--set", "camera.width"], "--set expects KEY=VALUE"),
     "set_empty_key": (None, ["--set", "=3"], "empty key"),

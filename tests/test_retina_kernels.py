@@ -159,7 +159,7 @@ def test_fused_template_kernel_matches_numpy_pipeline(lens):
     pos = np.array([0.7, -0.4, 6.0])
     pose = CameraPoseEstimate(look_at(pos, np.zeros(3), np.array([0.0, 1.0, 0.0])).as_matrix(), pos)
     sun = np.array([0.7, 0.2, 0.5]) / np.linalg.norm([0.7, 0.2, 0.5])
-    a = render_template(mesh, cam, pose, sun, TemplateOptions(supersample=2))
+    a = render_template(mesh, cam, pose, sun, TemplateOptions(supersample=2, tracer="numba"))
     b = render_template(mesh, cam, pose, sun, TemplateOptions(supersample=2, tracer="numpy"))
     sl = cam.project(pose.to_camera(M.points_body().reshape(-1, 3)))  # the box from the camera model itself
     lo, hi = np.floor(sl.min(axis=0)).astype(int), np.ceil(sl.max(axis=0)).astype(int)

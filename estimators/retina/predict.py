@@ -18,6 +18,11 @@ are averaged (supersampling; one fused numba kernel, :func:`~.raytrace.shade_pix
 :func:`~.raytrace.shade_pinhole`, which also makes the rays, for a distortion-free camera) and an optional
 Gaussian PSF matching the camera is applied
 (normalised over the valid pixels). A pixel is valid when all its samples hit the maplet.
+For a distortion-free camera the default ``tracer="raster"`` computes the same image by z-buffer
+rasterisation of the facets and a per-frame shadow sweep over the maplet grid
+(:func:`~.raster.raster_pinhole`; the ray caster stays the reference, ``tracer="numba"``).
+The McEwen weight β is exp(−α/α0) (eq. 5) or a tabulated L(α) fitted to the body's law
+(``L_table``, :func:`estimators.onboard_photometry.fit_lunar_lambert_L`).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ import numpy as np
 
 from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
 from estimators.retina.maplet_mesh import MapletMesh
+from estimators.retina.raster import pinhole_box, raster_pinhole
 from estimators.retina.raytrace import shade_pinhole, shade_pixels, trace_rays_numpy
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import skew
@@ -88,8 +94,14 @@ class TemplateOptions:
         Cast shadow rays (False: only attached shadows, cos i ≤ 0).
     max_size_px : int
         Refuse templates larger than this on either side (the landmark is too close).
-    tracer : {"numba", "numpy"}
-        Grid-DDA numba kernel, or the plain-numpy brute force (benchmark baseline, slow).
+    tracer : {"raster", "numba", "numpy"}
+        ``raster``: z-buffer rasterisation + shadow sweep (:mod:`.raster`; pinhole cameras, others
+        use ``numba``); ``numba``: grid-DDA ray casting, every shadow ray cast (the reference); ``numpy``:
+        the plain-numpy brute force (benchmark baseline, slow).
+    L_table : tuple of float
+        L(α) tabulated over [0, π] replacing β = exp(−α/α0) (empty: eq. 5's exponential).
+    shadow_grid_step : float
+        Spacing of the sun-aligned shadow sweep grid, maplet cells (``raster`` only).
     """
 
     supersample: int = 3
@@ -98,7 +110,9 @@ class TemplateOptions:
     ls_weight: float = 2.0
     shadow_rays: bool = True
     max_size_px: int = 256
-    tracer: str = "numba"
+    tracer: str = "raster"
+    L_table: tuple = ()
+    shadow_grid_step: float = 0.5
 
 
 @dataclass
@@ -116,13 +130,10 @@ class Template:
 def template_box(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate) -> tuple[int, int, int, int] | None:
     """Integer pixel box (s_min, l_min, s_max, l_max) covering the projected maplet grid, or None."""
     pts = mesh.points_body.reshape(-1, 3)
-    if camera.model == "pinhole":  # eqs. 1–4 without distortion, vectorised directly
-        pc = (pts - np.asarray(pose.position_m, float)) @ np.asarray(pose.R_body_from_cam, float)
-        if not np.all(pc[:, 2] > 0):
-            return None
-        x, y = pc[:, 0] / pc[:, 2], pc[:, 1] / pc[:, 2]
-        sl = np.column_stack([camera.fx * x + camera.skew * y + camera.cx,
-                              camera.skew_yx * x + camera.fy * y + camera.cy])
+    if camera.model == "pinhole":  # eqs. 1–4 without distortion, one numba loop
+        s0, l0, s1, l1, ok = pinhole_box(pts, np.asarray(pose.position_m, float), np.asarray(pose.R_body_from_cam, float),
+                                         np.ascontiguousarray(camera.K_matrix, dtype=np.float64))
+        return (int(s0), int(l0), int(s1), int(l1)) if ok else None
     else:
         sl = project_point(camera, pose, pts)
     if not np.all(np.isfinite(sl)):
@@ -149,10 +160,19 @@ def render_template(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstim
     o_m = R_mb @ (np.asarray(pose.position_m, float) - np.asarray(M.center_m, float))
     sun_m = R_mb @ (np.asarray(sun_body, float) / np.linalg.norm(sun_body))
     eps = 1e-6 * mesh.spacing + 1e-9
+    L_table = np.asarray(options.L_table, dtype=np.float64).reshape(-1)
     kernel_args = (mesh.heights, mesh.cell_min, mesh.cell_max, mesh.block_min, mesh.block_max, mesh.spacing,
-                   mesh.normals, mesh.albedo, sun_m, bool(options.shadow_rays), float(options.alpha0),
+                   mesh.normals, mesh.albedo, sun_m, bool(options.shadow_rays), float(options.alpha0), L_table,
                    float(options.ls_weight), eps)
-    if options.tracer != "numpy" and camera.model == "pinhole":  # rays made inside the kernel
+    done = False
+    if options.tracer == "raster" and camera.model == "pinhole":
+        K = np.ascontiguousarray(camera.K_matrix, dtype=np.float64)
+        val, nhit, nsh, _, done = raster_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), K, np.linalg.inv(K),
+                                                 s_min, l_min, w, h, k, *kernel_args,
+                                                 float(options.shadow_grid_step))
+    if done:
+        pass
+    elif options.tracer != "numpy" and camera.model == "pinhole":  # rays made inside the kernel
         val, nhit, nsh = shade_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), np.linalg.inv(camera.K_matrix),
                                        s_min, l_min, w, h, k, *kernel_args)
     else:
@@ -200,7 +220,7 @@ def _shade_numpy(mesh, o_m, d_m, ok_ray, sun_m, options, eps, k2):
         cos_r = np.einsum("ij,ij->i", n_h, to_cam)
         phase = np.arccos(np.clip(to_cam @ sun_m, -1.0, 1.0))
         alb = _bilinear(M.albedo, P[hit, 0] / M.spacing_m + (M.n - 1) / 2, P[hit, 1] / M.spacing_m + (M.n - 1) / 2)
-        v = mcewen_relative(cos_i, cos_r, phase, alb, options.alpha0, options.ls_weight)
+        v = mcewen_relative(cos_i, cos_r, phase, alb, options.alpha0, options.ls_weight, options.L_table or None)
         v[shadow[hit] & (cos_i > 0)] = 0.0
         value[hit] = v
     lit_shadow = (shadow & hit) & (np.einsum("ij,j->i", np.nan_to_num(Nn), sun_m) > 0)

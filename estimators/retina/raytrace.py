@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from estimators.onboard_photometry import mcewen_scalar
+from estimators.onboard_photometry import beta_scalar, mcewen_beta_scalar
 
 _EPS = 1e-12
 _INF = 1e300
@@ -251,7 +251,7 @@ def _bilinear1(g, u, v):
 
 @njit(cache=True, inline="always")
 def _shade_sample(origin, ou, ov, oz, dx, dy, dz, c, H, cmin, cmax, bmin, bmax, zlo, zhi, spacing, normals, albedo,
-                  sun, shadow_rays, alpha0, ls_weight, shadow_eps):
+                  sun, shadow_rays, alpha0, L_table, ls_weight, shadow_eps):
     """One sub-pixel ray: (hit, in cast shadow, McEwen value) — trace, shadow ray, eqs. 5–8."""
     t, j, i, k = _trace_one(ou, ov, oz, dx / spacing, dy / spacing, dz, H, cmin, cmax, bmin, bmax, BLOCK,
                             zlo, zhi, 0.0)
@@ -274,12 +274,12 @@ def _shade_sample(origin, ou, ov, oz, dx, dy, dz, c, H, cmin, cmax, bmin, bmax, 
     cos_r = nx * vx + ny * vy + nz * vz
     cs = min(max(vx * sun[0] + vy * sun[1] + vz * sun[2], -1.0), 1.0)
     a = _bilinear1(albedo, px / spacing + c, py / spacing + c)
-    return True, False, mcewen_scalar(cos_i, cos_r, math.acos(cs), a, alpha0, ls_weight)
+    return True, False, mcewen_beta_scalar(cos_i, cos_r, beta_scalar(math.acos(cs), alpha0, L_table), a, ls_weight)
 
 
 @njit(cache=True)
 def shade_pixels(origin, dirs, k2, H, cmin, cmax, bmin, bmax, spacing, normals, albedo, sun, shadow_rays, alpha0,
-                 ls_weight, shadow_eps):
+                 L_table, ls_weight, shadow_eps):
     """Fused Retina synthetic image: trace, shadow-test and McEwen-shade k2 rays per pixel, average them.
 
     ``dirs`` (P·k2, 3) holds the k2 sub-pixel rays of pixel p at rows p·k2 … p·k2 + k2 − 1 (maplet frame);
@@ -302,7 +302,7 @@ def shade_pixels(origin, dirs, k2, H, cmin, cmax, bmin, bmax, spacing, normals, 
             if not (dx == dx and dy == dy and dz == dz):
                 continue
             h, s, v = _shade_sample(origin, ou, ov, oz, dx, dy, dz, c, H, cmin, cmax, bmin, bmax, zlo, zhi, spacing,
-                                    normals, albedo, sun, shadow_rays, alpha0, ls_weight, shadow_eps)
+                                    normals, albedo, sun, shadow_rays, alpha0, L_table, ls_weight, shadow_eps)
             nhit[p] += h
             nshadow[p] += s
             acc += v
@@ -312,7 +312,7 @@ def shade_pixels(origin, dirs, k2, H, cmin, cmax, bmin, bmax, spacing, normals, 
 
 @njit(cache=True)
 def shade_pinhole(origin, R_m_from_c, Kinv, s_min, l_min, w, h, k, H, cmin, cmax, bmin, bmax, spacing, normals,
-                  albedo, sun, shadow_rays, alpha0, ls_weight, shadow_eps):
+                  albedo, sun, shadow_rays, alpha0, L_table, ls_weight, shadow_eps):
     """:func:`shade_pixels` with the rays of a distortion-free camera made in the kernel.
 
     Sub-pixel sample (ix, iy) of pixel (s, l) sits at (s + (ix + ½)/k − ½, l + (iy + ½)/k − ½); its line of
@@ -342,7 +342,8 @@ def shade_pinhole(origin, R_m_from_c, Kinv, s_min, l_min, w, h, k, H, cmin, cmax
                     dy = R_m_from_c[1, 0] * cx + R_m_from_c[1, 1] * cy + R_m_from_c[1, 2] * cz
                     dz = R_m_from_c[2, 0] * cx + R_m_from_c[2, 1] * cy + R_m_from_c[2, 2] * cz
                     hh, s, v = _shade_sample(origin, ou, ov, oz, dx, dy, dz, c, H, cmin, cmax, bmin, bmax, zlo, zhi,
-                                             spacing, normals, albedo, sun, shadow_rays, alpha0, ls_weight, shadow_eps)
+                                             spacing, normals, albedo, sun, shadow_rays, alpha0, L_table, ls_weight,
+                                             shadow_eps)
                     nhit[p] += hh
                     nshadow[p] += s
                     acc += v

@@ -22,12 +22,16 @@ from renderlab.errors import UserError
 STUDIES: dict[str, str] = {
     "analytic_pointing": "renderlab.campaign.study_analytic:run",
     "retina_vs_spc": "renderlab.campaign.study_retina_spc:run",
+    "coastline_ekf": "renderlab.studies.coastline_study:run",
+    "unknown_satellite": "renderlab.studies.unknown_satellite_campaign:run",
 }
 
 #: world kind → the study a campaign runs when ``campaign.study`` is empty
 DEFAULT_STUDY: dict[str, str] = {
     "analytic": "analytic_pointing",
     "ev5": "retina_vs_spc",
+    "earth": "coastline_ekf",
+    "microsat": "unknown_satellite",
 }
 
 

@@ -21,6 +21,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--peak", choices=["retina_3x3", "parabola_1d", "quadric_2d", "gaussian", "upsampled"],
                    help="peak finder (default: retina_3x3 for retina, quadric_2d for spc)")
     p.add_argument("--min-correlation", type=float, default=0.3, help="correlation threshold (default 0.3)")
+    p.add_argument("--photometry", choices=["fitted", "fixed"], default="fitted",
+                   help="Retina's McEwen weight: L(phase) fitted to the body's catalogued law (default) or exp(-phase/60 deg)")
     p.add_argument("--psf-sigma-px", type=float, default=0.0, help="Retina's PSF sigma, px (default 0)")
     p.add_argument("--campaign", default="", help="campaign name written in every row")
     p.add_argument("--overwrite", action="store_true", help="replace FILE if it exists")
@@ -55,6 +57,7 @@ def run(args) -> int:
     opts = MeasureOptions(sigma_pos_m=(args.sigma_pos_m,) * 3, sigma_att_rad=(math.radians(args.sigma_att_deg),) * 3,
                           n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
                           min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
+                          photometry=args.photometry,
                           campaign=args.campaign)
     out = Path(args.out) if args.out else ts.path.parent / f"{ts.path.name}_{args.method}.parquet"
     if out.exists() and not args.overwrite:

@@ -51,7 +51,11 @@ def make_backend(scenario: Scenario, scene, renderer: str):
                     raise UserError(f"world.bodies.{body.body_id}.file: cannot load mesh "
                                     f"{body.mesh_path.name}: {detail}") from None
             raise
-    raise UserError(f"renderer '{renderer}' is not available yet (only 'mitsuba' is)")
+    if renderer == "cycles":
+        from renderlab.render.cycles_backend import CyclesBackend
+
+        return CyclesBackend(scene, settings)
+    raise UserError(f"unknown renderer '{renderer}' (mitsuba, cycles)")
 
 
 def render_truthset(

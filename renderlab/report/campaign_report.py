@@ -62,6 +62,7 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
     stage.mkdir()
     try:
         sections = _write_all(tables, stage, confidence, scoring, figs)
+        sections += _study_sections(manifest["plan"]["study"], tables, stage)
         page = _page(manifest, statuses, sections, campaign_dir, out_dir)
         (stage / "index.html").write_text(page, encoding="utf-8")
         (stage / "README.md").write_text(
@@ -75,6 +76,21 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return out_dir / "index.html"
+
+
+def _study_sections(study: str, tables, stage: Path) -> list[tuple[str, str]]:
+    """Extra sections from the study's own module: ``report_sections(tables, out_dir) -> [(title, html)]``
+    (optional; for tables the generic kinds do not cover)."""
+    import importlib
+
+    from renderlab.campaign.studies import STUDIES
+
+    module = STUDIES.get(study, study).partition(":")[0]
+    try:
+        hook = getattr(importlib.import_module(module), "report_sections", None)
+    except ImportError:
+        return []
+    return list(hook(tables, stage)) if callable(hook) else []
 
 
 def _write_all(tables, stage: Path, confidence, scoring, figs) -> list[tuple[str, str]]:

@@ -13,7 +13,9 @@ Per run (its own ``numpy.random.Generator`` from one spawned ``SeedSequence``, d
 run k replays alone bit-identically): the initial estimate is the truth plus N(0, diag(σ_r², σ_v²))
 (500 m / 5 mm/s per axis in the paper); each LOS is the true camera-frame unit vector tilted by σθ
 (eq. 18 noise model); the star tracker reports the attitude rotated by N(0, σ_att² I). The filter is
-:class:`estimators.coastline.ekf.BatchCoastlineEKF`, all runs in lock-step.
+:class:`estimators.coastline.ekf.BatchCoastlineEKF`, all runs in lock-step (``filter_form = "sqrt"``: the
+square-root form :class:`estimators.coastline.sqrt_ekf.SqrtBatchCoastlineEKF`, same model). The prior is at
+``t0_s`` (after the elements' epoch), images every ``cadence_s`` after it.
 
 Output (design's filter-study schema), one row per run and time: ``run, t_s, err_r_m, err_i_m, err_c_m,
 err_vr_mps, err_vi_mps, err_vc_mps, sig_r_m, sig_i_m, sig_c_m, sig_vr_mps, sig_vi_mps, sig_vc_mps, nees,
@@ -66,10 +68,12 @@ class CoastlineGeometricOptions:
     db_spacing_m: float = 2000.0
     sigma_theta_rad: float = 5.0e-4
     sigma_star_tracker_rad: float = 2.424e-5  # 5 arcsec per axis
-    sigma_r0_m: float = 500.0
-    sigma_v0_mps: float = 0.005
+    sigma_r0_m: float | tuple[float, float, float] = 500.0      # per ECI axis (one value: all three)
+    sigma_v0_mps: float | tuple[float, float, float] = 0.005
     q_acc_m2_s3: float = 0.0
     filter_step_s: float = 10.0
+    t0_s: float = 0.0                         # filter start (prior) time after the elements' epoch
+    filter_form: str = "joseph"               # "joseph" (eq. 7) or "sqrt" (array-form QR square root)
 
     def validate(self) -> "CoastlineGeometricOptions":
         checks = [
@@ -80,18 +84,29 @@ class CoastlineGeometricOptions:
             ("db_spacing_m", self.db_spacing_m >= 100.0, ">= 100 m"),
             ("sigma_theta_rad", self.sigma_theta_rad > 0, "> 0 (the filter needs R, eq. 18)"),
             ("sigma_star_tracker_rad", self.sigma_star_tracker_rad >= 0, ">= 0"),
-            ("sigma_r0_m", self.sigma_r0_m > 0, "> 0"),
-            ("sigma_v0_mps", self.sigma_v0_mps > 0, "> 0"),
             ("q_acc_m2_s3", self.q_acc_m2_s3 >= 0, ">= 0"),
             ("filter_step_s", self.filter_step_s > 0, "> 0"),
+            ("t0_s", self.t0_s >= 0, ">= 0"),
         ]
+        if self.filter_form not in ("joseph", "sqrt"):
+            raise UserError(f"coastline study option filter_form = {self.filter_form!r} must be 'joseph' or 'sqrt'")
         if self.duration_s is not None:
             checks.append(("duration_s", self.duration_s >= self.cadence_s, ">= cadence_s"))
         for name, ok, what in checks:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and ok):
                 raise UserError(f"coastline study option {name} = {value!r} must be {what}")
+        for name in ("sigma_r0_m", "sigma_v0_mps"):
+            v = np.atleast_1d(np.asarray(getattr(self, name), dtype=float))
+            if v.shape not in ((1,), (3,)) or not np.all(np.isfinite(v) & (v > 0)):
+                raise UserError(f"coastline study option {name} = {getattr(self, name)!r} must be > 0 "
+                                "(one value or one per axis)")
         return self
+
+    def initial_sigmas(self) -> np.ndarray:
+        """Per-axis 1σ of the initial estimate, (6,): [σ_r (m) x3, σ_v (m/s) x3]."""
+        return np.concatenate([np.broadcast_to(np.asarray(self.sigma_r0_m, float), 3),
+                               np.broadcast_to(np.asarray(self.sigma_v0_mps, float), 3)])
 
     @property
     def period_s(self) -> float:
@@ -145,7 +160,7 @@ def _R3(theta: float) -> np.ndarray:
 def _geometry_key(o: CoastlineGeometricOptions) -> CoastlineGeometricOptions:
     """Options with the per-run noise fields reset, so runs differing only in noise share the truth."""
     return replace(o, sigma_theta_rad=1.0, sigma_star_tracker_rad=0.0, sigma_r0_m=1.0, sigma_v0_mps=1.0,
-                   q_acc_m2_s3=0.0, filter_step_s=1.0)
+                   q_acc_m2_s3=0.0, filter_step_s=1.0, filter_form="joseph")
 
 
 def truth_geometry(options: CoastlineGeometricOptions) -> Geometry:
@@ -161,7 +176,7 @@ def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
 
     duration = o.period_s if o.duration_s is None else o.duration_s
     K = int(math.floor(duration / o.cadence_s + 1e-9)) + 1
-    t = np.arange(K) * o.cadence_s
+    t = o.t0_s + np.arange(K) * o.cadence_s
     r0, v0 = state_from_elements(R_EARTH_M + o.altitude_m, 0.0, o.inclination_rad, o.raan_rad, o.argp_rad,
                                  o.nu0_rad)
     x = propagate(np.concatenate([r0, v0]), t, j2=o.truth_j2, max_step_s=1.0)
@@ -273,15 +288,21 @@ def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=No
         raise UserError("coastline study: no runs requested")
     runs = np.arange(N) if run_indices is None else np.asarray(list(run_indices), dtype=np.int64)
     z_x0, z_los, z_att = draws_for_runs(seeds, K, o.points_per_image)
-    sd0 = np.array([o.sigma_r0_m] * 3 + [o.sigma_v0_mps] * 3)
+    sd0 = o.initial_sigmas()
     P0 = np.diag(sd0**2)
-    ekf = BatchCoastlineEKF(geo.x_true[0] + z_x0 * sd0, P0,
+    from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
+
+    filt = SqrtBatchCoastlineEKF if o.filter_form == "sqrt" else BatchCoastlineEKF
+    ekf = filt(geo.x_true[0] + z_x0 * sd0, P0,
                             EKFOptions(sigma_theta_rad=o.sigma_theta_rad, sigma_attitude_rad=o.sigma_star_tracker_rad,
                                        q_acc_m2_s3=o.q_acc_m2_s3, max_step_s=o.filter_step_s))
     xs = np.empty((N, K, 6))
     Ps = np.empty((N, K, 6, 6))
     nis = np.full((N, K), np.nan)
     xs[:, 0], Ps[:, 0] = ekf.x, ekf.P
+    nees_v = np.empty((N, K))
+    nees_of = ekf.nees if o.filter_form == "sqrt" else (lambda e: nees(e, ekf.P))   # sqrt: ‖S⁻¹e‖²
+    nees_v[:, 0] = nees_of(ekf.x - geo.x_true[0])
     steps = range(1, K)
     if progress:
         from tqdm import tqdm
@@ -295,6 +316,7 @@ def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=No
             y, pts, T_hat = measurements(geo, k, z_los[:, k], z_att[:, k], sig_los, sig_att)
             nis[:, k] = ekf.update(y, pts, T_hat).nis
         xs[:, k], Ps[:, k] = ekf.x, ekf.P
+        nees_v[:, k] = nees_of(ekf.x - geo.x_true[k])
     err = xs - geo.x_true[None]
     C = ric_axes(geo.x_true)                                                  # (K, 3, 3)
     e_r = np.einsum("kij,nkj->nki", C, err[..., :3])
@@ -303,7 +325,6 @@ def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=No
     C6[:, :3, :3] = C
     C6[:, 3:, 3:] = C
     sig = np.sqrt(np.sum(np.matmul(C6[None], Ps) * C6[None], axis=-1))      # sqrt diag(C P Cᵀ)
-    nees_v = nees(err.reshape(N * K, 6), Ps.reshape(N * K, 6, 6)).reshape(N, K)
     cols = {"run": np.repeat(runs, K), "t_s": np.tile(geo.t_s, N)}
     names = ["err_r_m", "err_i_m", "err_c_m", "err_vr_mps", "err_vi_mps", "err_vc_mps"]
     vals = np.concatenate([e_r, e_v], axis=-1)
@@ -326,7 +347,7 @@ def options_from_mapping(scenario) -> CoastlineGeometricOptions:
         return scenario.validate()
     if not hasattr(scenario, "keys"):
         raise UserError("coastline geometric study: expected CoastlineGeometricOptions or a mapping of its fields, "
-                        f"got {type(scenario).__name__} (no scenario section for this study exists yet)")
+                        f"got {type(scenario).__name__} (scenario files: study coastline_ekf)")
     known = {f.name for f in fields(CoastlineGeometricOptions)}
     unknown = sorted(set(scenario) - known)
     if unknown:
@@ -337,8 +358,9 @@ def options_from_mapping(scenario) -> CoastlineGeometricOptions:
 def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """Campaign-engine study function: one run → ``{"coastline_filter": pyarrow.Table}``.
 
-    ``scenario`` is a :class:`CoastlineGeometricOptions` or a mapping of its fields (a scenario section may
-    replace it later); ``base_dir`` and ``workdir`` are unused (the study writes no files).
+    ``scenario`` is a :class:`CoastlineGeometricOptions` or a mapping of its fields; ``base_dir`` and ``workdir``
+    are unused (the study writes no files). Scenario files go through study ``coastline_ekf``
+    (:func:`renderlab.studies.coastline_study.run`), which maps the scenario onto these options.
     """
     o = options_from_mapping(scenario)
     return {"coastline_filter": run_batch(o, [seed_sequence], [run_index])["table"]}

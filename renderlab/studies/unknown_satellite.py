@@ -27,8 +27,10 @@ from renderlab.errors import UserError
 
 @dataclass(frozen=True)
 class PriorOptions:
-    sigma_r0_m: float = 0.05
-    sigma_v0_mps: float = 0.02
+    """1σ of the seeded a-priori errors (r0, v0 per LVLH axis: a float or three floats)."""
+
+    sigma_r0_m: float | tuple[float, float, float] = 0.05
+    sigma_v0_mps: float | tuple[float, float, float] = 0.02
     sigma_att_deg: float = 5.0
     sigma_w_deg_s: float = 0.5
     sigma_ratio_frac: float = 0.1
@@ -67,6 +69,30 @@ def _inertia_lvlh(R_lvlh_from_body, inertia):
     return T / np.trace(T)
 
 
+def axis_relabelling(R_est0: np.ndarray, R_true0: np.ndarray) -> np.ndarray:
+    """The proper signed permutation P (one of 24) for which ``R_est0 Pᵀ`` is closest to ``R_true0``.
+
+    Which principal axis is called 1, 2 or 3 (and its sign) is a discrete gauge: relabelled axes give the
+    same images, so a free estimator may return them. Truth-labelled body vectors are then ``P x_est``
+    and the moments ``|P| I_est``.
+    """
+    import itertools
+
+    from estimators.pose.onboard_model import log_so3
+
+    best, best_P = np.inf, np.eye(3)
+    for perm in itertools.permutations(range(3)):
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            P = np.zeros((3, 3))
+            P[np.arange(3), perm] = signs
+            if np.linalg.det(P) < 0:
+                continue
+            ang = float(np.linalg.norm(log_so3((R_est0 @ P.T).T @ R_true0)))
+            if ang < best - 1e-12:
+                best, best_P = ang, P
+    return best_P
+
+
 def _match_tracks(tracks_db, db, ft, max_px):
     """Truth feature id of each database point (−1 if none within ``max_px`` on average)."""
     import collections
@@ -89,7 +115,8 @@ def _match_tracks(tracks_db, db, ft, max_px):
 
 def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = StudyOptions(),
                      progress: bool = False, run: int = 0) -> SequenceResult:
-    """Run both stages on a microsat truth set and score them against its truth."""
+    """Run both stages on a microsat truth set (a folder, or an object with ``frames``, ``load``,
+    ``read_table`` and ``len`` like :class:`renderlab.truthset.TruthSet`) and score them against its truth."""
     import pyarrow as pa
     from tqdm import tqdm
 
@@ -101,7 +128,8 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     from renderlab.geometry.camera import CameraModel
     from renderlab.truthset import TruthSet
 
-    ts = TruthSet.open(ts_path)
+    ts = ts_path if hasattr(ts_path, "load") else TruthSet.open(ts_path)
+    ts_path = getattr(ts, "path", ts_path)
     recs = ts.frames
     if "microsat" not in recs[0]:
         raise UserError(f"truth set {ts_path} is not a microsat truth set (no 'microsat' frame metadata)")
@@ -201,6 +229,15 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         s2_rows[f"true_w{ax}_deg_s"] = np.degrees(tr["omega_body_rad_s"][:, a]).tolist()
         s2_rows[f"err_w{ax}_deg_s"] = e_w[:, a].tolist()
     w_true0 = np.degrees(np.linalg.norm(tr["omega_body_rad_s"][0]))
+    # body-frame scores again with the principal axes relabelled to the truth's (discrete gauge)
+    P = axis_relabelling(s1.R0_lvlh_from_body, R_true0)
+    mom = np.abs(P) @ np.r_[s1.inertia_ratios, 1.0]
+    err_al = np.array([P @ s1.points_body[k] - truth_pts[j] for k, j in enumerate(fid) if j >= 0]).reshape(-1, 3)
+    e_att_al = np.array([np.degrees(np.linalg.norm(log_so3(a @ P.T @ b.T))) for a, b in zip(s2.R, R_true)])
+    e_w_al = np.degrees(s2.w @ P.T - tr["omega_body_rad_s"])
+    s2_rows["err_att_aligned_deg"] = e_att_al.tolist()
+    for a, ax in enumerate("xyz"):
+        s2_rows[f"err_w{ax}_aligned_deg_s"] = e_w_al[:, a].tolist()
     ok = fid >= 0
     summary = {
         "run": run, "frames": len(ts), "tracks": len(tracks), "database_points": npts,
@@ -228,6 +265,7 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         "att0_err_deg": float(np.degrees(np.linalg.norm(log_so3(s1.R0_lvlh_from_body @ R_true0.T)))),
         "w0_err_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body - tr["omega_body_rad_s"][0]))),
         "w0_norm_est_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body))), "w0_norm_true_deg_s": w_true0,
+        "w0_norm_sigma_deg_s": float(np.degrees(np.linalg.norm(s1.sigma_theta[9:12]))),  # CRLB, per-axis σ combined
         "ratio_I1_I3_est": float(s1.inertia_ratios[0]), "ratio_I2_I3_est": float(s1.inertia_ratios[1]),
         "ratio_I1_I3_true": float(ratios_true[0]), "ratio_I2_I3_true": float(ratios_true[1]),
         "ratio_err_max": float(np.max(np.abs(s1.inertia_ratios - ratios_true))),
@@ -242,6 +280,13 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         "stage2_w_rms_deg_s": [float(v) for v in np.sqrt(np.mean(e_w**2, 0))],
         "stage2_att_rms_deg": float(np.sqrt(np.mean(e_att**2))),
         "stage2_flagged_frames": int(np.sum(s2.flags != 0)),
+        "axes_relabelled": bool(not np.allclose(P, np.eye(3))),
+        "axes_relabelling": " ".join(f"{v:+.0f}" for v in P.ravel()),
+        "point_err_rms_aligned_m": float(np.sqrt(np.mean(err_al**2) * 3)) if len(err_al) else np.nan,
+        "att0_err_aligned_deg": float(np.degrees(np.linalg.norm(log_so3(s1.R0_lvlh_from_body @ P.T @ R_true0.T)))),
+        "ratio_I1_I3_aligned": float(mom[0] / mom[2]), "ratio_I2_I3_aligned": float(mom[1] / mom[2]),
+        "stage2_att_rms_aligned_deg": float(np.sqrt(np.mean(e_att_al**2))),
+        "stage2_w_rms_aligned_deg_s": [float(v) for v in np.sqrt(np.mean(e_w_al**2, 0))],
     }
     tables = {"points": pa.table(pt_rows), "stage1_history": pa.table({k: [r.get(k, np.nan) for r in hist_rows]
                                                                       for k in hist_rows[0]}),

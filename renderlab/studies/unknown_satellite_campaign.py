@@ -1,0 +1,210 @@
+r"""Campaign study ``unknown_satellite``: the two-stage method of Ivanov et al. (2018) over noise and seeds.
+
+One run = one rendered separation (Clohessy-Wiltshire, eq. 1; Euler + gravity gradient, eq. 2), analysed by
+stage 1 (eqs. 5-7: database, batch least squares, Fisher-information rank) and stage 2 (eqs. 8-10:
+per-frame pose + constant-gain Kalman filter). What a run draws, each from its own child of the run's
+``SeedSequence`` (so switching one dispersion on or off never changes the others):
+
+* sensor noise — the DN images are re-exposed from the cached radiance with the run's own Poisson + read
+  noise (:func:`renderlab.sensor.expose`, the scenario's ``[sensor]`` and the recorded exposure);
+* stage-1 initial values — r0, v0 (``perturbations.apriori_position_sigma_m``, ``apriori_velocity_sigma_mps``,
+  per LVLH axis), the initial attitude (``apriori_attitude_sigma_deg``), ω0 and the inertia ratios
+  (``[unknown_satellite]`` ``apriori_omega_sigma_deg_s``, ``apriori_ratio_sigma_frac``) and the range prior;
+* optionally the truth — ‖ω0‖ (``tumble_rate_sigma_frac``), q0 (``initial_attitude_sigma_deg``), r0, v0
+  (``perturbations.position_sigma_m``, ``velocity_sigma_mps``). Runs with the same truth share one render
+  through :mod:`renderlab.campaign.cache` (key: the truth scenario, without the campaign-only sections).
+
+Tables: ``scores`` (one row per run: reference-point RMS in LVLH and in the body frame, stage-2 velocity
+RMS, ω errors, inertia-ratio errors and their CRLB σ, FIM rank, rigidity rejections, ``flags``),
+``stage2`` (per frame: ``run, t_s, err_*`` — a filter table), ``points`` and ``stage1_history`` (the
+convergence of Figs 5-7), ``perturbations`` (the run's draws). The report adds a section for them
+(:func:`report_sections`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+#: run flags (bits of ``scores.flags``)
+FLAG_NOT_CONVERGED = 1          # stage 1 stopped on its evaluation budget
+FLAG_INERTIA_BOUNDARY = 2       # the free inertia solve was unphysical; the physical re-solve was used
+FLAG_RIGIDITY_REJECTED = 4      # the rigidity test rejected at least one track
+FLAG_STAGE2_GAPS = 8            # stage 2 left at least one frame without a pose (too few / coplanar points)
+FLAG_RANK = 16                  # FIM rank deficient beyond the inertia scale (eq. 7)
+FLAG_UNMATCHED_POINT = 32       # a database point follows no knob tip (a spurious feature)
+FLAG_AXES_RELABELLED = 64       # the principal axes came out relabelled (a discrete gauge; *_aligned scores)
+FLAG_NAMES = {FLAG_NOT_CONVERGED: "not_converged", FLAG_INERTIA_BOUNDARY: "inertia_boundary",
+              FLAG_RIGIDITY_REJECTED: "rigidity_rejected", FLAG_STAGE2_GAPS: "stage2_gaps",
+              FLAG_RANK: "rank_deficient", FLAG_UNMATCHED_POINT: "unmatched_point",
+              FLAG_AXES_RELABELLED: "axes_relabelled"}
+
+#: generic [perturbations] keys this study uses; any other non-zero one is refused
+USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", "apriori_attitude_sigma_deg",
+                      "position_sigma_m", "velocity_sigma_mps")
+CAMPAIGN_SECTIONS = ("perturbations", "campaign", "unknown_satellite", "coastline")
+
+
+def study_config(scenario):
+    """The ``[unknown_satellite]`` section (defaults when absent)."""
+    from renderlab.studies.unknown_satellite_config import UnknownSatelliteStudyConfig
+
+    return getattr(scenario, "unknown_satellite", None) or UnknownSatelliteStudyConfig()
+
+
+def check_perturbations(p) -> None:
+    """Refuse the generic perturbations that have no meaning for this study (one line naming the key)."""
+    for name, value in p:
+        if name in USED_PERTURBATIONS or value is None:
+            continue
+        if np.any(np.asarray(value if not isinstance(value, dict) else list(value.values()) or [0.0], float) != 0):
+            raise UserError(f"study unknown_satellite does not use perturbations.{name}; supported: "
+                            f"{', '.join(USED_PERTURBATIONS)} and the [unknown_satellite] section")
+
+
+def draw_truth(scenario, seed_sequence: np.random.SeedSequence) -> dict:
+    """The run's truth dispersion: ‖ω0‖ scale, q0 rotation vector (LVLH, rad), δr0, δv0 (one stream each)."""
+    cfg, p = study_config(scenario), scenario.perturbations
+    rate, att, pos, vel = (np.random.default_rng(s) for s in seed_sequence.spawn(4))
+    return {"tumble_scale": float(1.0 + cfg.tumble_rate_sigma_frac * rate.standard_normal()),
+            "q0_rotvec_rad": np.radians(cfg.initial_attitude_sigma_deg) * att.standard_normal(3),
+            "dr0_m": np.asarray(p.position_sigma_m, float) * pos.standard_normal(3),
+            "dv0_mps": np.asarray(p.velocity_sigma_mps, float) * vel.standard_normal(3)}
+
+
+def truth_scenario_dict(scenario, draw: dict) -> dict:
+    """What is rendered: the scenario without its campaign-only sections, with the truth draw applied
+    (only where its σ is non-zero, so every run of a noise-only campaign has the same cache key)."""
+    from scipy.spatial.transform import Rotation
+
+    d = json.loads(json.dumps(scenario.to_dict()))
+    for k in CAMPAIGN_SECTIONS:
+        d.pop(k, None)
+    cfg, p, tr = study_config(scenario), scenario.perturbations, d["trajectory"]
+    if cfg.tumble_rate_sigma_frac > 0:
+        tr["omega0_body_deg_s"] = [float(v * draw["tumble_scale"]) for v in tr["omega0_body_deg_s"]]
+    if cfg.initial_attitude_sigma_deg > 0:
+        q = Rotation.from_rotvec(draw["q0_rotvec_rad"]) * Rotation.from_quat(tr["q0_lvlh_from_body_xyzw"])
+        tr["q0_lvlh_from_body_xyzw"] = [float(v) for v in q.as_quat()]
+    if np.any(np.asarray(p.position_sigma_m) > 0):
+        tr["r0_lvlh_m"] = [float(a + b) for a, b in zip(tr["r0_lvlh_m"], draw["dr0_m"])]
+    if np.any(np.asarray(p.velocity_sigma_mps) > 0):
+        tr["v0_lvlh_mps"] = [float(a + b) for a, b in zip(tr["v0_lvlh_mps"], draw["dv0_mps"])]
+    return d
+
+
+class NoisyTruthSet:
+    """A truth set whose DN images are re-exposed with this run's sensor noise (what
+    :func:`renderlab.studies.unknown_satellite.analyse_truthset` reads: ``path, frames, len, load, read_table``)."""
+
+    def __init__(self, ts, sensor_options, noise_seed_sequence: np.random.SeedSequence):
+        self._ts, self.path, self.frames, self._opts = ts, ts.path, ts.frames, sensor_options
+        self._seeds = noise_seed_sequence.spawn(len(ts))
+
+    def __len__(self) -> int:
+        return len(self._ts)
+
+    def read_table(self, name: str):
+        return self._ts.read_table(name)
+
+    def load(self, i: int):
+        import dataclasses
+
+        from renderlab.sensor import expose
+
+        fr = self._ts.load(i)
+        lum = fr.radiance if fr.radiance is not None else (None if fr.rgb is None else fr.rgb.mean(-1))
+        if lum is None:
+            raise UserError(f"truth set {self.path}: frame {i} holds no radiance to re-expose")
+        opts = dataclasses.replace(self._opts, exposure_s=float(self._ts.frames[i]["sensor"]["exposure_s"]))
+        return dataclasses.replace(fr, dn=expose(lum, opts, np.random.default_rng(self._seeds[i])).dn)
+
+
+def score_row(summary: dict, run: int) -> dict:
+    """The run's ``scores`` row from the sequence summary (scalars, lists flattened) with its ``flags``."""
+    s = summary
+    flags = ((0 if s["stage1_converged"] else FLAG_NOT_CONVERGED)
+             | (FLAG_INERTIA_BOUNDARY if s["stage1_inertia_fallback"] else 0)
+             | (FLAG_RIGIDITY_REJECTED if s["rigidity_rejected_tracks"] else 0)
+             | (FLAG_STAGE2_GAPS if s["stage2_flagged_frames"] else 0)
+             | (FLAG_RANK if s["fim_rank"] < s["fim_params"] - 1 else 0)
+             | (FLAG_UNMATCHED_POINT if s["matched_points"] < s["database_points"] else 0)
+             | (FLAG_AXES_RELABELLED if s["axes_relabelled"] else 0))
+    row = {"run": int(run)}
+    for k, v in s.items():
+        if k in ("run", "stage1_message"):
+            continue
+        if k in ("stage2_w_rms_deg_s", "stage2_w_rms_aligned_deg_s"):
+            row.update({k.replace("_w_", f"_w{a}_"): float(x) for a, x in zip("xyz", v)})
+        elif k == "axes_relabelling":
+            row[k] = str(v)
+        elif k == "rigidity_rejected_tracks":
+            row["rigidity_rejected"] = len(v)
+        elif k == "rigidity_rejected_matched_knob":
+            row["rigidity_rejected_knobs"] = sum(1 for x in v if x >= 0)
+        elif isinstance(v, (bool, np.bool_)):
+            row[k] = bool(v)
+        elif isinstance(v, (int, np.integer)):
+            row[k] = int(v)
+        else:
+            row[k] = float(v)
+    # principal axes may come out relabelled (x↔y etc.: the same images): compare the sorted moments too
+    m_est = np.sort(np.array([s["ratio_I1_I3_est"], s["ratio_I2_I3_est"], 1.0]))
+    m_true = np.sort(np.array([s["ratio_I1_I3_true"], s["ratio_I2_I3_true"], 1.0]))
+    row["err_moments_sorted_max"] = float(np.max(np.abs(m_est / m_est.sum() - m_true / m_true.sum())))
+    row["err_ratio_12_aligned"] = s["ratio_I1_I3_aligned"] - s["ratio_I1_I3_true"]
+    row["err_ratio_23_aligned"] = s["ratio_I2_I3_aligned"] - s["ratio_I2_I3_true"]
+    row["err_ratio_12"] = s["ratio_I1_I3_est"] - s["ratio_I1_I3_true"]
+    row["err_ratio_23"] = s["ratio_I2_I3_est"] - s["ratio_I2_I3_true"]
+    row["w0_norm_err_deg_s"] = s["w0_norm_est_deg_s"] - s["w0_norm_true_deg_s"]
+    row["flags"] = int(flags)
+    row["flag_names"] = ",".join(n for b, n in FLAG_NAMES.items() if flags & b)
+    row["stage1_message"] = str(s["stage1_message"])
+    return row
+
+
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
+    """One run of ``unknown_satellite`` → ``{"scores", "stage2", "points", "stage1_history", "perturbations"}``."""
+    import pyarrow as pa
+
+    from renderlab.campaign.cache import cached_truthset
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.sensor import SensorOptions
+    from renderlab.studies.unknown_satellite import PriorOptions, StudyOptions, analyse_truthset
+    from renderlab.truthset import TruthSet
+
+    if scenario.world.kind != "microsat":
+        raise UserError(f"study unknown_satellite needs world.kind 'microsat', got '{scenario.world.kind}'")
+    p, cfg = scenario.perturbations, study_config(scenario)
+    check_perturbations(p)
+    ss_truth, ss_prior, ss_noise = seed_sequence.spawn(3)
+    draw = draw_truth(scenario, ss_truth)
+    truth_sc = scenario_from_dict(truth_scenario_dict(scenario, draw), "unknown_satellite truth scenario")
+    path, hit = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
+    ts = NoisyTruthSet(TruthSet.open(path), SensorOptions(**scenario.sensor.options_dict()), ss_noise)
+    prior = PriorOptions(sigma_r0_m=tuple(p.apriori_position_sigma_m), sigma_v0_mps=tuple(p.apriori_velocity_sigma_mps),
+                         sigma_att_deg=p.apriori_attitude_sigma_deg, sigma_w_deg_s=cfg.apriori_omega_sigma_deg_s,
+                         sigma_ratio_frac=cfg.apriori_ratio_sigma_frac, range_sigma_m=cfg.range_prior_sigma_m)
+    opts = StudyOptions(prior=prior, sigma_px=cfg.sigma_px, epsilon_px=cfg.epsilon_px,
+                        min_track_frames=cfg.min_track_frames, max_nfev=cfg.max_nfev)
+    res = analyse_truthset(ts, np.random.default_rng(ss_prior), opts, run=int(run_index))
+    row = score_row(res.summary, run_index)
+    row["truth_cache_hit"] = bool(hit)
+    row["truth_key"] = Path(path).name
+    pert = {"run": int(run_index), "tumble_scale": draw["tumble_scale"],
+            **{f"q0_rotvec_{a}_rad": float(v) for a, v in zip("xyz", draw["q0_rotvec_rad"])},
+            **{f"dr0_{a}_m": float(v) for a, v in zip("xyz", draw["dr0_m"])},
+            **{f"dv0_{a}_mps": float(v) for a, v in zip("xyz", draw["dv0_mps"])}}
+    return {"scores": pa.table({k: [v] for k, v in row.items()}),
+            "perturbations": pa.table({k: [v] for k, v in pert.items()}), **res.tables}
+
+
+def report_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
+    """Report hook: figures like Figs 5-7 and 13-14 over the campaign and the score summary (HTML sections)."""
+    from renderlab.studies.unknown_satellite_figures import campaign_sections
+
+    return campaign_sections(tables, Path(out_dir))

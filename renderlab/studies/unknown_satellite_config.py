@@ -1,0 +1,37 @@
+"""Scenario section ``[unknown_satellite]``: what one run of the unknown-satellite campaign varies and how the
+estimator is set up (Ivanov et al. 2018). Light: pydantic only.
+
+Dispersions are 1σ of zero-mean Gaussians, drawn per run from the run's seed. Besides these, the study
+reads the generic ``[perturbations]`` keys that mean the same thing here (see
+:mod:`renderlab.studies.unknown_satellite_campaign`): ``apriori_position_sigma_m``,
+``apriori_velocity_sigma_mps`` and ``apriori_attitude_sigma_deg`` are the stage-1 initial-value errors of
+r0, v0 (LVLH, per axis) and of the initial attitude; ``position_sigma_m`` and ``velocity_sigma_mps``
+disperse the *true* r0, v0 (a new render per run). Units: m, m/s, deg, deg/s, px.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field
+
+from renderlab.config_types import NonNegative, Positive, Strict
+
+Fraction = Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)]
+
+
+class UnknownSatelliteStudyConfig(Strict):
+    """Per-run dispersions and estimator settings of the ``unknown_satellite`` study."""
+
+    # stage-1 initial-value errors not covered by [perturbations] (the estimator's a-priori guess)
+    apriori_omega_sigma_deg_s: NonNegative = 0.5     # per body axis
+    apriori_ratio_sigma_frac: Fraction = 0.1         # relative error of I1/I3 and I2/I3
+    range_prior_sigma_m: Positive = 0.05             # σ of the initial-range prior (and of its draw)
+    # truth dispersions (each run renders its own sequence when one of these is > 0)
+    tumble_rate_sigma_frac: Fraction = 0.0           # ‖ω0‖ scaled by (1 + δ), direction kept
+    initial_attitude_sigma_deg: NonNegative = 0.0    # q0 rotated by a random rotation vector (per axis)
+    # estimator settings
+    sigma_px: Positive = 0.3                         # whitening σ of stage 1 / stage 2
+    epsilon_px: Positive = 12.0                      # ε-neighbourhood of the tracker
+    min_track_frames: Annotated[int, Field(ge=2, le=10000)] = 5
+    max_nfev: Annotated[int, Field(ge=10, le=100000)] = 300

@@ -1,0 +1,125 @@
+"""The geometric coastline study as a campaign: the ``[coastline]`` scenario section, the mapping of the
+scenario onto the study, ``renderlab campaign`` + ``renderlab report``, and the ``truth_j2`` option.
+
+Oracles: the Earth world's own orbit and Earth-rotation code (Kepler + IAU-1982 GMST, independent of the study's
+RK4 + linear Earth angle) for the mapping; Vallado's secular J2 nodal rate (eq. 9-41) for ``truth_j2``; the χ²
+band for the inconsistency a J2 truth causes in a two-body filter without process noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from renderlab.errors import UserError
+
+SHORT = ["coastline.duration_s=900"]
+
+
+def _scenario(repo, *overrides):
+    from renderlab.scenario import load_scenario
+
+    return load_scenario(repo / "scenes/coastline_ekf.toml", list(overrides))
+
+
+@pytest.mark.parametrize("override, message", [
+    ("coastline.mode=sideways", "coastline.mode"),
+    ("coastline.sigma_theta_mrad=0", "coastline.sigma_theta_mrad"),
+    ("coastline.points_per_image=0", "coastline.points_per_image"),
+    ("coastline.cadence=3", "unknown key 'coastline.cadence'"),
+])
+def test_bad_section_values_are_user_errors(repo, override, message):
+    with pytest.raises(UserError, match=message.replace(".", r"\.")):
+        _scenario(repo, override)
+
+
+def test_study_refuses_what_it_does_not_model(repo):
+    from renderlab.studies.coastline_study import geometric_options
+
+    for override, key in (("perturbations.attitude_sigma_deg=0.1", "perturbations.attitude_sigma_deg"),
+                          ("perturbations.focal_length_sigma_frac=0.01", "perturbations.focal_length_sigma_frac"),
+                          ("perturbations.apriori_position_sigma_m=[0,0,0]", "apriori_position_sigma_m"),
+                          ("trajectory.eccentricity=0.01", "eccentricity")):
+        sc, _ = _scenario(repo, override)
+        with pytest.raises(UserError, match=key.replace(".", r"\.")):
+            geometric_options(sc)
+
+
+def test_scenario_maps_onto_the_earth_worlds_orbit(repo):
+    """The study's truth (RK4 two-body, Earth angle gmst0 + ω⊕t) puts the satellite where the Earth world does."""
+    from renderlab.studies.coastline_geometric import OMEGA_EARTH, _R3, truth_geometry
+    from renderlab.studies.coastline_study import geometric_options
+    from renderlab.worlds.earth.plan import EarthPlan
+
+    sc, _ = _scenario(repo, *SHORT, "trajectory.start_s=600", "trajectory.raan_deg=30", "trajectory.true_anomaly_deg=10")
+    o = geometric_options(sc)
+    assert (o.cadence_s, o.t0_s, o.duration_s) == (30.0, 600.0, 900.0)
+    assert o.sigma_theta_rad == pytest.approx(5e-4) and o.sigma_star_tracker_rad == pytest.approx(math.radians(5 / 3600))
+    geo = truth_geometry(o)
+    world_sc = sc.model_copy(update={"trajectory": sc.trajectory.model_copy(update={"frames": len(geo.t_s)})})
+    plan = EarthPlan.from_scenario(world_sc)
+    for k in (0, len(geo.t_s) // 2, len(geo.t_s) - 1):
+        st = plan.states[k]
+        assert st["t"] == pytest.approx(geo.t_s[k])
+        assert np.linalg.norm(geo.x_true[k, :3] - st["r_eci"]) < 1.0                      # m
+        r_ecef = _R3(o.gmst0_rad + OMEGA_EARTH * geo.t_s[k]) @ geo.x_true[k, :3]
+        assert np.linalg.norm(r_ecef - st["r_ecef"]) < 2.0
+    assert geo.n_meas.sum() > 0
+
+
+def test_campaign_and_report(repo, tmp_path):
+    from renderlab.campaign.plan import make_plan, run_seed_sequence
+    from renderlab.campaign.runner import run_campaign_file
+    from renderlab.report.campaign_report import make_report
+    from renderlab.studies.coastline_study import run
+
+    out = tmp_path / "camp"
+    res = run_campaign_file(repo / "scenes/coastline_ekf.toml", out, 3, overrides=SHORT, workers=0, progress=False)
+    assert res.executed == 3 and not res.failed
+    t = pq.read_table(out / "runs/000002/coastline_filter.parquet")
+    assert t.num_rows == 31 and t["n_meas"].to_numpy().sum() > 0
+    sc, base = _scenario(repo, *SHORT)
+    again = run(sc, base, 2, run_seed_sequence(sc.campaign.seed, 2), tmp_path)["coastline_filter"]
+    for name in again.column_names:                                  # run 2 replays alone, bit for bit
+        np.testing.assert_array_equal(again[name].to_numpy(), t[name].to_numpy())
+    page = make_report(out, tmp_path / "report").read_text()
+    for f in ("coastline_filter_coastline_errors.png", "coastline_filter_coastline_consistency.png",
+              "coastline_filter_coastline_steady_state.csv", "coastline_filter_errors.png"):
+        assert (tmp_path / "report" / f).is_file()
+    assert "ANEES inside its 99" in page
+    earth_sc, earth_base = _scenario(repo)
+    assert make_plan(earth_sc.model_copy(update={"campaign": earth_sc.campaign.model_copy(update={"study": ""})}),
+                     earth_base, 1).study == "coastline_ekf"                # default study of world kind earth
+
+
+def test_truth_j2_option(repo):
+    """``truth_j2``: the truth's node drifts at Vallado's secular J2 rate; the two-body filter (q = 0) then
+    fails its χ² test, which is what the option is for."""
+    from renderlab.dynamics.orbits import OrbitElements, j2_nodal_rate, raan_of
+    from renderlab.report.coastline_scoring import chi2_band
+    from renderlab.studies.coastline_geometric import R_EARTH_M, paper_orbit, run_batch, truth_geometry
+
+    o = paper_orbit("i45_h1000", cadence_s=60.0)
+    o = replace(o, truth_j2=True, duration_s=3 * o.period_s).validate()
+    geo = truth_geometry(o)
+    raan = np.unwrap(raan_of(geo.x_true[:, :3], geo.x_true[:, 3:]))
+    rate = np.polyfit(geo.t_s, raan, 1)[0]
+    expected = j2_nodal_rate(OrbitElements(R_EARTH_M + o.altitude_m, 0.0, o.inclination_rad))
+    assert rate == pytest.approx(expected, rel=0.03)            # measured 1.2 % (short-period terms)
+    seeds = np.random.SeedSequence(7).spawn(20)
+    short = replace(o, duration_s=1200.0, cadence_s=30.0).validate()
+    def anees_at_end(opts):
+        tbl = run_batch(opts, seeds)["table"]
+        t = tbl["t_s"].to_numpy()
+        return float(np.mean(tbl["nees"].to_numpy()[t == t.max()]))
+
+    anees_j2, anees_2b = anees_at_end(short), anees_at_end(replace(short, truth_j2=False))
+    print(f"ANEES at 1200 s: J2 truth {anees_j2:.1f}, two-body truth {anees_2b:.2f}")
+    lo, hi = chi2_band(6.0, 20)
+    assert lo <= anees_2b <= hi
+    assert anees_j2 > 10 * hi
+
