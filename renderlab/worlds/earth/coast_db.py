@@ -3,9 +3,12 @@ r"""The onboard coastline database: a degraded copy of GSHHG for the estimators.
 GSHHG is within 100 m of Landsat coastlines for only ~9 % of the coast, so an onboard map has errors of a
 few hundred metres. This copy is (1) simplified (Douglas-Peucker) to ``tolerance_m`` (in degrees of
 latitude, 1° = 111.32 km; longitude tolerance is the same angle, i.e. tighter by cos φ), then (2) displaced
-by a smooth, seeded random field (east, north) of ``error_m`` 1σ per axis and correlation length
-``scale_m`` (the random-phase wave sum of :mod:`.clouds`), so nearby points share their error like a real
-map's. Output: polylines ``segment_id, lon_deg, lat_deg, x/y/z_ecef_m`` (WGS-84, height 0).
+by a smooth, seeded random field (east, north) of ``error_m`` 1σ per axis (the random-phase wave sum of
+:mod:`.clouds`, wave scales ``scale_m``/2 … 4·``scale_m``), so nearby points share their error like a real
+map's. Measured with the default ``scale_m`` = 100 km over Iberia, 24 seeds (``tests/test_earth_coast_db.py``
+and its probe): per-axis RMS 282-296 m for 300 m set; correlation of two vertices' displacements 0.99 within
+50 km, 0.84 at 50-150 km, 0.38 at 150-400 km, 0.10 beyond 400 km, so across one 540 km footprint the error is
+largely common. Output: polylines ``segment_id, lon_deg, lat_deg, x/y/z_ecef_m`` (WGS-84, height 0).
 """
 
 from __future__ import annotations

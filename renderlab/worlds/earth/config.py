@@ -21,8 +21,8 @@ class EarthWorld(Strict):
     full-resolution GSHHG polygons at ``texture_oversample`` texture cells per ground sample distance.
     ``cloud_cover`` > 0 adds a cloud layer (its own body id, casting shadows) at ``cloud_altitude_m``.
     The onboard coastline database written with the set is GSHHG simplified to ``coast_db_tolerance_m``
-    and displaced by a smooth random map error of ``coast_db_error_m`` (1σ per axis, correlation length
-    ``coast_db_error_scale_m``).
+    and displaced by a smooth random map error of ``coast_db_error_m`` (1σ per axis, wave scales from half to
+    four times ``coast_db_error_scale_m``; see :mod:`renderlab.worlds.earth.coast_db` for the measured correlation).
     """
 
     kind: Literal["earth"] = "earth"
