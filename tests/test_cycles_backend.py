@@ -143,6 +143,33 @@ def test_each_law_osl_shader_matches_numpy_reference():
     assert checked == set(LAWS)
 
 
+def test_hapke_shader_viewed_along_the_normal():
+    """Rough Hapke plane under a nadir camera (emission 0.5-46°): every pixel
+    matches the numpy law to 1e-3. The shader once took the azimuth psi from (cos g − mu0·mu)/(sin i
+    sin e), which loses all float32 digits as e → 0: clamped to −1 it gave psi = pi, f(psi) = inf and a
+    NaN radiance, i.e. black pixels (5 of these 7680; the black specks of the EV5 cross-check)."""
+    sun = np.array([0.45, 0.2, 0.8])
+    sun /= np.linalg.norm(sun)
+    d = scenario_dict(world={"kind": "analytic", "bodies": [{"name": "ground", "shape": "plane", "center_m": [0, 0, 0],
+                                                             "size_m": [40, 40], "law": "hapke", "albedo": 0.085}]},
+                      sun={"direction": sun.tolist()},
+                      camera={"width": 96, "height": 80, "fx": 60.0, "fy": 58.0, "cx": 47.6, "cy": 39.3},
+                      trajectory={"kind": "line", "frames": 1, "start_m": [0.0, 0.0, 5.0], "target_m": [0.0, 0.0, 0.0],
+                                  "up": [0, 1, 0]},
+                      render={"pixel_filter": "center", "spp": 1})
+    backend, specs = _backend(d)
+    with backend:
+        out = backend.render(specs[0], seed=3)
+    o, dirs = camera_rays(specs[0], _pixel_sl(out.radiance.shape))
+    assert np.all(np.isfinite(hit_plane_z0(o, dirs)))
+    v = -dirs
+    mu = v[:, 2]
+    assert mu.max() > 0.9999  # emission below 0.8° near the principal point
+    expect = E_SUN * make_law("hapke").radiance_factor(np.full_like(mu, sun[2]), mu, np.arccos(v @ sun), 0.085)
+    rel = np.abs(out.radiance.ravel() / expect - 1)
+    assert rel.max() <= 1e-3, f"{int((rel > 1e-3).sum())} px off, {int((out.radiance == 0).sum())} black"
+
+
 def test_box_shadow_edge_on_plane_within_half_pixel():
     """Box on a plane, 1-px box filter: lit fraction of each plane pixel vs the analytic one (16×16
     sub-samples, numpy slab test toward the sun); the edge displacement must be ≤ 0.5 px."""

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -187,7 +188,11 @@ class CyclesBackend:
             bodies.append({"key": key, "name": body.name, "body_id": int(body.body_id),
                            "law": body.law.to_dict(), "albedo": float(body.albedo)})
         np.savez(self.workdir / "scene.npz", **arrays)
-        (self.workdir / "scene.json").write_text(json.dumps({"bodies": bodies, "osl_path": str(OSL_PATH)}))
+        # Blender compiles an external .osl and copies the .oso next to it: compile a copy in the
+        # worker's folder, so nothing is written into the package (and parallel workers never race)
+        osl_copy = self.workdir / OSL_PATH.name
+        shutil.copyfile(OSL_PATH, osl_copy)
+        (self.workdir / "scene.json").write_text(json.dumps({"bodies": bodies, "osl_path": str(osl_copy)}))
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         self._proc = subprocess.Popen(
             [sys.executable, "-m", "renderlab.render.cycles_job", str(self.workdir)],
