@@ -74,6 +74,47 @@ def test_crosscheck_command_on_tiny_analytic_scene(tmp_path):
     assert not (out / "truthsets").exists()
 
 
+def test_both_renderers_at_degenerate_hapke_azimuths():
+    """Rough Hapke plane, nadir camera, sun in the camera's x-z plane, integer principal point: one image
+    row has sun and camera azimuths exactly opposite (psi = pi) and the centre pixel looks exactly along
+    the normal (e = 0, psi undefined). Both renderers must match the numpy law there to 1e-3 (pixel
+    centres). Before the fixes Mitsuba's BSDF returned NaN on that whole row (tan of float32(pi)/2 is
+    huge and negative) and Cycles' OSL shader black pixels near e = 0."""
+    pytest.importorskip("bpy")
+    from conftest import scenario_dict
+    from oracles import camera_rays, hit_plane_z0
+
+    from renderlab.photometry import make_law
+    from renderlab.render.pipeline import frame_specs, make_backend
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.worlds.analytic import build_scene
+
+    sun = np.array([0.45, 0.0, 0.8])
+    sun /= np.linalg.norm(sun)
+    sc = scenario_from_dict(scenario_dict(
+        world={"kind": "analytic", "bodies": [{"name": "ground", "shape": "plane", "center_m": [0, 0, 0],
+                                               "size_m": [40, 40], "law": "hapke", "albedo": 0.085}]},
+        sun={"direction": sun.tolist()}, camera={"width": 48, "height": 40, "fx": 30.0, "fy": 29.0, "cx": 24.0, "cy": 20.0},
+        trajectory={"kind": "line", "frames": 1, "start_m": [0.0, 0.0, 5.0], "target_m": [0.0, 0.0, 0.0], "up": [0, 1, 0]},
+        render={"pixel_filter": "center", "spp": 1}))
+    spec = frame_specs(sc)[0]
+    H, W = spec.camera.height, spec.camera.width
+    ll, ss = np.mgrid[0:H, 0:W]
+    o, d = camera_rays(spec, np.column_stack([ss.ravel(), ll.ravel()]).astype(float))
+    assert np.all(np.isfinite(hit_plane_z0(o, d)))
+    v = -d
+    expect = 1361.0 * make_law("hapke").radiance_factor(np.full(len(v), sun[2]), v[:, 2], np.arccos(v @ sun), 0.085)
+    for renderer in ("mitsuba", "cycles"):
+        be = make_backend(sc, build_scene(sc.world, REPO / "scenes"), renderer)
+        out = be.render(spec, seed=1)
+        if hasattr(be, "close"):
+            be.close()
+        L = out.radiance.ravel().astype(np.float64)
+        rel = np.abs(L / expect - 1)
+        assert np.all(np.isfinite(L)), f"{renderer}: {int((~np.isfinite(L)).sum())} non-finite pixels"
+        assert rel.max() <= 1e-3, f"{renderer}: {int((rel > 1e-3).sum())} px off the law, max {rel.max():.2e}"
+
+
 def test_crosscheck_refuses_a_file_as_output(tmp_path, capsys):
     from renderlab.cli import main
 

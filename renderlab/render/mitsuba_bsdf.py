@@ -198,7 +198,9 @@ def _build_classes(mi, dr):
             psi = dr.atan2(dr.abs(cz), wo.x * wi.x + wo.y * wi.y)
             cpsi = dr.cos(psi)
             half_sin2 = 0.5 * (1.0 - cpsi)  # sin^2(psi/2)
-            fpsi = dr.exp(-2.0 * dr.tan(0.5 * psi))
+            # f(psi) -> 0 as psi -> pi; at psi = float32(pi) (sun and camera azimuths exactly opposite)
+            # tan(psi/2) is huge and negative (f = inf, S = NaN): below 3.1415 f is already exp(-21600) = 0
+            fpsi = dr.select(psi < 3.1415, dr.exp(-2.0 * dr.tan(0.5 * psi)), 0.0)
             frac = psi * (1.0 / math.pi)
             eta_i = chi * (mu0 + sin_i * tb * e2i / (2.0 - e1i))
             eta_e = chi * (mu + sin_e * tb * e2e / (2.0 - e1e))
