@@ -56,6 +56,75 @@ def test_body_matches_radar_shape():
     assert all((b, a) in fwd for a, b in e[:2000].tolist())
 
 
+def _radius_residuals(cfg):
+    """Mesh vertex radius − the reference ellipsoid (semi-axes size/2 − ridge, size/2 − ridge, size/2),
+    with each vertex's latitude and angle from the concavity centre (deg)."""
+    from renderlab.worlds.ev5 import stream
+    from renderlab.worlds.ev5.shape import procedural_shape
+
+    v = procedural_shape(cfg, stream(cfg.seed, "shape")).vertices
+    r = np.linalg.norm(v, axis=1)
+    u = v / r[:, None]
+    a, b, c = np.asarray(cfg.size_m) / 2
+    ell = 1 / np.sqrt((u[:, 0] / (a - cfg.ridge_height_m)) ** 2 + (u[:, 1] / (b - cfg.ridge_height_m)) ** 2
+                      + (u[:, 2] / c) ** 2)
+    lat, lon = np.radians(cfg.concavity_lat_deg), np.radians(cfg.concavity_lon_deg)
+    u_cav = np.array([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
+    return r - ell, np.degrees(np.arcsin(u[:, 2])), np.degrees(np.arccos(np.clip(u @ u_cav, -1, 1)))
+
+
+@pytest.mark.parametrize("features", [True, False])
+def test_body_has_an_equatorial_ridge_and_a_150_m_concavity(features):
+    """The mesh stands ≥ 4 m (half the 8 m ridge) higher on the equator than at mid-latitudes, and is
+    ≥ 7.5 m (half the 15 m depth) lower inside the central third of the 150 m concavity than in a ring
+    around it; with ridge_height_m = concavity_depth_m = 0 neither signature is there (< 3 m)."""
+    cfg = world_cfg() if features else world_cfg(ridge_height_m=0.0, concavity_depth_m=0.0)
+    res, lat, theta = _radius_residuals(cfg)
+    theta_c = np.degrees(75.0 / np.cbrt(np.prod(np.asarray(cfg.size_m) / 2)))  # 150 m diameter, in angle
+    ridge = res[np.abs(lat) < 3].mean() - res[(np.abs(lat) > 30) & (np.abs(lat) < 60)].mean()
+    bowl = res[theta < theta_c / 3].mean() - res[(theta > 1.2 * theta_c) & (theta < 2 * theta_c)].mean()
+    if features:
+        assert ridge > 4.0 and bowl < -7.5, (ridge, bowl)
+    else:
+        assert abs(ridge) < 3.0 and abs(bowl) < 3.0, (ridge, bowl)
+
+
+def test_default_photometry_is_a_dark_c_type():
+    """The world's default Hapke law (Mathilde parameters, w = 0.085) has a normal albedo π r(0°, 0°, 0°)
+    of ≈ 0.10 (C-type), and the spin state is retrograde with P = 3.725 h, pole (180°, −84°)."""
+    from renderlab.dynamics.small_body import SpinState
+    from renderlab.photometry import make_law
+
+    cfg = world_cfg()
+    law = make_law(cfg.law, **cfg.law_params)
+    a_n = float(np.pi * law.radiance_factor(np.array([1.0]), np.array([1.0]), np.array([0.0]), cfg.albedo)[0])
+    assert 0.08 < a_n < 0.12, a_n
+    spin = SpinState(cfg.pole_lambda_deg, cfg.pole_beta_deg, cfg.rotation_period_h * 3600.0)
+    assert spin.retrograde and spin.period_s == pytest.approx(13410.0)
+    assert (cfg.pole_lambda_deg, cfg.pole_beta_deg) == (180.0, -84.0)
+
+
+def test_boulder_and_crater_sizes_follow_the_power_law():
+    """Sizes drawn for the site follow the truncated cumulative power law N(>D) ∝ D^−α (scipy KS test
+    against its analytic CDF) and their number is Poisson about density · area · (D_min^−α − D_max^−α)."""
+    from scipy import stats
+
+    from renderlab.worlds.ev5.terrain import power_law_diameters
+
+    rng = np.random.default_rng(4)
+    for density, area, slope, d_min, d_max in ((0.02, 3600.0, 3.0, 0.15, 2.0), (0.01, 40000.0, 2.0, 0.3, 8.0)):
+        d = power_law_diameters(rng, density, area, slope, d_min, d_max)
+        lo, hi = d_min ** -slope, d_max ** -slope
+        expected = density * area * (lo - hi)
+        assert abs(len(d) - expected) < 4 * np.sqrt(expected), (len(d), expected)
+        assert d.min() >= d_min and d.max() <= d_max
+        p = stats.kstest(d, lambda x: (lo - np.clip(x, d_min, d_max) ** -slope) / (lo - hi)).pvalue
+        assert p > 1e-3, p
+        # and not the wrong slope: the same sample against α + 0.3 is rejected
+        lo2, hi2 = d_min ** -(slope + 0.3), d_max ** -(slope + 0.3)
+        assert stats.kstest(d, lambda x: (lo2 - np.clip(x, d_min, d_max) ** -(slope + 0.3)) / (lo2 - hi2)).pvalue < 1e-6
+
+
 def test_site_meets_global_and_global_stays_below(model):
     """The patch border lies on the global mesh; inside the patch no global facet pokes through it."""
     site, shape = model.site, model.shape
@@ -78,18 +147,17 @@ def test_site_meets_global_and_global_stays_below(model):
     assert site.height_at(0.0, 0.0) - site.height_at(3.0, 3.0) > 0.5
 
 
-def test_maplets_error_rms_against_mitsuba_resampled_truth(model):
-    """Maplet heights − truth heights (resampled by casting Mitsuba rays along −z of each maplet onto
-    the site mesh, k × k rays per maplet cell, averaged) have the configured rms to within 10 %."""
+def _mitsuba_truth_differences(mdl) -> np.ndarray:
+    """Maplet heights − truth heights resampled independently: Mitsuba rays cast along −z of each maplet
+    onto the site mesh from 20 m above, k × k rays per maplet cell (k = spacing / site cell), averaged."""
     from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.render.scene import RenderSettings, SceneDescription
 
-    site_body = model.bodies()[1]
-    backend = MitsubaBackend(SceneDescription(bodies=[site_body]), RenderSettings())
+    backend = MitsubaBackend(SceneDescription(bodies=[mdl.bodies()[1]]), RenderSettings())
     mi = backend.mi
     diffs = []
-    for m in model.maplets:
-        k = int(min(8, max(1, round(m.spacing_m / model.site.cell_m))))
+    for m in mdl.maplets:
+        k = int(min(8, max(1, round(m.spacing_m / mdl.site.cell_m))))
         x, y = m.grid_xy()
         sub = ((np.arange(k) + 0.5) / k - 0.5) * m.spacing_m
         U, V = np.broadcast_arrays(x[None, :, None, None] + sub[None, None, None, :],
@@ -102,8 +170,29 @@ def test_maplets_error_rms_against_mitsuba_resampled_truth(model):
         assert np.all(np.array(si.is_valid()))
         h_truth = 20.0 - np.array(si.t, dtype=np.float64).reshape(U.shape).mean(axis=(2, 3))
         diffs.append((m.heights_m - h_truth).ravel())
-    rms = float(np.sqrt(np.mean(np.concatenate(diffs) ** 2)))
+    return np.concatenate(diffs)
+
+
+def test_maplets_error_rms_against_mitsuba_resampled_truth(model):
+    """Maplet heights − truth heights (resampled by Mitsuba ray casts, :func:`_mitsuba_truth_differences`)
+    have the configured rms (default 3 cm) to within 10 %."""
+    rms = float(np.sqrt(np.mean(_mitsuba_truth_differences(model) ** 2)))
     assert abs(rms / 0.03 - 1) < 0.10, rms
+
+
+@pytest.mark.parametrize("error_m, corr_cells", [(0.01, 0.0), (0.0, 1.0)])
+def test_mapping_error_is_settable_and_truth_resampling_is_exact(error_m, corr_cells):
+    """A settable mapping error: 1 cm white error gives 1 cm rms (±10 %); with no error the maplets are the
+    truth cell means to float32 ray-cast precision everywhere, boulder flanks included (< 0.5 mm)."""
+    from renderlab.worlds.ev5 import build_model
+
+    d = _mitsuba_truth_differences(build_model(world_cfg(mapping_error_m=error_m,
+                                                         mapping_error_corr_cells=corr_cells), "."))
+    rms = float(np.sqrt(np.mean(d ** 2)))
+    if error_m > 0:
+        assert abs(rms / error_m - 1) < 0.10, rms
+    else:
+        assert np.abs(d).max() < 5e-4, (rms, np.abs(d).max())
 
 
 def test_zero_mapping_error_reproduces_truth_cell_means():
@@ -162,34 +251,58 @@ def _write_shapes(tmp_path, v_km, f):
             f"property float z\nelement face {len(f)}\nproperty list uchar int vertex_indices\nend_header\n").encode()
     body = np.asarray(v_km, "<f4").tobytes() + b"".join(np.uint8(3).tobytes() + np.asarray(t, "<i4").tobytes() for t in f)
     ply.write_bytes(head + body)
-    return obj, ply
+    # ASCII PLY with a comment and an extra vertex property before x
+    aply = tmp_path / "a.ply"
+    lines = [f"{0.5} {a:.9f} {b:.9f} {c:.9f}" for a, b, c in v_km] + [f"3 {a} {b} {c}" for a, b, c in f]
+    aply.write_text(f"ply\nformat ascii 1.0\ncomment renderlab test\nelement vertex {len(v_km)}\nproperty float confidence\n"
+                    f"property double x\nproperty double y\nproperty double z\nelement face {len(f)}\n"
+                    "property list uchar int vertex_indices\nend_header\n" + "\n".join(lines) + "\n")
+    return obj, ply, aply
+
+
+def _gaskell_icq(path, q, semi_axes_km):
+    """An ICQ file in Gaskell's layout (SHAPE.TXT): face 0 = +z, 1..4 = +x, +y, −x, −y, 5 = −z; vertex
+    (i, j, f) at N_f + a_i P_f + b_j Q_f on the cube (i fastest), projected on an ellipsoid."""
+    t = np.linspace(-1, 1, q + 1)
+    A, B = np.meshgrid(t, t)  # A along i (columns), B along j (rows)
+    x, y, z = np.eye(3)
+    npq = [(z, -y, x), (x, -y, -z), (y, x, -z), (-x, y, -z), (-y, -x, -z), (-z, -y, -x)]
+    cube = np.stack([N + A[..., None] * P + B[..., None] * Q for N, P, Q in npq])  # [f, j, i]
+    # the test data follows SHAPE.TXT's shared-edge identities, e.g. v(I,0,2) = v(0,I,0), v(Q,I,4) = v(0,I,3)
+    assert np.allclose(cube[2, 0, :], cube[0, :, 0]) and np.allclose(cube[4, :, q], cube[3, :, 0])
+    assert np.allclose(cube[5, q, :], cube[3, q, ::-1]) and np.allclose(cube[4, 0, :], cube[0, ::-1, q])
+    pts = cube / np.linalg.norm(cube, axis=-1, keepdims=True) * np.asarray(semi_axes_km)
+    path.write_text(f"{q:>10d}\n" + "".join(f"{a:15.5f}{b:15.5f}{c:15.5f}\n" for a, b, c in pts.reshape(-1, 3)))
+    return path
 
 
 def test_user_shape_models_replace_the_procedural_body(tmp_path):
-    """OBJ, binary PLY and Gaskell ICQ models load (km → m, outward faces) and carry a site."""
+    """OBJ, binary and ASCII PLY and Gaskell ICQ models load (km → m) as closed meshes with outward faces,
+    the volume of the ellipsoid they sample (to 3 %), and carry a site and a catalog."""
     from renderlab.worlds.ev5.shape import icosphere, load_shape_file
     from renderlab.worlds.ev5 import build_model
 
     u, f = icosphere(6)
     v_km = u * np.array([0.21, 0.2, 0.19])
-    obj, ply = _write_shapes(tmp_path, v_km, f[:, ::-1])  # inward winding on purpose
-    q = 48  # ICQ: 6 cube faces of (q+1)² vertices projected on the same ellipsoid
-    t = np.linspace(-1, 1, q + 1)
-    A, B = np.meshgrid(t, t)
-    ex, ey, ez = np.eye(3)
-    npq = [(ex, ey, ez), (-ex, ez, ey), (ey, ez, ex), (-ey, ex, ez), (ez, ex, ey), (-ez, ey, ex)]  # P × Q = N
-    faces = [N + A[..., None] * P + B[..., None] * Q for N, P, Q in npq]
-    cube = np.stack(faces)
-    pts = cube / np.linalg.norm(cube, axis=-1, keepdims=True) * np.array([0.21, 0.2, 0.19])
-    icq = tmp_path / "s.icq"
-    icq.write_text(f"{q}\n" + "".join(f"{a:.9f} {b:.9f} {c:.9f}\n" for a, b, c in pts.reshape(-1, 3)))
+    paths = _write_shapes(tmp_path, v_km, f[:, ::-1])  # inward winding on purpose
+    q = 48
+    icq = _gaskell_icq(tmp_path / "s.icq", q, [0.21, 0.2, 0.19])
     vol_true = 4 / 3 * np.pi * 210 * 200 * 190
     site_cfg = {"extent_m": 40.0, "cell_m": 0.1, "taper_m": 1.0, "crater_max_m": 2.0, "boulder_min_m": 0.3}
     tiers = [{"name": "a", "count": 3, "spacing_m": 0.2, "size": 11, "radius_m": 3.0}]
-    for path in (obj, ply, icq):
+    for path in (*paths, icq):
         shape = load_shape_file(path, "km")
         assert shape.volume() > 0, path.name
         assert abs(shape.volume() / vol_true - 1) < 0.03, path.name
+        # closed and consistently wound: every directed edge appears once, its reverse once
+        e = np.concatenate([shape.faces[:, [0, 1]], shape.faces[:, [1, 2]], shape.faces[:, [2, 0]]])
+        fwd = set(map(tuple, e.tolist()))
+        assert len(fwd) == len(e) and all((b, a) in fwd for a, b in e.tolist()), path.name
+        # outward: facet normals point away from the centre
+        tri = shape.vertices[shape.faces]
+        assert np.all(np.einsum("ij,ij->i", np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), tri.mean(1)) > 0)
+        if path is icq:
+            assert len(shape.vertices) == 6 * q * q + 2  # shared cube-edge vertices merged
         mdl = build_model(world_cfg(shape_file=path.name, site=site_cfg, landmarks=tiers), tmp_path)
         assert mdl.site.n == 401 and np.isfinite(mdl.site.heights_m).all()
         assert len(mdl.maplets) == 3

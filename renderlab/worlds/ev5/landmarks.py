@@ -14,8 +14,9 @@ A maplet is derived from the truth terrain, never copied from it:
 2. frame: +z = normal of the least-squares plane through the truth heights over the footprint,
    +x = site east projected, +y = z × x;
 3. truth heights resampled at the maplet spacing: the mean, over k × k sub-points of each maplet
-   cell (k = spacing / site cell, ≤ 8), of the truth surface height along maplet +z (found by
-   fixed-point iteration on the site DEM);
+   cell (k = spacing / site cell, ≤ 8), of the truth surface height along maplet +z: the top-most
+   intersection of the line along maplet +z with the site DEM (what the survey sees from above,
+   also on steep boulder flanks);
 4. + mapping error: white noise filtered by a Gaussian of ``mapping_error_corr_cells`` cells and
    scaled by the kernel's L2 norm, so its rms is ``mapping_error_m`` in expectation;
 5. relative albedo: the same cell means of the truth albedo, normalised to mean 1, times
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
@@ -65,19 +67,65 @@ def maplet_frame(site: Site, xy: np.ndarray, half_width_m: float) -> tuple[np.nd
     return centre, site.R_body_from_site @ R_site_from_maplet
 
 
+@numba.njit(cache=True)
+def _dem_height(heights, x0, cell, x, y):  # pragma: no cover - numba
+    """The triangulated DEM at site (x, y), clamped to its border (as :func:`terrain.grid_interp`)."""
+    n = heights.shape[0]
+    u = min(max((x - x0) / cell, 0.0), n - 1.0)
+    v = min(max((y - x0) / cell, 0.0), n - 1.0)
+    i, j = min(int(u), n - 2), min(int(v), n - 2)
+    fx, fy = u - i, v - j
+    if fx >= fy:
+        return heights[j, i] + fx * (heights[j, i + 1] - heights[j, i]) + fy * (heights[j + 1, i + 1] - heights[j, i + 1])
+    return heights[j, i] + fy * (heights[j + 1, i] - heights[j, i]) + fx * (heights[j + 1, i + 1] - heights[j + 1, i])
+
+
+@numba.njit(cache=True)
+def _top_crossing(heights, x0, cell, bx, by, bz, zx, zy, zz, zmax, zmin):  # pragma: no cover - numba
+    """Largest h with b + h z on the DEM, for each base point b (site frame) and unit z (zz > 0):
+    march down from above the DEM's top in steps that move ≤ ½ cell sideways, then bisect."""
+    out = np.empty(len(bx))
+    dh = 0.5 * cell / max(math.sqrt(zx * zx + zy * zy), 0.05)
+    for k in range(len(bx)):
+        hi = (zmax - bz[k]) / zz + dh  # above every DEM point
+        stop = (zmin - bz[k]) / zz - dh  # below every DEM point
+        lo = hi
+        found = False
+        while lo > stop:
+            lo = hi - dh
+            if bz[k] + lo * zz <= _dem_height(heights, x0, cell, bx[k] + lo * zx, by[k] + lo * zy):
+                found = True
+                break
+            hi = lo
+        if not found:
+            out[k] = np.nan
+            continue
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if bz[k] + mid * zz <= _dem_height(heights, x0, cell, bx[k] + mid * zx, by[k] + mid * zy):
+                lo = mid
+            else:
+                hi = mid
+        out[k] = 0.5 * (lo + hi)
+    return out
+
+
 def truth_heights(site: Site, centre_body: np.ndarray, R_body_from_maplet: np.ndarray,
-                  u: np.ndarray, v: np.ndarray, iterations: int = 12) -> np.ndarray:
-    """Height along maplet +z of the truth surface above maplet-frame points (u, v) (any shape)."""
+                  u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Height along maplet +z of the truth surface above maplet-frame points (u, v) (any shape): the
+    top-most intersection of the line through (u, v, 0) along maplet +z with the site DEM, i.e. the
+    surface seen from above along −z (exact on the DEM's facets, also on steep boulder flanks)."""
     R_sm = site.R_body_from_site.T @ R_body_from_maplet  # site ← maplet
     c = site.to_site(centre_body)
     u, v = np.asarray(u, float), np.asarray(v, float)
-    base = c + np.stack([u, v, np.zeros_like(u)], -1) @ R_sm.T
+    base = (c + np.stack([u, v, np.zeros_like(u)], -1) @ R_sm.T).reshape(-1, 3)
     zs = R_sm[:, 2]
-    h = np.zeros_like(u)
-    for _ in range(iterations):
-        q = base + h[..., None] * zs
-        h = h + (site.height_at(q[..., 0], q[..., 1]) - q[..., 2]) / zs[2]
-    return h
+    if zs[2] <= 0.05:
+        raise ValueError("maplet +z must point up out of the site")
+    h = _top_crossing(site.heights_m, site.x0_m, site.cell_m, base[:, 0].copy(), base[:, 1].copy(),
+                      base[:, 2].copy(), float(zs[0]), float(zs[1]), float(zs[2]),
+                      float(site.heights_m.max()), float(site.heights_m.min()))
+    return h.reshape(u.shape)
 
 
 def cell_means(site: Site, centre_body, R_body_from_maplet, spacing: float, n: int):
