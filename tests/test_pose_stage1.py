@@ -123,6 +123,15 @@ def test_stage1_gauge_free_quantities_within_crlb(solved):
     assert w_sig.max() < np.radians(0.1), w_sig
     # the inertia tensor's shape is seen, if only to a few percent of its trace on this arc
     assert sig[-6:].max() < 0.1, sig[-6:]
+    # estimators.pose.gauge computes the same values and σ as this independent implementation
+    from estimators.pose import gauge_free
+
+    gf = gauge_free(prob, res.theta)
+    m = 3 * len(PTS)
+    assert np.allclose(gf.points_lvlh.ravel(), g[:m], atol=1e-12) and np.allclose(gf.omega_lvlh, g[m:m + 3])
+    assert np.allclose(gf.inertia_lvlh, g[m + 3:], atol=1e-12)
+    assert np.allclose(np.r_[gf.points_sigma.ravel(), gf.omega_sigma, gf.inertia_sigma], sig, rtol=1e-4)
+    assert abs(gf.omega_norm - np.linalg.norm(s["W"][0])) < 4 * gf.omega_norm_sigma
 
 
 def test_tracking_lost_and_short_tracks_and_too_few_points():

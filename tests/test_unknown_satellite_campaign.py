@@ -4,7 +4,7 @@
   executor → store) on a tiny sequence (8 frames, 256×192, 4 s apart, 118° of tumble), two runs with
   noise and prior errors only → both runs share one truth render (cache hit on the second), their sensor
   noise differs (different tracks' pixels), the tables have the documented kinds (``stage2`` is a filter
-  table), stage 1 recovers ‖ω0‖ within 4σ(CRLB) + 0.2 °/s (as tests/test_microsat_world.py) in every run,
+  table), stage 1 recovers ‖ω0‖ within 4σ of its CRLB (σ ≈ 0.04 °/s) in every run,
   and ``renderlab report`` draws the study's section. Replaying run 1 alone gives the same scores.
 * Truth dispersions: the truth scenario's ‖ω0‖ is scaled by exactly the drawn factor and q0 rotated by
   exactly the drawn angle; with zero dispersions it is the nominal scenario (one cache key).
@@ -58,8 +58,9 @@ def test_campaign_runs_share_render_and_recover_rate(campaign):
     assert tables["stage2"].num_rows == 2 * 8
     for k in range(2):
         assert sc["matched_points"][k] == sc["database_points"][k] >= 4
-        w_sig = sc["w0_norm_sigma_deg_s"][k]
-        assert abs(sc["w0_norm_err_deg_s"][k]) < 4 * w_sig + 0.2, (k, sc["w0_norm_err_deg_s"][k], w_sig)
+        w_sig = sc["w0_norm_crlb_deg_s"][k]        # CRLB of ‖ω0‖ (estimators.pose.gauge), no slack
+        assert abs(sc["w0_norm_err_deg_s"][k]) < 4 * w_sig < 0.2, (k, sc["w0_norm_err_deg_s"][k], w_sig)
+        assert sc["stage1_rms_px"][k] <= 0.3       # ... the error budget σ it is computed for holds
         assert sc["fim_rank"][k] == sc["fim_params"][k] - 1
         assert ((sc["flags"][k] & 16) != 0) == (sc["fim_rank"][k] < sc["fim_params"][k] - 1)
     # each run has its own sensor noise: same render, different centroids

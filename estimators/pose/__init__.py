@@ -7,18 +7,20 @@
 - :mod:`.onboard_model`: CW (eq. 1), Euler + gravity gradient (eq. 2), measurement model (eqs. 3-4).
 - :mod:`.stage1`: batch least squares for initial state, rates, inertia ratios and points (eqs. 5-6).
 - :mod:`.observability`: Fisher-information rank check (eq. 7).
+- :mod:`.gauge`: gauge-free quantities (points and ω in LVLH, ‖ω‖, LVLH inertia shape) and their CRLB σ.
 - :mod:`.stage2`: per-frame least-squares pose (eqs. 8-9) and the constant-gain Kalman filter (eq. 10).
 """
 
 from .features import (Blobs, DetectOptions, MeasurementDatabase, Track, TrackOptions, build_database,
                        detect_blobs, detect_points, track_points)
+from .gauge import GaugeFree, gauge_free
 from .inertia import is_physical
 from .observability import ObservabilityReport, fisher_information, observability, with_full_inertia
 from .stage1 import EstimationError, Stage1Options, Stage1Problem, Stage1Result, solve_stage1
 from .rigidity import RigidityOptions, RigidityReport, solve_rigid
 from .stage2 import FLAG_NAMES, Stage2Options, Stage2Result, coplanarity, run_stage2, solve_pose, steady_gains
 
-__all__ = ["Blobs", "detect_blobs", "is_physical", "RigidityOptions", "RigidityReport", "solve_rigid",
+__all__ = ["Blobs", "detect_blobs", "GaugeFree", "gauge_free", "is_physical", "RigidityOptions", "RigidityReport", "solve_rigid",
            "DetectOptions", "MeasurementDatabase", "Track", "TrackOptions", "build_database", "detect_points",
            "track_points", "ObservabilityReport", "fisher_information", "observability", "with_full_inertia",
            "EstimationError", "Stage1Options", "Stage1Problem", "Stage1Result", "solve_stage1", "FLAG_NAMES",

@@ -55,6 +55,8 @@ class SequenceResult:
     observability: list[str] = field(default_factory=list)
     stage1: object = None
     stage2: object = None
+    problem: object = None               # the stage-1 problem on the kept (rigid) tracks
+    gauge_free: object = None            # estimators.pose.gauge.GaugeFree at the stage-1 solution
 
 
 def _rot(q):
@@ -123,6 +125,7 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     from estimators.pose import (DetectOptions, EstimationError, Stage1Options, Stage1Problem, Stage2Options,
                                  TrackOptions, build_database, detect_points, observability, run_stage2,
                                  track_points, with_full_inertia)
+    from estimators.pose.gauge import gauge_free
     from estimators.pose.rigidity import solve_rigid
     from estimators.pose.onboard_model import exp_so3, log_so3
     from renderlab.geometry.camera import CameraModel
@@ -166,10 +169,14 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     if db.frame.min() != 0:
         raise UserError(f"{ts_path}: no reference point tracked from the first frame")
     db_all = db
-    s1, problem, rigid = solve_rigid(problem, r0g, v0g, w0g, ratios_g)
+    try:
+        s1, problem, rigid = solve_rigid(problem, r0g, v0g, w0g, ratios_g)
+    except EstimationError as exc:   # fewer than 4 rigid tracks, or none at the epoch
+        raise UserError(f"{ts_path}: {exc}") from None
     db = problem.db
     obs = observability(problem, with_full_inertia(s1.theta), "full", prior=True)
     obs_noprior = observability(problem, with_full_inertia(s1.theta), "full", prior=False)
+    gf = gauge_free(problem, s1.theta)
     # ---- scores, stage 1
     feat = ts.read_table("features").to_pydict()
     truth_pts = np.column_stack([feat["x_body_m"], feat["y_body_m"], feat["z_body_m"]])
@@ -193,6 +200,10 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         C = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
         shape_err[m] = np.linalg.norm(A @ C.T - B, axis=1)
     pt_rows["shape_err_m"] = shape_err.tolist()
+    # gauge-free: the point in LVLH at the epoch, error and CRLB σ (estimators.pose.gauge)
+    q_true = np.array([tr["r_lvlh_m"][0] + R_true0 @ truth_pts[j] if j >= 0 else np.full(3, np.nan) for j in fid])
+    pt_rows["lvlh_err_m"] = np.linalg.norm(gf.points_lvlh - q_true, axis=1).tolist()
+    pt_rows["lvlh_sig_m"] = np.linalg.norm(gf.points_sigma, axis=1).tolist()
     hist_rows = []
     for it, th in enumerate(s1.history):
         r0, v0, dphi, w0, inertia, pts = problem.unpack(th)
@@ -265,7 +276,11 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         "att0_err_deg": float(np.degrees(np.linalg.norm(log_so3(s1.R0_lvlh_from_body @ R_true0.T)))),
         "w0_err_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body - tr["omega_body_rad_s"][0]))),
         "w0_norm_est_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body))), "w0_norm_true_deg_s": w_true0,
-        "w0_norm_sigma_deg_s": float(np.degrees(np.linalg.norm(s1.sigma_theta[9:12]))),  # CRLB, per-axis σ combined
+        "w0_norm_sigma_deg_s": float(np.degrees(np.linalg.norm(s1.sigma_theta[9:12]))),  # per-axis body σ combined
+        "w0_norm_crlb_deg_s": float(np.degrees(gf.omega_norm_sigma)),                     # CRLB of ‖ω0‖ itself
+        "w0_lvlh_crlb_deg_s": float(np.degrees(np.linalg.norm(gf.omega_sigma))),
+        "point_lvlh_crlb_rms_m": float(np.sqrt(np.mean(np.sum(gf.points_sigma[ok] ** 2, 1)))) if ok.any() else np.nan,
+        "v0_crlb_mps": float(np.linalg.norm(s1.sigma_theta[3:6])),
         "ratio_I1_I3_est": float(s1.inertia_ratios[0]), "ratio_I2_I3_est": float(s1.inertia_ratios[1]),
         "ratio_I1_I3_true": float(ratios_true[0]), "ratio_I2_I3_true": float(ratios_true[1]),
         "ratio_err_max": float(np.max(np.abs(s1.inertia_ratios - ratios_true))),
@@ -293,7 +308,7 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
               "stage2": pa.table(s2_rows)}
     lines = (rigid.lines() + ["with range prior: " + s for s in obs.lines()]
              + ["images only: " + s for s in obs_noprior.lines()])
-    return SequenceResult(tables, summary, lines, s1, s2)
+    return SequenceResult(tables, summary, lines, s1, s2, problem, gf)
 
 
 def run_sequence(scenario, base_dir, out_dir, seed: int = 0, opts: StudyOptions = StudyOptions(),

@@ -24,6 +24,7 @@ import numpy as np
 #: scores summarised across runs: column → (label, unit scale, unit)
 SCORES = {
     "point_lvlh_err_rms_m": ("reference points, RMS error in LVLH at the epoch", 100, "cm"),
+    "point_lvlh_crlb_rms_m": ("reference points in LVLH, CRLB σ (RMS over points, eq. 7)", 100, "cm"),
     "point_err_rms_m": ("reference points, RMS error in the body frame", 100, "cm"),
     "point_err_rms_aligned_m": ("reference points, RMS error in the body frame, axes relabelled to truth", 100, "cm"),
     "point_shape_err_rms_m": ("reference points, RMS error after the best rotation", 100, "cm"),
@@ -33,7 +34,9 @@ SCORES = {
     "stage2_pos_rms_m": ("stage 2: position RMS", 100, "cm"),
     "w0_norm_est_deg_s": ("‖ω0‖ estimated", 1, "°/s"),
     "w0_norm_err_deg_s": ("‖ω0‖ error", 1, "°/s"),
+    "w0_norm_crlb_deg_s": ("‖ω0‖ CRLB σ (eq. 7)", 1, "°/s"),
     "w0_lvlh_err_deg_s": ("ω0 error in LVLH (vector)", 1, "°/s"),
+    "v0_crlb_mps": ("initial velocity CRLB σ (eq. 7)", 100, "cm/s"),
     "stage2_wx_rms_deg_s": ("stage 2: ωx RMS error", 1, "°/s"),
     "stage2_wy_rms_deg_s": ("stage 2: ωy RMS error", 1, "°/s"),
     "stage2_wz_rms_deg_s": ("stage 2: ωz RMS error", 1, "°/s"),
