@@ -124,6 +124,26 @@ def test_masked_correlation_matches_corrcoef_and_numpy_version():
     assert checked > 50
 
 
+def test_fully_usable_window_with_masked_template_matches_direct_and_corrcoef():
+    """The fast path (every image pixel of the search window usable, template masked by its maplet
+    coverage: numba FFT inputs, pruned inverse FFT) against the direct loop and numpy.corrcoef."""
+    rng = np.random.default_rng(5)
+    img = rng.random((70, 80))
+    tpl = rng.random((25, 31))
+    yy, xx = np.mgrid[:25, :31]
+    valid = (np.abs(xx - 15) + np.abs(yy - 12)) <= 16  # a diamond, as a rotated maplet covers its box
+    s0, l0, r = 30, 20, 9  # the window [21, 70) x [11, 54) lies inside the image
+    C, cnt = correlation_surface(img, tpl, valid, s0, l0, r, None, min_count=10)
+    Cd, cntd = correlation_surface_direct(img, tpl, valid, s0, l0, r, None, min_count=10)
+    np.testing.assert_array_equal(cnt, cntd)
+    assert np.all(cnt == valid.sum()) and np.all(np.isfinite(C))
+    np.testing.assert_allclose(C, Cd, atol=1e-12)
+    ys, xs = np.nonzero(valid)
+    for a, b in [(0, 0), (r, r), (2 * r, 3), (5, 2 * r)]:
+        ref = np.corrcoef(tpl[ys, xs], img[ys + l0 + a - r, xs + s0 + b - r])[0, 1]
+        assert abs(C[a, b] - ref) < 1e-12
+
+
 def test_pixel_covariance_matches_finite_differences():
     from scipy.spatial.transform import Rotation
 

@@ -130,18 +130,19 @@ def locate_peak(C: np.ndarray, method: str = "retina_3x3") -> Peak | None:
     """
     if method not in FINDERS:
         raise ValueError(f"unknown peak finder {method!r} (choose from {', '.join(FINDERS)})")
-    if not np.any(np.isfinite(C)):
+    finite = np.isfinite(C)
+    if not finite.any():
         return None
     r = (C.shape[0] - 1) // 2
-    a, b = np.unravel_index(np.nanargmax(C), C.shape)
+    a, b = divmod(int(np.argmax(np.where(finite, C, -np.inf))), C.shape[1])  # = nanargmax, without its copies
     score = float(C[a, b])
     border = a == 0 or b == 0 or a == C.shape[0] - 1 or b == C.shape[1] - 1
-    if not border and not np.all(np.isfinite(_three(C, a, b))):
+    if not border and not finite[a - 1:a + 2, b - 1:b + 2].all():
         border = True
     if border:
         return Peak(float(b - r), float(a - r), score, True)
     dx, dy = FINDERS[method](C, a, b)
-    dx, dy = float(np.clip(dx, -1, 1)), float(np.clip(dy, -1, 1))
+    dx, dy = min(max(float(dx), -1.0), 1.0), min(max(float(dy), -1.0), 1.0)
     return Peak(b - r + dx, a - r + dy, score, False)
 
 

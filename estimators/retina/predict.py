@@ -27,6 +27,7 @@ The McEwen weight β is exp(−α/α0) (eq. 5) or a tabulated L(α) fitted to th
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -127,6 +128,27 @@ class Template:
     shadow_fraction: float
 
 
+@functools.lru_cache(maxsize=64)
+def _pixel_maps_cached(key: tuple) -> tuple[np.ndarray, np.ndarray]:
+    K = np.array(key, dtype=np.float64).reshape(3, 3)
+    Kinv = np.linalg.inv(K)
+    K.flags.writeable = Kinv.flags.writeable = False
+    return K, Kinv
+
+
+def _pixel_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """The pinhole pixel map K (eqs. 3–4) and its inverse, computed once per camera (read-only)."""
+    return _pixel_maps_cached(tuple(np.asarray(camera.K_matrix, dtype=np.float64).ravel().tolist()))
+
+
+@functools.lru_cache(maxsize=16)
+def _table(L_table: tuple) -> np.ndarray:
+    """``TemplateOptions.L_table`` as the kernels' float64 array, converted once per table (read-only)."""
+    a = np.asarray(L_table, dtype=np.float64).reshape(-1)
+    a.flags.writeable = False
+    return a
+
+
 def template_box(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate) -> tuple[int, int, int, int] | None:
     """Integer pixel box (s_min, l_min, s_max, l_max) covering the projected maplet grid, or None."""
     pts = mesh.points_body.reshape(-1, 3)
@@ -160,20 +182,20 @@ def render_template(mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstim
     o_m = R_mb @ (np.asarray(pose.position_m, float) - np.asarray(M.center_m, float))
     sun_m = R_mb @ (np.asarray(sun_body, float) / np.linalg.norm(sun_body))
     eps = 1e-6 * mesh.spacing + 1e-9
-    L_table = np.asarray(options.L_table, dtype=np.float64).reshape(-1)
+    L_table = _table(tuple(options.L_table))
     kernel_args = (mesh.heights, mesh.cell_min, mesh.cell_max, mesh.block_min, mesh.block_max, mesh.spacing,
                    mesh.normals, mesh.albedo, sun_m, bool(options.shadow_rays), float(options.alpha0), L_table,
                    float(options.ls_weight), eps)
     done = False
     if options.tracer == "raster" and camera.model == "pinhole":
-        K = np.ascontiguousarray(camera.K_matrix, dtype=np.float64)
-        val, nhit, nsh, _, done = raster_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), K, np.linalg.inv(K),
+        K, Kinv = _pixel_maps(camera)
+        val, nhit, nsh, _, done = raster_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), K, Kinv,
                                                  s_min, l_min, w, h, k, *kernel_args,
                                                  float(options.shadow_grid_step))
     if done:
         pass
     elif options.tracer != "numpy" and camera.model == "pinhole":  # rays made inside the kernel
-        val, nhit, nsh = shade_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), np.linalg.inv(camera.K_matrix),
+        val, nhit, nsh = shade_pinhole(o_m, np.ascontiguousarray(R_mb @ R_bc), _pixel_maps(camera)[1],
                                        s_min, l_min, w, h, k, *kernel_args)
     else:
         off = (np.arange(k) + 0.5) / k - 0.5

@@ -13,7 +13,8 @@ facet normal, the albedo and McEwen's law (eqs. 5–8) are then exactly those of
 Shadows. The sun is at infinity, so all shadow rays are parallel. One sweep per template over a grid
 aligned with the sun azimuth (``grid_step`` maplet cells apart, :func:`shadow_gap_grid`) gives, along
 each line from the sun side, the shadow height S_q = max(z_q, S_{q+1} − m·step) (m = tan of the sun
-elevation, z on the maplet's own triangles) and the gap G = S − z (> 0: in cast shadow). A sample whose
+elevation, z on the maplet's own triangles; each line only over the stretch that crosses the maplet)
+and the gap G = S − z (> 0: in cast shadow), kept as int8 states for the shading loop. A sample whose
 four surrounding sweep points agree (all lit or all shadowed) takes their state; where they disagree (a
 shadow edge crosses) or lie off the maplet, the exact grid-walk shadow ray of :mod:`.raytrace` is cast.
 Differences from casting every shadow ray: a shadow (or lit gap) narrower than the sweep spacing that
@@ -84,10 +85,25 @@ def shadow_gap_grid(H, spacing, sun, step):
     nr = int(math.ceil(2 * half / step)) + 1
     r0 = q0 = (nr - 1) / 2.0
     G = np.full((nr, nr), np.nan)
+    n1 = float(n - 1)
     for r in range(nr):
         pr = (r - r0) * step
+        # the line's points (u, v) = (c − pr·dy, c + pr·dx) + pq·(dx, dy) on the maplet [0, n−1]²: a
+        # conservative q range (one point of margin each side; the points outside it are off the maplet)
+        lo, hi = -np.inf, np.inf
+        for base, d in ((c - pr * dy, dx), (c + pr * dx, dy)):
+            if abs(d) < 1e-12:
+                if base < -1e-9 or base > n1 + 1e-9:
+                    lo, hi = 1.0, 0.0
+            else:
+                a, b = (0.0 - base) / d, (n1 - base) / d
+                lo, hi = max(lo, min(a, b)), min(hi, max(a, b))
+        if not lo <= hi:
+            continue
+        q_lo = max(int(math.floor(lo / step + q0)) - 1, 0)
+        q_hi = min(int(math.ceil(hi / step + q0)) + 1, nr - 1)
         S = -np.inf
-        for q in range(nr - 1, -1, -1):
+        for q in range(q_hi, q_lo - 1, -1):
             pq = (q - q0) * step
             u = c + pq * dx - pr * dy
             v = c + pq * dy + pr * dx
@@ -101,25 +117,37 @@ def shadow_gap_grid(H, spacing, sun, step):
     return G, np.array([dx, dy, r0, q0, step])
 
 
+@njit(cache=True)
+def shadow_states(G, tol):
+    """The sweep grid as int8 states: 1 cast shadow (G > tol), 0 lit, 2 off the maplet (G NaN). The
+    shading loop reads these (an eighth of G's memory) instead of G."""
+    st = np.empty(G.shape, np.int8)
+    for r in range(G.shape[0]):
+        for q in range(G.shape[1]):
+            g = G[r, q]
+            st[r, q] = 2 if g != g else (1 if g > tol else 0)
+    return st
+
+
 @njit(cache=True, inline="always")
-def _shadow_weight(G, frame, c, u, v, tol):
-    """Bilinear interpolation, at grid position (u, v), of the cast-shadow indicator G > tol of the four
-    sun-grid points around it (≥ ½: in shadow); −1 off the grid or next to its edge."""
+def _shadow_weight(st, frame, c, u, v):
+    """Bilinear interpolation, at grid position (u, v), of the cast-shadow indicator (``shadow_states``)
+    of the four sun-grid points around it (≥ ½: in shadow); −1 off the grid or next to its edge."""
     pu, pv = u - c, v - c
     q = (pu * frame[0] + pv * frame[1]) / frame[4] + frame[3]
     r = (-pu * frame[1] + pv * frame[0]) / frame[4] + frame[2]
     iq, ir = int(math.floor(q)), int(math.floor(r))
-    nr = G.shape[0]
+    nr = st.shape[0]
     if iq < 0 or ir < 0 or iq + 1 >= nr or ir + 1 >= nr:
         return -1.0
     fq, fr = q - iq, r - ir
     if fq == 0.0 or fr == 0.0:
         fq, fr = max(fq, 1e-9), max(fr, 1e-9)  # all four points count
-    g00, g01, g10, g11 = G[ir, iq], G[ir, iq + 1], G[ir + 1, iq], G[ir + 1, iq + 1]
-    if g00 != g00 or g01 != g01 or g10 != g10 or g11 != g11:
+    g00, g01, g10, g11 = st[ir, iq], st[ir, iq + 1], st[ir + 1, iq], st[ir + 1, iq + 1]
+    if g00 == 2 or g01 == 2 or g10 == 2 or g11 == 2:
         return -1.0
-    return ((1 - fr) * ((1 - fq) * (g00 > tol) + fq * (g01 > tol))
-            + fr * ((1 - fq) * (g10 > tol) + fq * (g11 > tol)))
+    return ((1 - fr) * ((1 - fq) * (g00 == 1) + fq * (g01 == 1))
+            + fr * ((1 - fq) * (g10 == 1) + fq * (g11 == 1)))
 
 
 @njit(cache=True)
@@ -204,33 +232,36 @@ def raster_pinhole(origin, R_m_from_c, K, Kinv, s_min, l_min, w, h, k, H, cmin, 
     do_shadow = shadow_rays and (sun[0] != 0.0 or sun[1] != 0.0 or sun[2] != 0.0)
     if do_shadow:
         G, gframe = shadow_gap_grid(H, spacing, sun, grid_step)
+        st = shadow_states(G, shadow_eps)
     else:
-        G, gframe = np.zeros((1, 1)), np.array([1.0, 0.0, 0.0, 0.0, 1.0])
+        st, gframe = np.zeros((1, 1), np.int8), np.array([1.0, 0.0, 0.0, 0.0, 1.0])
     zlo, zhi = bmin.min(), bmax.max()
     su, sv, sw = sun[0] / spacing, sun[1] / spacing, sun[2]
     n_rays = 0
+    nf = normals.reshape((-1, 3))  # facet f = 2 (j (n−1) + i) + kk is row f: no integer division per sample
+    pix_x = np.empty(W, np.int64)
+    for xx in range(W):
+        pix_x[xx] = xx // k
     for yy in range(Hs):
+        row = (yy // k) * w
         for xx in range(W):
             f = face[yy, xx]
             if f < 0:
                 continue
-            p = (yy // k) * w + xx // k
+            p = row + pix_x[xx]
             nhit[p] += 1
-            kk = f % 2
-            cell = f // 2
-            j, i = cell // (n - 1), cell % (n - 1)
             t = zbuf[yy, xx]
             px = origin[0] + t * D[yy, xx, 0]
             py = origin[1] + t * D[yy, xx, 1]
             pz = origin[2] + t * D[yy, xx, 2]
-            nx, ny, nz = normals[j, i, kk, 0], normals[j, i, kk, 1], normals[j, i, kk, 2]
+            nx, ny, nz = nf[f, 0], nf[f, 1], nf[f, 2]
             cos_i = nx * sun[0] + ny * sun[1] + nz * sun[2]
             if cos_i <= 0.0:
                 continue
             if do_shadow:
                 qx, qy, qz = px + shadow_eps * nx, py + shadow_eps * ny, pz + shadow_eps * nz
                 ou, ov = qx / spacing + c, qy / spacing + c
-                wsh = _shadow_weight(G, gframe, c, ou, ov, shadow_eps)
+                wsh = _shadow_weight(st, gframe, c, ou, ov)
                 if wsh == 0.0 or wsh == 1.0:
                     shadowed = wsh == 1.0
                 else:  # a shadow edge passes, or off the sweep grid: cast the shadow ray
