@@ -118,8 +118,14 @@ def test_stage2_filter_tracks_and_flags_missing_points():
     assert np.sqrt(np.mean(e_filt[ok & late] ** 2)) < 0.8 * np.sqrt(np.mean(e_meas[ok & late] ** 2))
     e_v = np.linalg.norm(out.v - s["rv"][:, 3:], axis=1)
     assert np.sqrt(np.mean(e_v[late] ** 2)) < 0.5 * 0.01 * np.sqrt(2)  # below the initial 1 cm/s/axis error
+    # a coplanar catalogue seen in every frame (all 6 points matched): flagged coplanar, no pose
     flat = PTS.copy()
     flat[:, 2] = 0.0
-    out2 = run_stage2(det[:3], frames[:3], s["times"], CAM, s["R_lc"], s["d"], s["n"], flat,
+    det_flat = [CAM.project((s["rv"][k, :3] + flat @ s["R"][k].T - s["d"]) @ s["R_lc"]) for k in range(3)]
+    out2 = run_stage2(det_flat, frames[:3], s["times"], CAM, s["R_lc"], s["d"], s["n"], flat,
                       s["I"][:2] / s["I"][2], s["rv"][0, :3], s["rv"][0, 3:], s["R"][0], s["W"][0])
-    assert np.all(out2.flags == COPLANAR) or np.all(out2.flags & (COPLANAR | TOO_FEW_POINTS))
+    assert np.all(out2.flags == COPLANAR) and np.all(out2.n_points == 6) and np.all(np.isnan(out2.r_meas))
+    # detections that belong to another object: nothing within ε, flagged too few (lost tracks), no pose
+    out3 = run_stage2(det[:3], frames[:3], s["times"], CAM, s["R_lc"], s["d"], s["n"], flat,
+                      s["I"][:2] / s["I"][2], s["rv"][0, :3], s["rv"][0, 3:], s["R"][0], s["W"][0])
+    assert np.all(out3.flags == TOO_FEW_POINTS) and np.all(np.isnan(out3.r_meas))
