@@ -91,6 +91,35 @@ def test_measure_truthset_rows(truthset, method):
         np.testing.assert_allclose([t[f"apriori_drot_{a}_rad"][i] for a in "xyz"], drot)
 
 
+def test_search_distance_is_n_sigma_of_the_projected_apriori_covariance(truthset):
+    """``search_px`` = ceil(n_σ · sqrt(λ_max)) of the pixel covariance at the a-priori pose (rebuilt from
+    the recorded perturbation), for the default 3σ and a set 6σ."""
+    from scipy.spatial.transform import Rotation
+
+    from estimators.retina import CameraPoseEstimate, pixel_covariance
+    from renderlab.truthset import TruthSet
+
+    path, maplets = truthset
+    ts = TruthSet.open(path)
+    centre = {int(m.landmark_id): m.center_m for m in maplets}
+    sig_p, sig_r = 0.2, 1e-3
+    got = {}
+    for n_sigma in (3.0, 6.0):
+        t = _measure(path, maplets, "spc", 5, n_sigma=n_sigma)
+        for i in range(len(t["frame"])):
+            rec = ts.frames[t["frame"][i]]
+            R = Rotation.from_quat(rec["pose"]["quat_render_from_cam_xyzw"]).as_matrix()
+            drot = [t[f"apriori_drot_{a}_rad"][i] for a in "xyz"]
+            dpos = [t[f"apriori_dpos_{a}_m"][i] for a in "xyz"]
+            ap = CameraPoseEstimate(R @ Rotation.from_rotvec(drot).as_matrix(),
+                                    np.asarray(rec["pose"]["position_m"]) + dpos)
+            cov = pixel_covariance(CAMERA, ap, centre[t["item"][i]], np.eye(3) * sig_p ** 2, np.eye(3) * sig_r ** 2)
+            want = int(np.clip(math.ceil(n_sigma * math.sqrt(np.linalg.eigvalsh(cov)[-1])), 2, 48))
+            assert t["search_px"][i] == want, (n_sigma, i, t["search_px"][i], want)
+            got[n_sigma, i] = want
+    assert all(got[6.0, i] > got[3.0, i] for i in range(6))
+
+
 def test_measure_is_deterministic(truthset):
     path, maplets = truthset
     a, b = _measure(path, maplets, "spc", 11), _measure(path, maplets, "spc", 11)
