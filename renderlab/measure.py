@@ -6,6 +6,8 @@ covariance (position δt ~ N(0, Σ_t) in the body/render frame; attitude δθ ~ 
 camera frame, ``R_apriori = R_true · exp([δθ]×)``). With that a-priori pose each landmark is predicted
 (``pred``); landmarks whose predicted centre falls outside the image are not attempted (as onboard).
 The search distance is n_σ times the projected covariance (``estimators.retina.search_radius_px``).
+Every row records the draw (``apriori_dpos_*_m``, ``apriori_drot_*_rad``), the covariance it was drawn
+from (``apriori_sigma_pos_*_m``, ``apriori_sigma_att_*_rad``, 1σ per axis) and ``n_sigma``.
 ``meas = pred + (Δs, Δl)``; ``truth`` is the landmark_truth table's (s, l) when the set has one, else the
 projection with the true pose; ``err = meas − truth``. Rows with no result have NaN ``meas``/``err``.
 
@@ -240,6 +242,9 @@ def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = M
         items = list(maplets)
         frame_fn = spc_frame
     truth = _truth_lookup(ts)
+    sigma_cols = {**{f"apriori_sigma_pos_{a}_m": v for a, v in zip("xyz", options.sigma_pos_m)},
+                  **{f"apriori_sigma_att_{a}_rad": v for a, v in zip("xyz", options.sigma_att_rad)},
+                  "n_sigma": float(options.n_sigma)}
     cov_p = np.diag(np.square(options.sigma_pos_m))
     cov_r = np.diag(np.square(options.sigma_att_rad))
     rows: list[dict] = []
@@ -275,7 +280,8 @@ def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = M
                        peak=opts.peak, search_px=int(res.search_px), n_pixels=int(res.n_pixels),
                        pred_shadow_fraction=res.shadow_fraction, truth_visible=visible,
                        apriori_dpos_x_m=dpos[0], apriori_dpos_y_m=dpos[1], apriori_dpos_z_m=dpos[2],
-                       apriori_drot_x_rad=drot[0], apriori_drot_y_rad=drot[1], apriori_drot_z_rad=drot[2])
+                       apriori_drot_x_rad=drot[0], apriori_drot_y_rad=drot[1], apriori_drot_z_rad=drot[2],
+                       **sigma_cols)
             for c in ("gsd_ratio", "phase_deg", "incidence_deg", "emission_deg", "shadow_fraction"):
                 row[c] = float(trow[c]) if trow and c in trow and trow[c] is not None else math.nan
             rows.append(row)
@@ -293,6 +299,9 @@ def _schema():
             ("pred_shadow_fraction", f64), ("truth_visible", pa.bool_()),
             ("apriori_dpos_x_m", f64), ("apriori_dpos_y_m", f64), ("apriori_dpos_z_m", f64),
             ("apriori_drot_x_rad", f64), ("apriori_drot_y_rad", f64), ("apriori_drot_z_rad", f64),
+            ("apriori_sigma_pos_x_m", f64), ("apriori_sigma_pos_y_m", f64), ("apriori_sigma_pos_z_m", f64),
+            ("apriori_sigma_att_x_rad", f64), ("apriori_sigma_att_y_rad", f64), ("apriori_sigma_att_z_rad", f64),
+            ("n_sigma", f64),
             ("gsd_ratio", f64), ("phase_deg", f64), ("incidence_deg", f64), ("emission_deg", f64),
             ("shadow_fraction", f64), ("photometry", pa.string())]
     return pa.schema(cols)

@@ -89,6 +89,10 @@ def test_measure_truthset_rows(truthset, method):
         i = t["frame"].index(frame)
         np.testing.assert_allclose([t[f"apriori_dpos_{a}_m"][i] for a in "xyz"], dpos)
         np.testing.assert_allclose([t[f"apriori_drot_{a}_rad"][i] for a in "xyz"], drot)
+    # and the covariance it was drawn from, with the search distance's n_sigma
+    assert {t[f"apriori_sigma_pos_{a}_m"][k] for a in "xyz" for k in range(n)} == {0.2}
+    assert {t[f"apriori_sigma_att_{a}_rad"][k] for a in "xyz" for k in range(n)} == {1e-3}
+    assert set(t["n_sigma"]) == {3.0}
 
 
 def test_search_distance_is_n_sigma_of_the_projected_apriori_covariance(truthset):

@@ -3,7 +3,8 @@
 Modules: :mod:`.maplet_mesh` (pre-processing), :mod:`.raytrace` (numba ray–facet and shadow rays),
 :mod:`.predict` (projection eqs. 1–4, search distance, synthetic image eqs. 5–8), :mod:`.correlation`
 (eq. 9), :mod:`.peaks` (sub-pixel peak finders, pixel-locking curve), :mod:`.landmarks` (per landmark and
-per frame, final output phase).
+per frame, final output phase), :mod:`.raster` (the default rasterised synthetic image), :mod:`.locking`
+(pixel-locking curve on Retina-rendered maplets).
 """
 
 from estimators.retina.landmarks import (LandmarkMeasurement, RetinaOptions, final_output_phase,
