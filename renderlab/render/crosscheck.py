@@ -18,6 +18,13 @@ agree. Per frame (both truth sets read back from disk):
 * shadow edges: pixels on a cast-shadow edge (a bright pixel and a dark pixel whose normal faces the
   sun nearby, all on one body): the edge shift between the renderers from the change of lit fraction
   (see :func:`shadow_edge_shift_px`). Median and 99th percentile.
+* the referee (:mod:`renderlab.render.ray_oracle`, float64 ray casting against the exact geometry,
+  no renderer code): at every pixel lit in one renderer only it decides which renderer agrees with
+  the truth within sampling noise (:func:`~renderlab.render.ray_oracle.consistent`; a verdict against
+  a renderer is confirmed with 64² sub-samples): ``oracle_mitsuba_off``, ``oracle_cycles_off``, and
+  ``oracle_both_ok`` (sub-pixel slivers that both renderers sample correctly), and at the shadow-edge pixels it gives
+  each renderer's own edge error |L − L_oracle|/step in px (``edge_vs_oracle_*_p99_px``). Scenes
+  with albedo maps or mesh files are not refereed (NaN).
 
 Targets (issue 4): median radiometric ≤ 1 %, geometric ≤ 0.05 px, shadow edges ≤ 0.5 px.
 """
@@ -32,6 +39,8 @@ import numpy as np
 from scipy import ndimage
 
 LIT_FRACTION = 0.02
+ORACLE_K = 16  # oracle sub-samples per pixel side
+ORACLE_MAX_PX = 300  # refereed pixels per frame and kind (evenly spaced in raster order beyond this)
 TARGETS = {"rad_median_rel": 0.01, "geo_max_px": 0.05, "shadow_p99_px": 0.5}
 
 
@@ -58,6 +67,12 @@ class FrameAgreement:
     n_shadow_edge: int
     shadow_median_px: float
     shadow_p99_px: float
+    n_oracle: int = 0
+    oracle_mitsuba_off: int = -1
+    oracle_cycles_off: int = -1
+    oracle_both_ok: int = -1
+    edge_vs_oracle_mitsuba_p99_px: float = float("nan")
+    edge_vs_oracle_cycles_p99_px: float = float("nan")
 
 
 def _stat(x, fn) -> float:
@@ -178,7 +193,55 @@ def frame_agreement(fm, fc, landmarks=None) -> tuple[FrameAgreement, dict]:
         n_shadow_edge=int(edge.sum()), shadow_median_px=_stat(shift, np.median),
         shadow_p99_px=_stat(shift, lambda x: np.percentile(x, 99)),
     )
-    return row, {"Lm": Lm, "Lc": Lc, "rel": rel_img, "gap": gap_img, "shift": shift_img}
+    step = ndimage.maximum_filter(Lm, 5) - ndimage.minimum_filter(Lm, 5)
+    return row, {"Lm": Lm, "Lc": Lc, "rel": rel_img, "gap": gap_img, "shift": shift_img, "one_only": one_only,
+                 "edge": edge, "step": step}
+
+
+def _spread(mask: np.ndarray, n_max: int) -> tuple[np.ndarray, np.ndarray]:
+    line, s = np.nonzero(mask)
+    if len(line) > n_max:
+        keep = np.linspace(0, len(line) - 1, n_max).round().astype(int)
+        line, s = line[keep], s[keep]
+    return line, s
+
+
+def referee(row: FrameAgreement, images: dict, oracle, spec, spp: int) -> None:
+    """Fill the ``oracle_*`` and ``edge_vs_oracle_*`` fields of ``row`` (see the module docstring)."""
+    from renderlab.render.ray_oracle import consistent, pixel_truth
+
+    Lm, Lc = images["Lm"], images["Lc"]
+    line, s = _spread(images["one_only"], ORACLE_MAX_PX)
+    row.n_oracle = int(len(line))
+    if len(line):
+        sl = np.column_stack([s, line]).astype(float)
+        truth = pixel_truth(oracle, spec, sl, k=ORACLE_K)
+        ok_m, ok_c = consistent(Lm[line, s], truth, spp, ORACLE_K), consistent(Lc[line, s], truth, spp, ORACLE_K)
+        redo = ~(ok_m & ok_c)  # a verdict against a renderer is confirmed with 4x finer sub-samples
+        if redo.any():
+            fine = pixel_truth(oracle, spec, sl[redo], k=4 * ORACLE_K)
+            ok_m[redo] = consistent(Lm[line, s][redo], fine, spp, 4 * ORACLE_K)
+            ok_c[redo] = consistent(Lc[line, s][redo], fine, spp, 4 * ORACLE_K)
+        row.oracle_mitsuba_off, row.oracle_cycles_off = int((~ok_m).sum()), int((~ok_c).sum())
+        row.oracle_both_ok = int((ok_m & ok_c).sum())
+    else:
+        row.oracle_mitsuba_off = row.oracle_cycles_off = row.oracle_both_ok = 0
+    line, s = _spread(images["edge"], ORACLE_MAX_PX // 3)
+    if len(line):
+        # the shadow-edge metric of shadow_edge_shift_px with the oracle as the second image: the
+        # difference summed over the pixel and its two neighbours along the dominant gradient axis
+        gy, gx = np.gradient(Lm)
+        along_x = np.abs(gx[line, s]) >= np.abs(gy[line, s])
+        k = np.array([-1, 0, 1])
+        nl = (line[:, None] + np.where(along_x[:, None], 0, k[None, :])).ravel()
+        ns = (s[:, None] + np.where(along_x[:, None], k[None, :], 0)).ravel()
+        px, inv = np.unique(np.column_stack([ns, nl]), axis=0, return_inverse=True)
+        truth = pixel_truth(oracle, spec, px.astype(float), k=ORACLE_K)
+        L_or = truth.radiance[inv.ravel()].reshape(-1, 3)
+        step = images["step"][line, s]
+        for name, L in (("mitsuba", Lm), ("cycles", Lc)):
+            moved = np.abs((L[nl, ns].reshape(-1, 3) - L_or).sum(axis=1)) / step
+            setattr(row, f"edge_vs_oracle_{name}_p99_px", float(np.percentile(moved, 99)))
 
 
 def compare_truthsets(path_m: Path, path_c: Path) -> tuple[list[FrameAgreement], list[dict]]:
@@ -209,7 +272,8 @@ def markdown_table(rows: list[FrameAgreement], title: str) -> str:
     """A Markdown table of the agreement rows with the issue's targets."""
     head = ["frame", "lit px", "lit in one only", "rad. median", "rad. p99", "geo median px", "geo max px", "Δrange/range median / max",
             "reproj M/C max px",
-            "landmarks", "lmk max px", "shadow-edge px", "shadow median px", "shadow p99 px"]
+            "landmarks", "lmk max px", "shadow-edge px", "shadow median px", "shadow p99 px",
+            "oracle: M off / C off / both ok", "edge vs oracle p99 M / C px"]
     lines = [f"# {title}", "",
              f"Targets: median radiometric ≤ {TARGETS['rad_median_rel']:.0%}, geometric ≤ {TARGETS['geo_max_px']} px, "
              f"shadow edges ≤ {TARGETS['shadow_p99_px']} px.", "",
@@ -222,7 +286,9 @@ def markdown_table(rows: list[FrameAgreement], title: str) -> str:
             f(r.range_rel_median, ".1e") + " / " + f(r.range_rel_max, ".1e"),
             f(r.reproj_mitsuba_max_px, ".4f") + " / " + f(r.reproj_cycles_max_px, ".4f"),
             str(r.n_landmarks), f(r.lmk_max_px, ".4f"), str(r.n_shadow_edge),
-            f(r.shadow_median_px, ".3f"), f(r.shadow_p99_px, ".3f")]) + " |")
+            f(r.shadow_median_px, ".3f"), f(r.shadow_p99_px, ".3f"),
+            "–" if r.oracle_mitsuba_off < 0 else f"{r.oracle_mitsuba_off} / {r.oracle_cycles_off} / {r.oracle_both_ok}",
+            f(r.edge_vs_oracle_mitsuba_p99_px, ".3f") + " / " + f(r.edge_vs_oracle_cycles_p99_px, ".3f")]) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -255,6 +321,22 @@ def figure(rows: list[FrameAgreement], images: list[dict], path: Path, max_frame
     plt.close(fig)
 
 
+def _referee_all(scenario, base_dir, rows, images) -> None:
+    from renderlab.render.ray_oracle import oracle_scene
+    from renderlab.worlds.base import make_plan
+
+    plan = make_plan(scenario, base_dir)
+    specs = {spec.index: spec for spec in plan.frames}
+    cache: dict = {}
+    for row, imgs in zip(rows, images):
+        spec = specs[row.frame]
+        key = plan.scene_key(spec)
+        if key not in cache:
+            cache[key] = oracle_scene(plan.scene(key))
+        if cache[key] is not None:
+            referee(row, imgs, cache[key], spec, scenario.render.spp)
+
+
 def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | None = None,
                    keep_truthsets: bool = False, progress: bool = True) -> list[FrameAgreement]:
     """Render ``scenario`` with both renderers and write ``crosscheck.parquet``, ``crosscheck.md`` and
@@ -276,6 +358,8 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
             paths[renderer] = render_truthset(scenario, base_dir, root / renderer, frames=frames,
                                               renderer=renderer, progress=progress, overwrite=True)
         rows, images = compare_truthsets(paths["mitsuba"], paths["cycles"])
+    if scenario.render.pixel_filter == "box":  # the oracle gives box-filtered pixels
+        _referee_all(scenario, base_dir, rows, images)
     cols = list(FrameAgreement.__dataclass_fields__)
     table = pa.table({c: [getattr(r, c) for r in rows] for c in cols})
     pq.write_table(table, out_dir / "crosscheck.parquet")

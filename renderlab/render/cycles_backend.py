@@ -28,7 +28,8 @@ pickle, multilayer float EXR). Mapping to the lab's conventions:
   sphere by at most R(1 − cos(π/SPHERE_SEGMENTS)) ≈ 1.9e-5 R. Box and plane are exact; trimesh bodies
   keep their flat facets, per-vertex albedo (a float point attribute) and uv + albedo map.
   Albedo maps on sphere/box/plane and mesh files are not supported yet (UserError).
-* Blender objects are float32: render-frame coordinates of magnitude X keep ≈ X·6e-8 m.
+* Blender objects are float32: coordinates of magnitude X keep ≈ X·6e-8 m. Like the Mitsuba backend,
+  geometry and camera are built around ``SceneDescription.origin_m`` (shifted in float64; P shifted back).
 """
 
 from __future__ import annotations
@@ -180,11 +181,12 @@ class CyclesBackend:
         self.rgb = settings.variant.endswith("rgb")
         self._tmp = tempfile.TemporaryDirectory(prefix="renderlab-cycles-")
         self.workdir = Path(self._tmp.name)
+        self.origin = np.zeros(3) if scene.origin_m is None else np.asarray(scene.origin_m, np.float64).reshape(3)
         bodies, arrays = [], {}
         for k, body in enumerate(scene.bodies):
             key = f"b{k}"
             for name, arr in body_mesh(body).items():
-                arrays[f"{name}_{key}"] = arr
+                arrays[f"{name}_{key}"] = arr - self.origin if name == "v" else arr
             bodies.append({"key": key, "name": body.name, "body_id": int(body.body_id),
                            "law": body.law.to_dict(), "albedo": float(body.albedo)})
         np.savez(self.workdir / "scene.npz", **arrays)
@@ -259,7 +261,8 @@ class CyclesBackend:
         W, H = cam.width, cam.height
         T = np.eye(4)
         T[:3, :3] = frame.pose.rotation.as_matrix() @ BLENDER_CAM_FROM_CAM
-        T[:3, 3] = frame.pose.position_m
+        cam_local = np.asarray(frame.pose.position_m, float) - self.origin
+        T[:3, 3] = cam_local
         self._n += 1
         tag = f"f{self._n:06d}"
         seeds = np.random.SeedSequence(seed).generate_state(2, dtype=np.uint32) % np.uint32(2**31 - 1)
@@ -294,11 +297,12 @@ class CyclesBackend:
                 raise RuntimeError(f"Cycles wrote {ch['Combined.R'].shape}, expected {(H, W)}")
         ids = np.rint(centre["Object Index.X"]).astype(np.int32) - 1
         hit = ids >= 0
-        P = np.stack([centre[f"Position.{a}"] for a in "XYZ"], axis=-1).astype(np.float32)
+        P_local = np.stack([centre[f"Position.{a}"] for a in "XYZ"], axis=-1).astype(np.float64)
         N = np.stack([centre[f"Normal.{a}"] for a in "XYZ"], axis=-1).astype(np.float32)
-        P[~hit] = np.nan
+        P_local[~hit] = np.nan
         N[~hit] = np.nan
-        rng_m = np.linalg.norm(P.astype(np.float64) - np.asarray(frame.pose.position_m, float), axis=-1)
+        rng_m = np.linalg.norm(P_local - cam_local, axis=-1)
+        P = (P_local + self.origin).astype(np.float32)
         rgb = np.stack([beauty[f"Combined.{a}"] for a in "RGB"], axis=-1).astype(np.float32)
         radiance = rgb if self.rgb else rgb.mean(axis=-1, dtype=np.float64).astype(np.float32)
         return RenderedFrame(radiance=radiance, position=P, normal=N, range_m=rng_m, body_id=ids)

@@ -93,8 +93,19 @@ class FrameSpec:
 
 @dataclass
 class SceneDescription:
+    """Bodies of one scene, in the render frame ``render_frame``.
+
+    ``origin_m`` (optional, render frame, m) is the point the backends build their float32 scenes
+    around: geometry and camera are shifted by −origin_m in float64 before the renderer sees them, and
+    positions come back in the render frame. Put it where the finest geometry is (EV5: the landing
+    site). Far from the origin float32 loses detail, and Mitsuba offsets every shadow-ray origin by
+    (1 + max|p|)·8.9e-5 m: about 2 cm at the 200 m of EV5-fixed coordinates, enough for shadow rays to
+    pass over 5 cm relief at grazing sun (measured: results/crosscheck/README.md).
+    """
+
     bodies: list[BodySpec]
     render_frame: dict = field(default_factory=lambda: {"name": "SCENE"})
+    origin_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -129,7 +129,8 @@ def make_plan(scenario, base_dir: Path):
                                                     model.site, self._footprints)}
 
     plan = EV5Plan(frames=frames, render_frame={"name": "EV5_FIXED"},
-                   static_scene=SceneDescription(bodies=model.bodies(), render_frame={"name": "EV5_FIXED"}))
+                   static_scene=SceneDescription(bodies=model.bodies(), render_frame={"name": "EV5_FIXED"},
+                                                 origin_m=np.array(model.site.origin_m, float)))
     plan._footprints = {}
     plan.model = model
     plan.states = states
