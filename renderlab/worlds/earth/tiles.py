@@ -7,8 +7,8 @@ meets the ellipsoid: ``p_ecef = R_ecef_from_render @ p_render + origin_ecef``.
 The ground mesh is a G×G grid of image rays (the image widened by a margin) intersected with the WGS-84
 ellipsoid, so its vertices lie exactly on the ellipsoid (chord sag d²/8R ≈ 2 m for 9 km cells). Its albedo
 texture is a raster in the tile's (east, north) plane: every facet is planar, so (e, n) is linear on it and
-the texture coordinate of any hit point is exact. The raster is GSHHG land coverage (polygons filled with
-``antialias``² sub-cells per cell, i.e. the area fraction of land in the cell) at ≤ GSD/``texture_oversample``.
+the texture coordinate of any hit point is exact. The raster is GSHHG land coverage (``antialias``² sub-cells
+per cell sampled at their centres, i.e. the area fraction of land in the cell) at ≤ GSD/``texture_oversample``.
 """
 
 from __future__ import annotations
@@ -75,18 +75,46 @@ def grid_mesh(camera, pos_ecef, R_ecef_from_cam, tile: TileFrame, n: int, margin
     return V, F
 
 
+def fill_even_odd(shape: tuple[int, int], rings: list[np.ndarray]) -> np.ndarray:
+    """Bool raster (H, W): pixels whose *centre* lies inside the rings (even-odd rule; holes are rings too).
+
+    Pixel (row, col) has its centre at (x, y) = (col, row). Exact scanline fill, vectorised over all edges: an
+    edge crossing row r (half-open in y, so a vertex on a row is counted once) at x toggles every pixel with
+    col ≥ x; the parity of the toggles is accumulated along the row. Unlike ``cv2.fillPoly``, which also fills
+    the pixels its boundary lines touch (measured: the filled area exceeds the polygon's by 0.45 px x its
+    perimeter), pixel-centre sampling is unbiased, so the land/water boundary of the coverage raster sits on the
+    polygon's edge on average.
+    """
+    H, W = shape
+    out = np.zeros((H, W + 1), np.uint8)
+    if rings:
+        a = np.concatenate([r[:-1] for r in rings if len(r) > 1])
+        b = np.concatenate([r[1:] for r in rings if len(r) > 1])
+        ylo, yhi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+        r0 = np.clip(np.ceil(ylo), 0, H).astype(np.int64)
+        r1 = np.clip(np.ceil(yhi), 0, H).astype(np.int64)
+        n = r1 - r0
+        keep = n > 0
+        a, b, r0, n = a[keep], b[keep], r0[keep], n[keep]
+        e = np.repeat(np.arange(len(n)), n)
+        row = r0[e] + (np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n))
+        x = a[e, 0] + (row - a[e, 1]) * (b[e, 0] - a[e, 0]) / (b[e, 1] - a[e, 1])
+        col = np.clip(np.ceil(x), 0, W).astype(np.int64)
+        idx, cnt = np.unique(row * (W + 1) + col, return_counts=True)
+        out.reshape(-1)[idx[cnt % 2 == 1]] = 1
+        np.bitwise_xor.accumulate(out, axis=1, out=out)
+    return out[:, :W].astype(bool)
+
+
 def land_coverage(tile: TileFrame, region, gshhg, e0: float, n1: float, cell_m: float, shape: tuple[int, int],
                   antialias: int) -> np.ndarray:
     """Land area fraction (H, W) float32 of raster cells: cell (row, col) centred at
-    (e0 + (col+½)·cell, n1 − (row+½)·cell) in the tile's east/north plane."""
-    import cv2
+    (e0 + (col+½)·cell, n1 − (row+½)·cell) in the tile's east/north plane; ``antialias``² sub-cells per cell,
+    each land when its centre is (:func:`fill_even_odd`)."""
     import shapely
 
     H, W = shape
     ss = antialias
-    img = np.zeros((H * ss, W * ss), np.uint8)
-    shift = 4
-    scale = float(1 << shift)
     pieces = [p for g in gshhg.land_in(region) for p in shapely.get_parts(g) if p.geom_type == "Polygon"]
 
     def to_px(ring_xy):
@@ -94,15 +122,11 @@ def land_coverage(tile: TileFrame, region, gshhg, e0: float, n1: float, cell_m: 
         enu = tile.to_render(wgs84.geodetic_to_ecef(lat, lon))
         col = (enu[:, 0] - e0) / (cell_m / ss) - 0.5
         row = (n1 - enu[:, 1]) / (cell_m / ss) - 0.5
-        return np.round(np.stack([col, row], -1) * scale).astype(np.int32)
+        return np.stack([col, row], -1)
 
-    if pieces:
-        cv2.fillPoly(img, [to_px(np.asarray(p.exterior.coords)) for p in pieces], 255, lineType=cv2.LINE_8, shift=shift)
-        holes = [to_px(np.asarray(r.coords)) for p in pieces for r in p.interiors]
-        if holes:
-            cv2.fillPoly(img, holes, 0, lineType=cv2.LINE_8, shift=shift)
-    cov = img.reshape(H, ss, W, ss).astype(np.float32).mean(axis=(1, 3)) / 255.0
-    return cov
+    rings = [to_px(np.asarray(r.coords)) for p in pieces for r in (p.exterior, *p.interiors)]
+    img = fill_even_odd((H * ss, W * ss), rings)
+    return img.reshape(H, ss, W, ss).mean(axis=(1, 3), dtype=np.float32)
 
 
 def texture_uv(V: np.ndarray, e0: float, n1: float, cell_m: float, shape: tuple[int, int]) -> np.ndarray:
