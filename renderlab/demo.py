@@ -69,6 +69,8 @@ def _coastline_section(out: Path, co: dict, seconds: float) -> list[str]:
     lines += [f"| {name} | {f('mc_3sig_' + k, fm)} | {f('filter_3sig_' + k, fm)} |" for name, k, fm in rows]
     lines += ["", f"ANEES {f('anees_mean', '{:.2f}')} (state dimension 6), NIS/dof {f('nis_total_over_dof', '{:.3f}')} "
               f"(inside the 99 % band: {ss.get('nis_total_inside_99', 'n/a')}).", ""]
+    if co.get("summary"):                      # the study's own one-line summary, where it gives one
+        lines += [f"In short: {co['summary']}.", ""]
     lines += [f"![{p.stem}]({p.relative_to(out).as_posix()})" for p in sorted(Path(co["report"]).parent.glob("*.png"))]
     return lines + [""]
 
