@@ -3,6 +3,8 @@
     python -m renderlab.report.coastline_image_publish --runs 8 --work out/coastline_image \\
         --out results/coastline_ekf/image_in_the_loop
 
+(``--truth-cache OTHER_WORK/work/truth_cache`` reuses another variant's renders.)
+
 1. ``renderlab campaign scenes/coastline_image.toml --runs N --out WORK`` (rendered frames → extraction →
    matching → LOS → EKF; seeded, resumable) and ``renderlab report WORK --out OUT/report``.
 2. The same scenario in geometric mode (``coastline.mode = "geometric"``, same orbit, times, σθ, P0, star
@@ -44,8 +46,11 @@ def _mode_summary(name: str, table) -> dict:
         row[f"final_rms_{a}_{unit}"] = float(s[f"mc_rms_{a}_{u}"].to_numpy()[-1] * scale)
         row[f"final_filter_sig_{a}_{unit}"] = float(s[f"filter_sig_{a}_{u}"].to_numpy()[-1] * scale)
     lo, hi = chi2_band(6.0, n)
-    row["anees_final"] = float(s["anees"].to_numpy()[-1])
+    anees = s["anees"].to_numpy()
+    row["anees_final"] = float(anees[-1])
     row["anees_99_band"] = f"[{float(lo):.2f}, {float(hi):.2f}]"
+    row["anees_inside_99_fraction"] = float(np.mean((anees >= lo) & (anees <= hi)))
+    row["anees_by_time"] = " ".join(f"{v:.1f}" for v in anees)      # prior, then one value per image
     nis = nis_total_test(table)
     row["nis_total_over_dof"] = nis["ratio"]
     row["nis_total_inside_99"] = nis["inside"]
@@ -95,7 +100,17 @@ def main(argv=None) -> int:
     p.add_argument("--work", type=Path, required=True, help="campaign folder (renders, runs)")
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--set", dest="overrides", action="append", default=[])
+    p.add_argument("--truth-cache", type=Path, default=None,
+                   help="reuse the renders of another campaign's WORK/work/truth_cache (same rendered scenario; "
+                        "the cache is keyed by the render scenario, so a mismatch renders anew)")
     args = p.parse_args(argv)
+    if args.truth_cache is not None and not (args.work / store.MANIFEST).is_file():
+        from renderlab.campaign.plan import make_plan
+
+        sc0, base0 = load_scenario(args.scenario, args.overrides)
+        store.open_campaign(args.work, make_plan(sc0, base0, args.runs), resume=False)
+        (args.work / "work").mkdir(exist_ok=True)
+        (args.work / "work" / "truth_cache").symlink_to(args.truth_cache.resolve(), target_is_directory=True)
     run_campaign_file(args.scenario, args.work, args.runs, overrides=args.overrides, workers=0,
                       resume=(args.work / store.MANIFEST).is_file())
     args.out.mkdir(parents=True, exist_ok=True)
