@@ -123,3 +123,17 @@ def test_truth_j2_option(repo):
     assert lo <= anees_2b <= hi
     assert anees_j2 > 10 * hi
 
+
+
+def test_demo_piece(tmp_path):
+    """``run_demo_coastline`` (wired into ``renderlab demo``): campaign, report with figures, one summary line."""
+    from renderlab.studies.coastline_study import run_demo_coastline
+
+    r = run_demo_coastline(tmp_path, progress=False, runs=3)
+    assert r["runs"] == 3 and r["failed"] == 0 and r["report"].is_file()
+    for f in ("coastline_filter_coastline_errors.png", "coastline_filter_coastline_consistency.png"):
+        assert (tmp_path / "coastline_report" / f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert r["summary"].startswith("coastline EKF, 90°/1000 km, 3 runs") and "\n" not in r["summary"]
+    ss = {k: float(v) for k, v in r["steady_state"].items() if k.startswith(("mc_", "filter_"))}
+    for a in ("r", "i", "c"):                 # the images shrank the prior's 3σ = 1500 m (16 runs: 136/278/116 m)
+        assert ss[f"filter_3sig_{a}_m"] < 500.0 and ss[f"mc_3sig_{a}_m"] < 3 * ss[f"filter_3sig_{a}_m"]
