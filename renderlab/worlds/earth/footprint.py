@@ -5,7 +5,7 @@ Theory
 Straub & Christian eq. 1 gives the flat-Earth size of a nadir footprint, GFOV = 2 h tan(FOV/2). The exact
 footprint is where the rays of the image boundary meet the ellipsoid (:func:`wgs84.ray_ellipsoid`); on a
 sphere of radius R the ground half-width of a nadir view is R·(asin((R+h)/R · sin(FOV/2)) − FOV/2) of arc,
-larger than eq. 1 by the Earth's curvature (0.54 % at 1000 km and 30°, more at wider FOVs).
+larger than eq. 1 by the Earth's curvature (0.60 % at 1000 km and 30° across track on the equator, more at wider FOVs).
 
 A footprint polygon in lon/lat is the boundary loop sampled densely (its edges are curves in lon/lat),
 with longitudes unwrapped along the loop; a loop that winds once around the pole is closed through that
