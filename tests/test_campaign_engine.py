@@ -193,3 +193,23 @@ def test_unreachable_scheduler_one_line(tmp_path, capsys):
                "--scheduler", "tcp://127.0.0.1:9", "--connect-timeout", "2"])
     err = capsys.readouterr().err
     assert rc == 2 and "cannot reach Dask scheduler at tcp://127.0.0.1:9" in err and err.count("\n") == 1
+
+
+def test_truth_cache_key_follows_the_truth_code(tmp_path):
+    """The cache key changes when a truth-side source changes (a stale render is never reused) and not when
+    estimator/campaign code changes."""
+    import shutil
+
+    from renderlab.campaign import cache
+
+    pkg = Path(cache.__file__).resolve().parents[1]
+    copy = tmp_path / "renderlab"
+    shutil.copytree(pkg, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    base = cache.fingerprint_truth_sources(copy)
+    assert base == cache.fingerprint_truth_sources(pkg)  # the copy is byte-identical to the installation
+    runner = copy / "campaign" / "runner.py"
+    runner.write_text(runner.read_text() + "\n# not truth code\n")
+    assert cache.fingerprint_truth_sources(copy) == base
+    tiles = copy / "worlds" / "earth" / "tiles.py"
+    tiles.write_text(tiles.read_text() + "\n# truth code changed\n")
+    assert cache.fingerprint_truth_sources(copy) != base

@@ -145,3 +145,30 @@ def test_filter_scoring_anees_inside_chi2_bounds():
     assert a["fraction_inside"] >= 0.8
     bad = tab.set_column(3, "nees", pa.array(2 * rng.chisquare(6, runs * times)))
     assert {r["quantity"]: r for r in scoring.score_filter(bad)}["anees"]["fraction_inside"] < 0.2
+
+
+def test_filter_scoring_missing_nis_uses_each_times_own_chi2_band():
+    """Where some images give no measurement (NIS = NaN), each time's ANIS is the mean over the runs that
+    have one and is held against the χ² band of that count (no empty-slice averages)."""
+    from scipy import stats
+
+    rng = np.random.default_rng(12)
+    runs, times = 40, 30
+    run = np.repeat(np.arange(runs), times)
+    t_s = np.tile(np.arange(times, dtype=float), runs)
+    nis = rng.chisquare(2, runs * times)
+    nis[(t_s % 3 == 0)] = np.nan                        # every third time: no image measured in any run
+    nis[(t_s % 3 == 1) & (run >= 5)] = np.nan           # some times: only 5 runs measured
+    tab = pa.table({"run": run, "t_s": t_s, "nees": rng.chisquare(6, runs * times), "nis": nis})
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                   # a mean of an empty slice would raise here
+        a = {r["quantity"]: r for r in scoring.score_filter(tab)}["anis"]
+    expect = []
+    for tt in range(times):
+        v = nis[(t_s == tt) & np.isfinite(nis)]
+        if v.size:
+            lo, hi = stats.chi2.ppf([0.025, 0.975], 2 * v.size) / v.size
+            expect.append(lo <= v.mean() <= hi)
+    assert a["fraction_inside"] == pytest.approx(np.mean(expect)) and len(expect) == 20
+    assert a["mean"] == pytest.approx(np.nanmean(nis))

@@ -232,9 +232,16 @@ def score_filter(table, *, settle_s: float = 0.0, nees_dof: int = 6, nis_dof: in
         if name in table.column_names and n_runs:
             v = _col(table, name)[keep]
             ts = t[keep]
-            per_time = [np.nanmean(v[ts == tt]) for tt in np.unique(ts)]  # average over runs at each time
+            # average over the runs that have a value at each time (NIS is missing where an image gave
+            # no measurement), each time against the χ² band of its own count
+            inside_t = []
+            for tt in np.unique(ts):
+                vt = v[(ts == tt) & np.isfinite(v)]
+                if vt.size:
+                    lo_t, hi_t = stats.chi2.ppf([a / 2, 1 - a / 2], dof * vt.size) / vt.size
+                    inside_t.append(lo_t <= vt.mean() <= hi_t)
             lo, hi = stats.chi2.ppf([a / 2, 1 - a / 2], dof * n_runs) / n_runs
-            inside = float(np.mean((np.array(per_time) >= lo) & (np.array(per_time) <= hi)))
+            inside = float(np.mean(inside_t)) if inside_t else float("nan")
             rows.append({"quantity": f"a{name}", "n": len(v), "mean": float(np.nanmean(v)),
                          "median": float(np.nanmedian(v)), "chi2_lo": float(lo), "chi2_hi": float(hi),
                          "fraction_inside": inside})
