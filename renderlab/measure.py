@@ -11,8 +11,10 @@ from (``apriori_sigma_pos_*_m``, ``apriori_sigma_att_*_rad``, 1σ per axis) and 
 ``meas = pred + (Δs, Δl)``; ``truth`` is the landmark_truth table's (s, l) when the set has one, else the
 projection with the true pose; ``err = meas − truth``. Rows with no result have NaN ``meas``/``err``.
 
-Retina's photometric model (``photometry`` column): McEwen with L(α) fitted to the body's catalogued
-law (``fitted:<law>``, default) or with β = exp(−α/60°) (``fixed``); SPC rows say ``spc``.
+The onboard photometric model (``photometry`` column), the same for both methods: McEwen with L(α)
+fitted to the body's catalogued law (``fitted:<law>``, default) or with β = exp(−α/60°) (``fixed``).
+Both methods get the same ground knowledge, so what separates them is how they predict the image
+(Retina: ray-traced facets and shadows in image space; SPC: grid shading, approximate shadows, maplet frame).
 
 ``flags`` is the bit mask of :mod:`estimators.flags` (``flags_text`` spells it out, ``ok`` when 0):
 off_image 1, too_few_pixels 2, flat_template 4, low_correlation 8, search_border 16, outlier 32 (final
@@ -53,7 +55,7 @@ class MeasureOptions:
     supersample : int
         Retina's k×k rays per pixel.
     photometry : {"fitted", "fixed"}
-        Retina's McEwen weight: ``fitted`` — L(α) least-squares fitted to the body's catalogued law
+        The McEwen weight of both methods: ``fitted`` — L(α) least-squares fitted to the body's catalogued law
         (``scenario.world`` law, law_params, albedo in the truth set's manifest, what the ground knows;
         :func:`estimators.onboard_photometry.fit_lunar_lambert_L`), falling back to ``fixed`` when the
         manifest names no law; ``fixed`` — β = exp(−α/60°) (Retina eq. 5). Column ``photometry`` records
@@ -153,7 +155,7 @@ def _truth_lookup(ts) -> dict:
 
 def body_law(ts):
     """(PhotometricLaw, mean albedo) of the body from the truth set's manifest (``scenario.world``), or
-    None when the manifest names no law (the ground's catalog knowledge for :func:`retina_photometry`)."""
+    None when the manifest names no law (the ground's catalog knowledge for :func:`onboard_photometry`)."""
     import json
 
     from renderlab.photometry import make_law
@@ -172,8 +174,8 @@ def body_law(ts):
     return law, float(world.get("albedo", 0.1))
 
 
-def retina_photometry(ts, options: MeasureOptions) -> tuple[tuple, str]:
-    """(L_table, label) for Retina's McEwen weight (``MeasureOptions.photometry``)."""
+def onboard_photometry(ts, options: MeasureOptions) -> tuple[tuple, str]:
+    """(L_table, label) for the methods' McEwen weight (``MeasureOptions.photometry``)."""
     from estimators.onboard_photometry import fit_lunar_lambert_L
 
     found = body_law(ts) if options.photometry == "fitted" else None
@@ -229,16 +231,16 @@ def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = M
     if not maplets:
         raise UserError(f"truth set {ts.path}: the landmark catalog is empty")
     rng = np.random.default_rng(0) if rng is None else rng
+    L_table, photometry = onboard_photometry(ts, options)
     if method == "retina":
-        L_table, photometry = retina_photometry(ts, options)
         opts = RetinaOptions(template=TemplateOptions(supersample=options.supersample, psf_sigma_px=options.psf_sigma_px,
                                                       L_table=L_table),
                              peak=options.peak or "retina_3x3", min_correlation=options.min_correlation)
         items = [build_mesh(m) for m in maplets]
         frame_fn = retina_frame
     else:
-        opts = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation)
-        photometry = "spc"  # SPC's own photometric function (estimators.spc)
+        opts = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation,
+                          L_table=L_table)
         items = list(maplets)
         frame_fn = spc_frame
     truth = _truth_lookup(ts)

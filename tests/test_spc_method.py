@@ -83,3 +83,29 @@ def test_spc_recovers_known_shift_of_rendered_maplet():
     err = np.hypot(r.meas_s - truth[0], r.meas_l - truth[1])
     assert r.has_result and shift > 1.0, (r.flags, shift)
     assert err < 0.3, (err, shift)
+
+
+def test_spc_shading_follows_a_tabulated_L_against_the_lab_mcewen_law():
+    """With ``L_table`` SPC shades with McEwen's weight L(α) from the table: a table of exp(−α/30°) gives the
+    lab's McEwen law with α0 = 30° (renderlab.photometry, the oracle) up to one scale, and differs from the
+    default exp(−α/60°)."""
+    from renderlab.photometry import mcewen
+
+    m = _maplet()
+    sun = np.array([0.5, 0.2, 0.84]); sun /= np.linalg.norm(sun)
+    to_cam = np.array([-0.3, 0.1, 1.0]) * 40.0
+    grid = np.linspace(0.0, math.pi, 181)
+    opts = spc.SpcOptions(L_table=tuple(np.exp(-grid / math.radians(30.0))))
+    img, usable = spc.predict_maplet(m, to_cam, sun, opts)
+    img0, _ = spc.predict_maplet(m, to_cam, sun)
+    gy, gx = np.gradient(np.asarray(m.heights_m), m.spacing_m)
+    n = np.stack([-gx, -gy, np.ones_like(gx)], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    r = to_cam / np.linalg.norm(to_cam)
+    mu0, mu, g = n @ sun, n @ r, math.acos(float(sun @ r))
+    ref = mcewen(mu0, mu, g, m.albedo, alpha0=math.radians(30.0))
+    ok = usable & (img > 0)
+    assert ok.sum() > 100
+    ratio = img[ok] / ref[ok]
+    assert np.ptp(ratio) / ratio.mean() < 1e-4
+    assert np.max(np.abs(img0[ok] / img[ok] - 1.0)) > 0.01

@@ -107,6 +107,7 @@ def test_both_methods_same_frames_same_apriori_and_truth_from_truth_table(campai
             for c in ("apriori_dpos_x_m", "apriori_dpos_z_m", "apriori_drot_y_rad", "pred_s", "pred_l"):
                 assert m[c][kr] == pytest.approx(m[c][ks], abs=1e-9), c
             assert (m["truth_s"][kr], m["truth_l"][kr]) == pytest.approx(tmap[key][:2], abs=1e-9)
+            assert m["photometry"][kr] == m["photometry"][ks]  # the same ground photometric knowledge
         for c in ("range_m", "albedo_contrast", "phase_deg", "gsd_ratio", "crlb_s", "crlb_l"):
             assert np.all(np.isfinite(m[c])), c
         assert 40 < min(m["range_m"]) and max(m["range_m"]) < 80  # frames at 65 and 45 m altitude

@@ -47,6 +47,10 @@ class SpcOptions:
     ----------
     alpha0, ls_weight : float
         McEwen parameters.
+    L_table : tuple of float
+        L(α) tabulated over [0, π] replacing β = exp(−α/α0) (empty: the exponential;
+        :func:`estimators.onboard_photometry.fit_lunar_lambert_L`). The Retina-vs-SPC study gives both
+        methods the same table, so their differences come from the approximations under test.
     min_correlation : float
         Peaks under this correlation give no result.
     min_points : int
@@ -61,6 +65,7 @@ class SpcOptions:
 
     alpha0: float = DEFAULT_ALPHA0
     ls_weight: float = 2.0
+    L_table: tuple = ()
     min_correlation: float = 0.3
     min_points: int = 64
     peak: str = "quadric_2d"
@@ -110,7 +115,8 @@ def predict_maplet(maplet: Maplet, to_cam_m: np.ndarray, sun_m: np.ndarray, opti
     r = to_cam_m / np.linalg.norm(to_cam_m)
     cos_i, cos_r = nrm @ sun_m, nrm @ r
     phase = math.acos(float(np.clip(sun_m @ r, -1, 1)))
-    img = mcewen_relative(cos_i, cos_r, phase, maplet.albedo, options.alpha0, options.ls_weight)
+    img = mcewen_relative(cos_i, cos_r, phase, maplet.albedo, options.alpha0, options.ls_weight,
+                          options.L_table or None)
     shadow = (cos_i <= 0) | approximate_shadow(h, s, sun_m)
     img = np.where(shadow, 0.0, img)
     usable = ~shadow if options.drop_shadowed else np.ones(h.shape, bool)

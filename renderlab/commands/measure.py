@@ -22,7 +22,7 @@ def add_parser(subparsers) -> None:
                    help="peak finder (default: retina_3x3 for retina, quadric_2d for spc)")
     p.add_argument("--min-correlation", type=float, default=0.3, help="correlation threshold (default 0.3)")
     p.add_argument("--photometry", choices=["fitted", "fixed"], default="fitted",
-                   help="Retina's McEwen weight: L(phase) fitted to the body's catalogued law (default) or exp(-phase/60 deg)")
+                   help="both methods' McEwen weight: L(phase) fitted to the body's catalogued law (default) or exp(-phase/60 deg)")
     p.add_argument("--psf-sigma-px", type=float, default=0.0, help="Retina's PSF sigma, px (default 0)")
     p.add_argument("--campaign", default="", help="campaign name written in every row")
     p.add_argument("--overwrite", action="store_true", help="replace FILE if it exists")
