@@ -36,7 +36,8 @@ import numpy as np
 from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
 from estimators.retina.maplet_mesh import MapletMesh
 from estimators.retina.raster import pinhole_box, raster_pinhole
-from estimators.retina.raytrace import shade_pinhole, shade_pixels, trace_rays_numpy
+from estimators.retina.raytrace import shade_pinhole, shade_pixels
+from estimators.retina.raytrace_numpy import trace_rays_numpy
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import skew
 

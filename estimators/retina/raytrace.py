@@ -7,7 +7,7 @@ algorithm. Work is done in *grid units* (u = column index, v = row index, z in m
 of coordinates keeps the ray parameter t, so hit distances are metric. :func:`shade_pixels` fuses tracing,
 shadow rays, McEwen shading (eqs. 5–8) and supersampling for the synthetic image; :func:`shade_pinhole`
 also makes the lines of sight of a distortion-free camera (inverse of eqs. 3–4) inside the kernel.
-:func:`trace_bruteforce` is the plain-numpy reference (every ray against every facet); the tests use it
+:mod:`.raytrace_numpy` holds the plain-numpy reference (every ray against every facet); the tests use it
 as the oracle and the benchmark as the speed baseline.
 """
 
@@ -250,6 +250,19 @@ def _bilinear1(g, u, v):
 
 
 @njit(cache=True, inline="always")
+def shade_lit_point(origin, px, py, pz, nx, ny, nz, cos_i, sun, albedo, spacing, c, alpha0, L_table, ls_weight):
+    """McEwen brightness (eq. 5-8) of a sunlit maplet point p with facet normal n seen from ``origin``:
+    emission and phase from the view direction, albedo bilinear on the maplet grid."""
+    vx, vy, vz = origin[0] - px, origin[1] - py, origin[2] - pz
+    vn = math.sqrt(vx * vx + vy * vy + vz * vz)
+    vx, vy, vz = vx / vn, vy / vn, vz / vn
+    cos_r = nx * vx + ny * vy + nz * vz
+    cs = min(max(vx * sun[0] + vy * sun[1] + vz * sun[2], -1.0), 1.0)
+    a = _bilinear1(albedo, px / spacing + c, py / spacing + c)
+    return mcewen_beta_scalar(cos_i, cos_r, beta_scalar(math.acos(cs), alpha0, L_table), a, ls_weight)
+
+
+@njit(cache=True, inline="always")
 def _shade_sample(origin, ou, ov, oz, dx, dy, dz, c, H, cmin, cmax, bmin, bmax, zlo, zhi, spacing, normals, albedo,
                   sun, shadow_rays, alpha0, L_table, ls_weight, shadow_eps):
     """One sub-pixel ray: (hit, in cast shadow, McEwen value) — trace, shadow ray, eqs. 5–8."""
@@ -268,13 +281,8 @@ def _shade_sample(origin, ou, ov, oz, dx, dy, dz, c, H, cmin, cmax, bmin, bmax, 
                                  sun[2], H, cmin, cmax, bmin, bmax, BLOCK, zlo, zhi, 0.0)
         if ts > 0:
             return True, True, 0.0
-    vx, vy, vz = origin[0] - px, origin[1] - py, origin[2] - pz
-    vn = math.sqrt(vx * vx + vy * vy + vz * vz)
-    vx, vy, vz = vx / vn, vy / vn, vz / vn
-    cos_r = nx * vx + ny * vy + nz * vz
-    cs = min(max(vx * sun[0] + vy * sun[1] + vz * sun[2], -1.0), 1.0)
-    a = _bilinear1(albedo, px / spacing + c, py / spacing + c)
-    return True, False, mcewen_beta_scalar(cos_i, cos_r, beta_scalar(math.acos(cs), alpha0, L_table), a, ls_weight)
+    return True, False, shade_lit_point(origin, px, py, pz, nx, ny, nz, cos_i, sun, albedo, spacing, c, alpha0,
+                                        L_table, ls_weight)
 
 
 @njit(cache=True)
@@ -349,54 +357,3 @@ def shade_pinhole(origin, R_m_from_c, Kinv, s_min, l_min, w, h, k, H, cmin, cmax
                     acc += v
             value[p] = acc / (k * k)
     return value, nhit, nshadow
-
-
-def trace_bruteforce(mesh, origins, dirs, chunk: int = 256):
-    """Plain-numpy reference: nearest hit of every ray against every facet (Möller–Trumbore).
-
-    Returns ``(hit (N,), t (N,), face (N,))`` with faces numbered as
-    :meth:`~.maplet_mesh.MapletMesh.vertices_faces`.
-    """
-    V, F = mesh.vertices_faces()
-    A, B, C = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    e1, e2 = B - A, C - A
-    origins = np.asarray(origins, float)
-    dirs = np.asarray(dirs, float)
-    N = len(origins)
-    t_best = np.full(N, np.inf)
-    f_best = np.full(N, -1)
-    for a in range(0, N, chunk):
-        o, d = origins[a:a + chunk, None, :], dirs[a:a + chunk, None, :]
-        p = np.cross(d, e2[None])
-        det = np.einsum("rfk,fk->rf", p, e1)
-        ok = np.abs(det) > 1e-15
-        inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
-        tv = o - A[None]
-        b1 = np.einsum("rfk,rfk->rf", tv, p) * inv
-        q = np.cross(tv, e1[None])
-        b2 = np.einsum("rfk,rfk->rf", np.broadcast_to(d, q.shape), q) * inv
-        t = np.einsum("fk,rfk->rf", e2, q) * inv
-        good = ok & (b1 >= -1e-9) & (b1 <= 1 + 1e-9) & (b2 >= -1e-9) & (b1 + b2 <= 1 + 1e-9) & (t > 0)
-        t = np.where(good, t, np.inf)
-        k = np.argmin(t, axis=1)
-        t_best[a:a + chunk] = t[np.arange(len(k)), k]
-        f_best[a:a + chunk] = np.where(np.isfinite(t_best[a:a + chunk]), k, -1)
-    hit = np.isfinite(t_best)
-    return hit, np.where(hit, t_best, np.nan), f_best
-
-
-def trace_rays_numpy(mesh, origins, dirs, sun, shadow_eps):
-    """Plain-numpy counterpart of :func:`trace_rays` (brute force over every facet); same outputs."""
-    hit, t, face = trace_bruteforce(mesh, origins, dirs)
-    N = len(origins)
-    pts = np.full((N, 3), np.nan)
-    nrm = np.full((N, 3), np.nan)
-    pts[hit] = origins[hit] + t[hit, None] * dirs[hit]
-    n_cells = mesh.n - 1
-    f = face[hit]
-    nrm[hit] = mesh.normals[(f // 2) // n_cells, (f // 2) % n_cells, f % 2]
-    shadow = np.zeros(N, bool)
-    if np.any(sun != 0) and hit.any():
-        hs, _, _ = trace_bruteforce(mesh, pts[hit] + shadow_eps * nrm[hit], np.tile(sun, (hit.sum(), 1)))
-        shadow[hit] = hs
-    return hit, pts, nrm, shadow

@@ -20,7 +20,8 @@ import numpy as np
 from renderlab.errors import UserError
 
 
-def _write_csv(path: Path, rows: list[dict]) -> None:
+def write_csv(path: Path, rows: list[dict]) -> None:
+    """Rows (dicts) → CSV, columns in order of first appearance, floats to 6 significant digits."""
     cols: list[str] = []
     for r in rows:
         cols += [k for k in r if k not in cols]
@@ -29,7 +30,7 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
     w.writeheader()
     for r in rows:
         w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    path.write_text(buf.getvalue(), encoding="utf-8")
+    Path(path).write_text(buf.getvalue(), encoding="utf-8")
 
 
 def _html_table(rows: list[dict], cols: list[str]) -> str:
@@ -102,7 +103,7 @@ def _write_all(tables, stage: Path, confidence, scoring, figs) -> list[tuple[str
             rows = [{"table": name, **r} for r in scoring.score_measurements(t, confidence)]
             summary_all += rows
             brk = [r for col in scoring.BREAKDOWNS for r in scoring.breakdown(t, col, confidence=confidence)]
-            _write_csv(stage / f"{name}_breakdown.csv", brk)
+            write_csv(stage / f"{name}_breakdown.csv", brk)
             pre = f"{name}_"
             figs.scatter(t, stage / f"{pre}scatter.png")
             figs.fractional_shift(t, stage / f"{pre}fractional_shift.png")
@@ -123,12 +124,12 @@ def _write_all(tables, stage: Path, confidence, scoring, figs) -> list[tuple[str
             sections.append((f"Measurements: {name}", body))
         elif kind == "filter":
             rows = scoring.score_filter(t, confidence=confidence)
-            _write_csv(stage / f"{name}_filter_summary.csv", rows)
+            write_csv(stage / f"{name}_filter_summary.csv", rows)
             figs.filter_errors(t, stage / f"{name}_errors.png")
             cols = sorted({k for r in rows for k in r}, key=lambda k: list(rows[0]).index(k) if k in rows[0] else 99)
             sections.append((f"Filter: {name}", _html_table(rows, cols) + f'<p><img src="{name}_errors.png"></p>'))
     if summary_all:
-        _write_csv(stage / "summary.csv", summary_all)
+        write_csv(stage / "summary.csv", summary_all)
     return sections
 
 

@@ -14,12 +14,12 @@ Everything is drawn from the campaign's tables (``scores``, ``stage1_history``, 
 
 from __future__ import annotations
 
-import csv
 import html
-import io
 from pathlib import Path
 
 import numpy as np
+
+from renderlab.report.campaign_report import write_csv
 
 #: scores summarised across runs: column → (label, unit scale, unit)
 SCORES = {
@@ -84,18 +84,6 @@ def score_summary(scores) -> list[dict]:
         rows.append({"score": f"flag_{name}", "label": f"runs flagged {name}", "unit": "runs", "runs": len(flags),
                      "mean": float(np.mean((flags & bit) != 0)), "median": float(np.sum((flags & bit) != 0))})
     return rows
-
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    cols: list[str] = []
-    for r in rows:
-        cols += [k for k in r if k not in cols]
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    Path(path).write_text(buf.getvalue(), encoding="utf-8")
 
 
 def _plt():
