@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.stats.bootstrap import cluster_bootstrap
+
 
 def _load(campaign: Path) -> dict:
     import pyarrow as pa
@@ -30,28 +32,10 @@ def _load(campaign: Path) -> dict:
     return {k: np.asarray(v) for k, v in t.items()}
 
 
-def _cluster_ci(values, clusters, stat, rng, n_boot=2000):
-    """(estimate, 2.5 %, 97.5 %) of ``stat`` ("mean", "std" or a function) under a cluster bootstrap."""
-    uniq, inv = np.unique(clusters, return_inverse=True)
-    draws = rng.multinomial(len(uniq), np.full(len(uniq), 1.0 / len(uniq)), size=n_boot)  # cluster counts
-    if stat in ("mean", "std"):  # closed form from per-cluster sums
-        n = np.bincount(inv, minlength=len(uniq)).astype(float)
-        s1 = np.bincount(inv, values, minlength=len(uniq))
-        s2 = np.bincount(inv, values * values, minlength=len(uniq))
-        N, S1, S2 = draws @ n, draws @ s1, draws @ s2
-        if stat == "mean":
-            est, boots = values.mean(), S1 / N
-        else:
-            est, boots = values.std(ddof=1), np.sqrt(np.clip(S2 - S1 * S1 / N, 0, None) / np.maximum(N - 1, 1))
-    else:
-        order = np.argsort(inv, kind="stable")
-        starts = np.r_[0, np.cumsum(np.bincount(inv, minlength=len(uniq)))]
-        groups = [order[starts[k]:starts[k + 1]] for k in range(len(uniq))]
-        est = stat(values)
-        boots = np.array([stat(values[np.concatenate([np.repeat(groups[k], c) for k, c in enumerate(row) if c])])
-                          for row in draws[:400]])
-    lo, hi = np.percentile(boots, [2.5, 97.5])
-    return float(est), float(lo), float(hi)
+def _ci(values, clusters, stat, rng, n_boot=2000) -> tuple[float, float, float]:
+    """(estimate, 2.5 %, 97.5 %) of ``stat`` under a cluster bootstrap over landmark-frames."""
+    iv = cluster_bootstrap(values, clusters, stat, n_boot=n_boot, rng=rng, cluster_name="landmark-frames")
+    return iv.estimate, iv.lo, iv.hi
 
 
 def findings(t: dict, subset: str, seed: int = 0) -> list[dict]:
@@ -74,9 +58,9 @@ def findings(t: dict, subset: str, seed: int = 0) -> list[dict]:
             c = key[res]
             row = {"subset": subset, "method": m, "axis": ax, "n_rows": int(ms.sum()), "n_result": int(res.sum()),
                    "no_result_rate": nores, "gross_rate": gross}
-            for name, fn in (("bias", "mean"), ("noise", "std"), ("median", np.median),
-                             ("mad", lambda x: 1.4826 * np.median(np.abs(x - np.median(x))))):
-                row[name], row[f"{name}_lo"], row[f"{name}_hi"] = _cluster_ci(e, c, fn, rng) if len(e) > 2 else (np.nan,) * 3
+            for name, stat, nb in (("bias", "mean", 2000), ("noise", "std", 2000), ("median", "median", 400),
+                                   ("mad", "robust_sigma", 400)):
+                row[name], row[f"{name}_lo"], row[f"{name}_hi"] = _ci(e, c, stat, rng, nb) if len(e) > 2 else (np.nan,) * 3
             rows.append(row)
     both = {}
     for m in ("retina", "spc"):
@@ -86,8 +70,8 @@ def findings(t: dict, subset: str, seed: int = 0) -> list[dict]:
     if common:
         d = np.array([both["spc"][k] - both["retina"][k] for k in common])
         cl = np.array([k[1] for k in common])
-        est, lo, hi = _cluster_ci(d, cl, "mean", rng)
-        med, mlo, mhi = _cluster_ci(d, cl, np.median, rng)
+        est, lo, hi = _ci(d, cl, "mean", rng)
+        med, mlo, mhi = _ci(d, cl, "median", rng, 400)
         rows.append({"subset": subset, "method": "spc-retina", "axis": "|err|", "n_rows": len(common),
                      "n_result": len(common), "bias": est, "bias_lo": lo, "bias_hi": hi,
                      "median": med, "median_lo": mlo, "median_hi": mhi})

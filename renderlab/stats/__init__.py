@@ -1,0 +1,1 @@
+"""Statistics for reports: intervals that respect the correlation structure of the data (:mod:`.bootstrap`)."""
