@@ -29,7 +29,7 @@ def lkf_anees(o, seeds, update_at_estimate: bool = False) -> np.ndarray:
     at the estimate) — separates the dynamics' nonlinearity from the measurement's."""
     from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
     from estimators.coastline.los import los_jacobian_position, los_predict
-    from renderlab.studies.coastline_geometric import draws_for_runs, measurements, truth_geometry
+    from renderlab.studies.coastline_ekf.geometric import draws_for_runs, measurements, truth_geometry
 
     geo = truth_geometry(o)
     N, K = len(seeds), len(geo.t_s)
@@ -63,8 +63,8 @@ def lkf_anees(o, seeds, update_at_estimate: bool = False) -> np.ndarray:
 
 
 def main(argv=None) -> int:
-    from renderlab.report.coastline_scoring import chi2_band
-    from renderlab.studies.coastline_geometric import paper_orbit, run_batch, truth_geometry
+    from renderlab.studies.coastline_ekf.scoring import chi2_band
+    from renderlab.studies.coastline_ekf.geometric import paper_orbit, run_batch, truth_geometry
 
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--orbit", default="i45_h1000")

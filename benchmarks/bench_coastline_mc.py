@@ -37,7 +37,7 @@ def _filterpy_loop(o, geo, z_x0, z_los, z_att, n):
 
     from estimators.coastline.dynamics import propagate_state_stm
     from estimators.coastline.los import los_jacobian_position, los_predict
-    from renderlab.studies.coastline_geometric import measurements
+    from renderlab.studies.coastline_ekf.geometric import measurements
 
     sd0 = np.array([o.sigma_r0_m] * 3 + [o.sigma_v0_mps] * 3)
     s2 = o.sigma_theta_rad**2
@@ -80,7 +80,7 @@ def _filterpy_loop(o, geo, z_x0, z_los, z_att, n):
 
 def _own_loop(o, geo, z_x0, z_los, z_att, n):
     from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions
-    from renderlab.studies.coastline_geometric import measurements
+    from renderlab.studies.coastline_ekf.geometric import measurements
 
     sd0 = np.array([o.sigma_r0_m] * 3 + [o.sigma_v0_mps] * 3)
     opts = EKFOptions(sigma_theta_rad=o.sigma_theta_rad, sigma_attitude_rad=o.sigma_star_tracker_rad,
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=2026)
     a = p.parse_args(argv)
 
-    from renderlab.studies.coastline_geometric import draws_for_runs, paper_orbit, run_batch, truth_geometry
+    from renderlab.studies.coastline_ekf.geometric import draws_for_runs, paper_orbit, run_batch, truth_geometry
 
     print(f"command: {' '.join(sys.argv)}")
     print(f"cpu: {platform.processor() or platform.machine()}, cores: {os.cpu_count()}, "

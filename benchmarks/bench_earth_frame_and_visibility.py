@@ -24,11 +24,11 @@ def main() -> None:
     ap.add_argument("--skip-render", action="store_true")
     ap.add_argument("--skip-visibility", action="store_true")
     a = ap.parse_args()
-    from renderlab.render.pipeline import make_backend
+    from renderlab.pipeline import make_backend
     from renderlab.scenario import load_scenario
     from renderlab.worlds.earth import make_plan
     from renderlab.worlds.earth.gshhg import load_gshhg
-    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep, visible_images
+    from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, visibility_sweep, visible_images
 
     T = time.perf_counter
     import numpy as np

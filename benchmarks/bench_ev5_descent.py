@@ -33,7 +33,7 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=512, help="image size for the in-place vs reload comparison")
     args = ap.parse_args()
 
-    from renderlab.render.pipeline import make_backend
+    from renderlab.pipeline import make_backend
     from renderlab.scenario import load_scenario
     from renderlab.worlds.ev5 import make_plan
 

@@ -90,7 +90,7 @@ def parse_args(argv=None):
 def load_inputs(size: int):
     """(scenario, scene description, frame 0 with the square camera)."""
     from renderlab.geometry.camera import CameraModel
-    from renderlab.render.pipeline import frame_specs
+    from renderlab.pipeline import frame_specs
     from renderlab.scenario import load_scenario
     from renderlab.worlds.analytic import build_scene
 

@@ -38,7 +38,7 @@ def _scenario(size: int, spp: int):
 
 
 def _backend(renderer: str, size: int, spp: int):
-    from renderlab.render.pipeline import make_backend
+    from renderlab.pipeline import make_backend
     from renderlab.worlds.base import make_plan
 
     sc, base = _scenario(size, spp)

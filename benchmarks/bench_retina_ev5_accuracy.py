@@ -35,8 +35,8 @@ def _row(label, es, er):
 
 
 def main():
-    from renderlab.measure import MeasureOptions, measure_truthset
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.measurement.runner import MeasureOptions, measure_truthset
+    from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog

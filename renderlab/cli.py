@@ -87,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_render(args) -> int:
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
     from renderlab.scenario import load_scenario
 
     scenario, base = load_scenario(args.scenario, args.overrides)

@@ -2,12 +2,12 @@
 
 1. Render the analytic proving scene (``scenes/analytic_sphere_box.toml``) with Mitsuba, write the
    truth set, check it against closed-form truth (pixel convention, Lambert radiometry), draw a preview.
-2. Run a small Retina-vs-SPC campaign on a tiny EV5 descent (:mod:`renderlab.demo_campaign`): one
+2. Run a small Retina-vs-SPC campaign on a tiny EV5 descent (:mod:`renderlab.studies.retina_vs_spc.demo`): one
    truth render, 40 seeded Monte Carlo runs of both methods, scored against truth, and the HTML
    report (``campaign/report/index.html``) — what users come for.
-3. Run a small coastline-EKF campaign (Straub & Christian; :func:`renderlab.studies.coastline_study.
+3. Run a small coastline-EKF campaign (Straub & Christian; :func:`renderlab.studies.coastline_ekf.study.
    run_demo_coastline`: 16 runs, half an orbit, RIC errors against 3σ, NEES/NIS) into ``coastline/``.
-4. Run a small unknown-satellite campaign (Ivanov et al.; :mod:`renderlab.studies.unknown_satellite_demo`:
+4. Run a small unknown-satellite campaign (Ivanov et al.; :mod:`renderlab.studies.unknown_satellite.demo`:
    one render of the tumbling microsatellite, 4 runs of stage 1 + FIM rank + stage 2) into
    ``unknown_satellite/``.
 5. Write ``report.md`` linking all of them. It grows as the lab grows.
@@ -114,14 +114,14 @@ def run_demo(out: Path, progress: bool = True, runs: tuple[int, int, int] | None
     ``runs``: runs of the (Retina-vs-SPC, coastline-EKF, unknown-satellite) campaigns; ``None`` = the
     demo's defaults (40, 16, 4). Smaller counts are for tests.
     """
-    from renderlab.demo_campaign import DEMO_RUNS, run_demo_campaign
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.studies.retina_vs_spc.demo import DEMO_RUNS, run_demo_campaign
+    from renderlab.pipeline import render_truthset
     from renderlab.report.preview import truthset_preview
     from renderlab.report.truth_checks import check_frame, lambert_residual_image
     from renderlab.scenario import load_scenario
-    from renderlab.studies.coastline_study import run_demo_coastline
-    from renderlab.studies.unknown_satellite_demo import DEMO_RUNS as US_DEMO_RUNS
-    from renderlab.studies.unknown_satellite_demo import run_demo_unknown_satellite
+    from renderlab.studies.coastline_ekf.study import run_demo_coastline
+    from renderlab.studies.unknown_satellite.demo import DEMO_RUNS as US_DEMO_RUNS
+    from renderlab.studies.unknown_satellite.demo import run_demo_unknown_satellite
     from renderlab.truthset import TruthSet
 
     out = Path(out)

@@ -43,7 +43,7 @@ def scenario_dict(**sections):
 
 def render_one(d: dict, seed: int = 1, frame: int = 0):
     """Render one frame of a scenario dict with the real Mitsuba backend → (RenderedFrame, FrameSpec)."""
-    from renderlab.render.pipeline import frame_specs, make_backend
+    from renderlab.pipeline import frame_specs, make_backend
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.analytic import build_scene
 

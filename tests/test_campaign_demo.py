@@ -25,7 +25,7 @@ def demo(tmp_path_factory):
 
 
 def test_demo_campaign_writes_report_with_both_methods_and_resumes(demo):
-    from renderlab.demo_campaign import run_demo_campaign
+    from renderlab.studies.retina_vs_spc.demo import run_demo_campaign
 
     out, _, html = demo
     assert html == out / "campaign" / "report" / "index.html" and html.is_file()   # the demo opens with it

@@ -16,12 +16,12 @@ import pyarrow.parquet as pq
 import pytest
 
 from renderlab.campaign import store
-from renderlab.campaign.config import PerturbationConfig
+from renderlab.scenario.campaign import PerturbationConfig
 from renderlab.campaign.executors import InProcessExecutor, execute_run
 from renderlab.campaign.perturb import draw_perturbation, perturb_camera
 from renderlab.campaign.plan import make_plan, run_seed_sequence
 from renderlab.campaign.runner import run_campaign
-from renderlab.campaign.scoring import TIMING_COLUMNS
+from renderlab.contracts.schemas import TIMING_COLUMNS
 from renderlab.cli import main
 from renderlab.errors import UserError
 from renderlab.scenario import load_scenario
@@ -89,7 +89,7 @@ def test_campaign_runs_and_truth_matches_opencv(campaign):
         K = np.array([[c["fx"], 0, c["cx"]], [0, c["fy"], c["cy"]], [0, 0, 1.0]])
         sl, _ = cv2.projectPoints(sphere[None], rvec, tvec, K, None)
         assert min(np.hypot(*(np.array(p) - sl.ravel())) for p in truth) < 1e-9
-    ok = t.filter(np.array(t.column("flags").to_pylist()) == 0)
+    ok = t.filter(np.array(t.column("has_result").to_pylist(), bool))
     assert ok.num_rows >= 3
     assert np.all(np.abs(ok.column("err_s").to_numpy()) < 4) and np.all(np.abs(ok.column("err_l").to_numpy()) < 4)
 

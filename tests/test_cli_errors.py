@@ -1,6 +1,6 @@
 """User errors on the command line: exit code 2, one line on stderr, nothing written.
 
-design.md, "The command line": user errors exit with code 2 and one line on stderr. Each case
+docs/architecture.md, "Command line": user errors exit with code 2 and one line on stderr. Each case
 below is a small malformed scenario (the text of scenes/analytic_sphere_box.toml, shrunk to a
 tiny render and then changed in one place) or a malformed argument list. Every case checks:
 

@@ -38,7 +38,7 @@ def test_bad_section_values_are_user_errors(repo, override, message):
 
 
 def test_study_refuses_what_it_does_not_model(repo):
-    from renderlab.studies.coastline_study import geometric_options
+    from renderlab.studies.coastline_ekf.study import geometric_options
 
     for override, key in (("perturbations.attitude_sigma_deg=0.1", "perturbations.attitude_sigma_deg"),
                           ("perturbations.focal_length_sigma_frac=0.01", "perturbations.focal_length_sigma_frac"),
@@ -51,8 +51,8 @@ def test_study_refuses_what_it_does_not_model(repo):
 
 def test_scenario_maps_onto_the_earth_worlds_orbit(repo):
     """The study's truth (RK4 two-body, Earth angle gmst0 + ω⊕t) puts the satellite where the Earth world does."""
-    from renderlab.studies.coastline_geometric import OMEGA_EARTH, _R3, truth_geometry
-    from renderlab.studies.coastline_study import geometric_options
+    from renderlab.studies.coastline_ekf.geometric import OMEGA_EARTH, _R3, truth_geometry
+    from renderlab.studies.coastline_ekf.study import geometric_options
     from renderlab.worlds.earth.plan import EarthPlan
 
     sc, _ = _scenario(repo, *SHORT, "trajectory.start_s=600", "trajectory.raan_deg=30", "trajectory.true_anomaly_deg=10")
@@ -75,7 +75,7 @@ def test_campaign_and_report(repo, tmp_path):
     from renderlab.campaign.plan import make_plan, run_seed_sequence
     from renderlab.campaign.runner import run_campaign_file
     from renderlab.report.campaign_report import make_report
-    from renderlab.studies.coastline_study import run
+    from renderlab.studies.coastline_ekf.study import run
 
     out = tmp_path / "camp"
     res = run_campaign_file(repo / "scenes/coastline_ekf.toml", out, 3, overrides=SHORT, workers=0, progress=False)
@@ -100,8 +100,8 @@ def test_truth_j2_option(repo):
     """``truth_j2``: the truth's node drifts at Vallado's secular J2 rate; the two-body filter (q = 0) then
     fails its χ² test, which is what the option is for."""
     from renderlab.dynamics.orbits import OrbitElements, j2_nodal_rate, raan_of
-    from renderlab.report.coastline_scoring import chi2_band
-    from renderlab.studies.coastline_geometric import R_EARTH_M, paper_orbit, run_batch, truth_geometry
+    from renderlab.studies.coastline_ekf.scoring import chi2_band
+    from renderlab.studies.coastline_ekf.geometric import R_EARTH_M, paper_orbit, run_batch, truth_geometry
 
     o = paper_orbit("i45_h1000", cadence_s=60.0)
     o = replace(o, truth_j2=True, duration_s=3 * o.period_s).validate()
@@ -127,7 +127,7 @@ def test_truth_j2_option(repo):
 
 def test_demo_piece(tmp_path):
     """``run_demo_coastline`` (wired into ``renderlab demo``): campaign, report with figures, one summary line."""
-    from renderlab.studies.coastline_study import run_demo_coastline
+    from renderlab.studies.coastline_ekf.study import run_demo_coastline
 
     r = run_demo_coastline(tmp_path, progress=False, runs=3)
     assert r["runs"] == 3 and r["failed"] == 0 and r["report"].is_file()

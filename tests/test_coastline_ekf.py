@@ -128,7 +128,7 @@ def test_star_tracker_rotation_is_small_and_orthonormal():
 
 @pytest.fixture(scope="module")
 def polar_1000():
-    from renderlab.studies.coastline_geometric import paper_orbit, truth_geometry
+    from renderlab.studies.coastline_ekf.geometric import paper_orbit, truth_geometry
 
     o = paper_orbit("i90_h1000")
     geo = truth_geometry(o)
@@ -162,7 +162,7 @@ def test_matched_points_are_inside_the_camera_footprint(polar_1000):
 def test_noise_free_stream_converges_to_truth(polar_1000):
     """Noise-free LOS, dispersed start: the error shrinks to the linear-theory value
     x̂_K − x_K = P_K Φ(t_K, t_0)⁻ᵀ P_0⁻¹ (x̂_0 − x_0) (information form, Q = 0)."""
-    from renderlab.studies.coastline_geometric import run_batch
+    from renderlab.studies.coastline_ekf.geometric import run_batch
 
     o, geo = polar_1000
     N = 6
@@ -180,8 +180,8 @@ def test_noise_free_stream_converges_to_truth(polar_1000):
 def test_anees_and_anis_inside_99_percent_chi2_band(polar_1000):
     """200 seeded runs, one orbit: ANEES at four times inside [χ²₀.₀₀₅(6N)/N, χ²₀.₉₉₅(6N)/N] and the summed
     NIS of all images inside the 99 % band of χ²(N Σ 2mₖ); the MC RMS does not beat the PCRB."""
-    from renderlab.report.coastline_scoring import chi2_band, nis_total_test, pcrb_ric_sigma, per_time_summary
-    from renderlab.studies.coastline_geometric import run_batch
+    from renderlab.studies.coastline_ekf.scoring import chi2_band, nis_total_test, pcrb_ric_sigma, per_time_summary
+    from renderlab.studies.coastline_ekf.geometric import run_batch
 
     o, geo = polar_1000
     N = 200
@@ -202,7 +202,7 @@ def test_anees_and_anis_inside_99_percent_chi2_band(polar_1000):
 
 
 def test_run_k_replays_alone_bit_identically(polar_1000):
-    from renderlab.studies.coastline_geometric import run, run_batch
+    from renderlab.studies.coastline_ekf.geometric import run, run_batch
 
     o, _ = polar_1000
     seeds = np.random.SeedSequence(99).spawn(5)
@@ -220,7 +220,7 @@ def test_run_k_replays_alone_bit_identically(polar_1000):
 @pytest.mark.parametrize("bad", [{"sigma_theta_rad": 0.0}, {"cadence_s": -1.0}, {"altitude_m": float("nan")},
                                  {"no_such_option": 1}])
 def test_bad_options_raise_one_line_user_error(bad):
-    from renderlab.studies.coastline_geometric import options_from_mapping
+    from renderlab.studies.coastline_ekf.geometric import options_from_mapping
 
     with pytest.raises(UserError) as ei:
         options_from_mapping(bad)
@@ -233,7 +233,7 @@ def test_publish_writes_table1_figures_and_summary(tmp_path):
 
     import pyarrow.parquet as pq
 
-    from renderlab.report.coastline_publish import main
+    from renderlab.studies.coastline_ekf.publish import main
 
     assert main(["--out", str(tmp_path), "--runs", "12", "--orbits", "i45_h500", "--revolutions", "0.25",
                  "--chunk", "5"]) == 0

@@ -28,7 +28,7 @@ SMALL = ["camera.width=128", "camera.height=128", "trajectory.frames=2", "trajec
 def _truthset(repo, cache, *overrides):
     from renderlab.campaign.cache import cached_truthset
     from renderlab.scenario import load_scenario, scenario_from_dict
-    from renderlab.studies.coastline_image import render_scenario_dict
+    from renderlab.studies.coastline_ekf.image import render_scenario_dict
     from renderlab.truthset import TruthSet
 
     sc, base = load_scenario(repo / "scenes/coastline_image.toml", [*SMALL, *overrides])
@@ -140,7 +140,7 @@ def test_image_study_through_campaign_engine(repo, clear, cache, tmp_path):
     from renderlab.campaign.plan import make_plan, run_seed_sequence
     from renderlab.campaign.runner import run_campaign
     from renderlab.report.campaign_report import make_report
-    from renderlab.studies.coastline_study import run
+    from renderlab.studies.coastline_ekf.study import run
 
     sc, base, _ = clear
     from renderlab.campaign import store

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from renderlab.render.crosscheck import TARGETS, position_gap, radiometric_agreement, shadow_edge_shift_px
+from renderlab.crosscheck import TARGETS, position_gap, radiometric_agreement, shadow_edge_shift_px
 
 
 def _edge_image(shift_px: float, H=40, W=40, x0=19.3):
@@ -55,7 +55,7 @@ def test_ray_oracle_against_closed_forms():
     from conftest import scenario_dict
     from oracles import camera_rays, hit_box, hit_plane_z0, hit_sphere
 
-    from renderlab.render.pipeline import frame_specs
+    from renderlab.pipeline import frame_specs
     from renderlab.render.ray_oracle import oracle_scene, pixel_truth
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.analytic import build_scene
@@ -166,7 +166,7 @@ def test_both_renderers_at_degenerate_hapke_azimuths():
     from oracles import camera_rays, hit_plane_z0
 
     from renderlab.photometry import make_law
-    from renderlab.render.pipeline import frame_specs, make_backend
+    from renderlab.pipeline import frame_specs, make_backend
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.analytic import build_scene
 

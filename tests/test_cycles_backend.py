@@ -20,7 +20,7 @@ LAWS = ["lambert", "lommel_seeliger", "mcewen", "hapke"]
 
 
 def _backend(d):
-    from renderlab.render.pipeline import frame_specs, make_backend
+    from renderlab.pipeline import frame_specs, make_backend
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.analytic import build_scene
 
@@ -218,7 +218,7 @@ def test_box_shadow_edge_on_plane_within_half_pixel():
 def test_same_seed_gives_identical_cycles_truth_set(tmp_path):
     """render_truthset with the Cycles renderer twice: byte-identical EXR and PNG files; another seed
     changes the box-filtered edge pixels."""
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
 
     bodies = [{"name": "ground", "shape": "plane", "center_m": [0, 0, 0], "size_m": [20, 20], "law": "lambert", "albedo": 0.25},
@@ -243,7 +243,7 @@ def test_same_seed_gives_identical_cycles_truth_set(tmp_path):
 ])
 def test_unsupported_inputs_are_user_errors(change, message):
     from renderlab.render.cycles_backend import blender_camera
-    from renderlab.render.pipeline import frame_specs, make_backend
+    from renderlab.pipeline import frame_specs, make_backend
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.analytic import build_scene
 

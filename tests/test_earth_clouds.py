@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from earth_fixtures import earth_scenario
 
-from renderlab.render.pipeline import make_backend
+from renderlab.pipeline import make_backend
 from renderlab.worlds.earth import wgs84
 from renderlab.worlds.earth.clouds import CloudField
 from renderlab.worlds.earth.plan import CLOUD_ID, GROUND_ID

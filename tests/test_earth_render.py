@@ -15,7 +15,7 @@ import pytest
 from earth_fixtures import earth_scenario
 from scipy.spatial import cKDTree
 
-from renderlab.render.pipeline import make_backend
+from renderlab.pipeline import make_backend
 from renderlab.worlds.earth import wgs84
 
 gshhg = earth_fixtures.gshhg  # session fixture: GSHHG parsed once for all Earth tests

@@ -28,7 +28,7 @@ SCENARIO = {
 
 
 def _render(out):
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
 
     return render_truthset(scenario_from_dict(copy.deepcopy(SCENARIO)), ".", out, progress=False)
@@ -152,7 +152,7 @@ def test_descent_geometry_and_truth_angles(truthset):
 def test_occluded_landmarks_flagged_like_an_independent_line_of_sight_oracle():
     """A low, grazing view across the target boulder: landmarks behind it are flagged occluded exactly
     where a ray march against the site DEM (scipy bilinear interpolation) finds the line of sight blocked."""
-    from renderlab.render.pipeline import make_backend
+    from renderlab.pipeline import make_backend
     from renderlab.render.scene import FrameSpec
     from renderlab.dynamics.camera_paths import CameraPose
     from renderlab.geometry.rotations import look_at

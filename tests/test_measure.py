@@ -1,4 +1,4 @@
-"""The measurement runner (`renderlab.measure`) on a small truth set written with TruthSetWriter from
+"""The measurement runner (`renderlab.measurement.runner`) on a small truth set written with TruthSetWriter from
 Mitsuba renders of the test terrain, and the `renderlab measure` command's error cases."""
 
 from __future__ import annotations
@@ -11,8 +11,7 @@ import pytest
 
 from test_retina_render import CAMERA, SUN, make_maplets, render_dn, terrain_dem, true_pose
 
-DESIGN_COLUMNS = ["campaign", "run", "frame", "item", "method", "pred_s", "pred_l", "meas_s", "meas_l", "truth_s",
-                  "truth_l", "err_s", "err_l", "score", "flags", "t_ms"]
+from renderlab.contracts.schemas import LANDMARK_RUNNER
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +53,7 @@ def truthset(tmp_path_factory):
 
 
 def _measure(path, maplets, method, seed, **kw):
-    from renderlab.measure import MeasureOptions, measure_truthset
+    from renderlab.measurement.runner import MeasureOptions, measure_truthset
     from renderlab.truthset import TruthSet
 
     opts = MeasureOptions(sigma_pos_m=(0.2, 0.2, 0.2), sigma_att_rad=(1e-3,) * 3, campaign="t", **kw)
@@ -63,23 +62,26 @@ def _measure(path, maplets, method, seed, **kw):
 
 @pytest.mark.parametrize("method", ["retina", "spc"])
 def test_measure_truthset_rows(truthset, method):
-    from estimators import flags as F
-    from renderlab.measure import MeasureOptions, draw_apriori
+    from renderlab.contracts.reasons import reason_values
+    from renderlab.measurement.runner import MeasureOptions, draw_apriori
 
     path, maplets = truthset
     t = _measure(path, maplets, method, seed=5)
-    assert all(c in t for c in DESIGN_COLUMNS)
+    assert list(t)[:len(LANDMARK_RUNNER)] == LANDMARK_RUNNER.names
     n = len(t["frame"])
     assert n == 6 and set(t["method"]) == {method} and set(t["campaign"]) == {"t"}
     err_s, err_l = np.array(t["err_s"]), np.array(t["err_l"])
     np.testing.assert_allclose(err_s, np.array(t["meas_s"]) - np.array(t["truth_s"]), equal_nan=True)
-    good = (np.array(t["flags"]) & F.NO_RESULT_MASK) == 0
-    assert good.sum() >= 5, t["flags_text"]
+    good = np.array(t["has_result"], bool)
+    assert good.sum() >= 5, t["diagnostics"]
+    assert set(t["reason"]) <= set(reason_values("landmark"))
+    assert all((r == "ok") == g for r, g in zip(t["reason"], good))
+    assert np.all(np.isfinite(err_s[good])) and np.all(np.isnan(err_s[~good]))
     limit = 0.3 if method == "retina" else 0.5
     assert np.hypot(err_s[good], err_l[good]).max() < limit, (err_s, err_l)
     # the occluded landmark (frame 1, id 2) is flagged from the truth table, and still measured
     k = [i for i in range(n) if t["frame"][i] == 1 and t["item"][i] == 2][0]
-    assert t["flags"][k] & F.NOT_VISIBLE_TRUTH and not t["truth_visible"][k]
+    assert not t["truth_visible"][k]
     assert t["gsd_ratio"][k] == pytest.approx(0.9)
     # the a-priori perturbation is one seeded draw per frame, recorded on every row
     rng = np.random.default_rng(5)
@@ -152,7 +154,7 @@ def test_cli_errors(truthset, tmp_path, capsys):
     assert "truth set not found" in capsys.readouterr().err
     assert _cli("measure", str(path), "--method", "sift") == 2
     err = capsys.readouterr().err
-    assert "invalid choice" in err and err.count("\n") == 1
+    assert "unknown landmark method 'sift' (registered: " in err and "retina" in err and err.count("\n") == 1
     assert _cli("measure", str(bare), "--method", "retina") == 2
     err = capsys.readouterr().err
     assert "no landmark catalog" in err and err.count("\n") == 1
@@ -166,8 +168,6 @@ def test_cli_errors(truthset, tmp_path, capsys):
 def test_cli_measure_end_to_end(truthset, tmp_path, capsys):
     import pyarrow.parquet as pq
 
-    from estimators import flags as F
-
     path, _ = truthset
     if not (path / "landmarks.parquet").is_file():
         pytest.skip("renderlab.worlds.ev5.catalog (write_catalog) is not available")
@@ -175,9 +175,12 @@ def test_cli_measure_end_to_end(truthset, tmp_path, capsys):
     argv = ["measure", str(path), "--method", "retina", "--out", str(out), "--seed", "3", "--sigma-pos-m", "0.2",
             "--quiet"]
     assert _cli(*argv) == 0
-    assert "6 retina measurements" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "6 retina measurements" in printed
     t = pq.read_table(out).to_pydict()
-    good = (np.array(t["flags"]) & F.NO_RESULT_MASK) == 0
+    good = np.array(t["has_result"], bool)
+    e = np.array(t["err_s"])[good]
+    assert f"{good.sum()}/6 with a result" in printed and f"sample bias {e.mean():+.3f} px" in printed
     assert good.sum() >= 5
     assert np.hypot(np.array(t["err_s"])[good], np.array(t["err_l"])[good]).max() < 0.3
     assert _cli(*argv) == 2 and "exists" in capsys.readouterr().err  # no silent overwrite
@@ -191,7 +194,7 @@ def test_cli_measure_end_to_end(truthset, tmp_path, capsys):
 
 def test_options_validation():
     from renderlab.errors import UserError
-    from renderlab.measure import MeasureOptions
+    from renderlab.measurement.runner import MeasureOptions
 
     with pytest.raises(UserError, match="sigma_pos_m"):
         MeasureOptions(sigma_pos_m=(1.0, math.nan, 1.0))

@@ -53,7 +53,7 @@ def select_well_measurable(truth: dict, sizes: dict) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def ev5_set(tmp_path_factory):
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
@@ -65,7 +65,7 @@ def ev5_set(tmp_path_factory):
 
 
 def _errors(ev5_set, peak):
-    from renderlab.measure import MeasureOptions, measure_truthset
+    from renderlab.measurement.runner import MeasureOptions, measure_truthset
 
     ts, maplets, truth = ev5_set
     opts = MeasureOptions(sigma_pos_m=(0.0,) * 3, sigma_att_rad=(0.0,) * 3, peak=peak, supersample=2)

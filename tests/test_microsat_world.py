@@ -30,7 +30,7 @@ SETS = ["trajectory.frames=8", "trajectory.dt_s=4.0", "trajectory.v0_lvlh_mps=[0
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory, repo):
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
     from renderlab.truthset import TruthSet
 
     sc, base = load_scenario(repo / "scenes" / "unknown_satellite.toml", SETS)
@@ -113,7 +113,7 @@ def test_stage1_on_rendered_sequence(rendered):
     from scipy.stats import chi2
 
     from estimators.pose.inertia import is_physical
-    from renderlab.studies.unknown_satellite import StudyOptions, analyse_truthset
+    from renderlab.studies.unknown_satellite.sequence import StudyOptions, analyse_truthset
 
     ts, sc = rendered
     res = analyse_truthset(ts.path, np.random.default_rng(0), StudyOptions(min_track_frames=4, epsilon_px=15.0))
@@ -150,7 +150,7 @@ def test_fim_on_rendered_sequence_scale_unobservable_ratios_observable(rendered)
     """Eq. 7 on the rendered database: with (ln I1, ln I2, ln I3) the one null direction of the Fisher
     matrix is the inertia scale (1, 1, 1)/√3; with the ratios the matrix has full rank."""
     from estimators.pose import observability, with_full_inertia
-    from renderlab.studies.unknown_satellite import StudyOptions, analyse_truthset
+    from renderlab.studies.unknown_satellite.sequence import StudyOptions, analyse_truthset
 
     ts, _ = rendered
     res = analyse_truthset(ts.path, np.random.default_rng(0), StudyOptions(min_track_frames=4, epsilon_px=15.0))
@@ -185,7 +185,7 @@ def test_too_few_tracked_points_is_a_user_error(rendered):
 
     from estimators.pose import detect_points
     from renderlab.errors import UserError
-    from renderlab.studies.unknown_satellite import StudyOptions, analyse_truthset
+    from renderlab.studies.unknown_satellite.sequence import StudyOptions, analyse_truthset
 
     ts, _ = rendered
 

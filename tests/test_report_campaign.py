@@ -30,8 +30,8 @@ def test_report_from_tables(tmp_path, capsys):
     for r in rows:
         sel = np.array(t.column("method").to_pylist()) == r["method"]
         e = np.array(t.column(f"err_{r['axis']}").to_pylist(), float)[sel]
-        fl = np.array(t.column("flags").to_pylist())[sel]
-        good = e[(fl & 1) == 0]
+        has = np.array(t.column("has_result").to_pylist(), bool)[sel]
+        good = e[has]
         good = good[np.isfinite(good)]
         assert int(r["n_rows"]) == sel.sum() and int(r["n_result"]) == len(good)
         assert abs(float(r["no_result_rate"]) - (1 - len(good) / sel.sum())) < 1e-5

@@ -2,7 +2,7 @@
 
 The terrain is an in-memory ``trimesh`` body lit with the McEwen law; the estimators get coarser maplets
 derived from the DEM with height errors. Oracle: the projection of each landmark centre with the true
-pose (the truth pixel, design.md).
+pose (the truth pixel, docs/architecture.md).
 """
 
 from __future__ import annotations

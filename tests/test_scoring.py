@@ -104,13 +104,15 @@ def _meas_table(rng, n=400):
     cols = {"campaign": ["c"] * n, "run": np.arange(n) // 4, "frame": np.zeros(n, int), "item": np.zeros(n, int),
             "method": method, "pred_s": np.zeros(n), "pred_l": np.zeros(n), "meas_s": es + 10, "meas_l": el + 10,
             "truth_s": np.full(n, 10.0), "truth_l": np.full(n, 10.0), "err_s": es, "err_l": el,
-            "score": np.ones(n), "flags": flags, "t_ms": np.ones(n), "phase_deg": phase}
+            "score": np.ones(n), "has_result": flags == 0,
+            "reason": np.where(flags == 0, "ok", "low_correlation"), "outlier": np.zeros(n, bool),
+            "diagnostics": [""] * n, "t_ms": np.ones(n), "phase_deg": phase}
     return pa.table(cols), method, es, el, flags, phase
 
 
 def test_score_measurements_and_breakdown_match_selection():
     t, method, es, el, flags, phase = _meas_table(np.random.default_rng(5))
-    assert scoring.table_kind(t) == "measurement"
+    assert scoring.table_kind(t) == "landmark"
     rows = {(r["method"], r["axis"]): r for r in scoring.score_measurements(t)}
     for m in "ab":
         sel = method == m
@@ -135,7 +137,8 @@ def test_filter_scoring_anees_inside_chi2_bounds():
     runs, times = 50, 20
     run = np.repeat(np.arange(runs), times)
     t_s = np.tile(np.arange(times, dtype=float), runs)
-    tab = pa.table({"run": run, "t_s": t_s, "err_r_m": rng.normal(0, 1, runs * times),
+    tab = pa.table({"run": run, "t_s": t_s, "has_result": t_s > 0, "reason": np.where(t_s > 0, "ok", "prior"),
+                    "err_r_m": rng.normal(0, 1, runs * times),
                     "nees": rng.chisquare(6, runs * times), "nis": rng.chisquare(2, runs * times)})
     assert scoring.table_kind(tab) == "filter"
     rows = {r["quantity"]: r for r in scoring.score_filter(tab, settle_s=5.0)}

@@ -146,7 +146,7 @@ def test_prediction_uses_believed_camera_and_apriori_pose_opencv(campaign):
 
 def test_spacing_knowledge_scales_gsd_ratio_and_noise_is_redrawn(campaign):
     from renderlab.campaign.perturb import PerturbationDraw
-    from renderlab.campaign.study_retina_spc import BelievedTruthSet
+    from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
     from renderlab.scenario import load_scenario
     from renderlab.sensor import SensorOptions, expected_dn
 

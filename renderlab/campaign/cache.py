@@ -67,7 +67,7 @@ def _complete(path: Path) -> bool:
 
 def cached_truthset(scenario, base_dir: Path, cache_root: Path, *, frames: int | None = None) -> tuple[Path, bool]:
     """Path of the truth set of ``scenario`` (rendered now if not cached) and whether it was a hit."""
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
 
     key = truth_key(scenario.to_dict(), frames)
     path = Path(cache_root) / key

@@ -23,7 +23,7 @@ from renderlab.errors import UserError
 def _validate_tables(tables, task) -> dict:
     import pyarrow as pa
 
-    from renderlab.campaign.scoring import MEASUREMENT_COLUMNS, table_kind
+    from renderlab.contracts.schemas import CORE, table_kind
 
     if not isinstance(tables, dict) or not tables:
         raise TypeError(f"study {task.study} returned {type(tables).__name__}, expected a non-empty dict of tables")
@@ -37,8 +37,8 @@ def _validate_tables(tables, task) -> dict:
             t = t.add_column(0, "run", pa.array([task.index] * t.num_rows, pa.int64()))
         if "campaign" not in t.column_names:
             t = t.add_column(0, "campaign", pa.array([task.campaign] * t.num_rows, pa.string()))
-        if name == "measurements" and table_kind(t) != "measurement":
-            missing = [c for c in MEASUREMENT_COLUMNS if c not in t.column_names]
+        if name == "measurements" and table_kind(t) != "landmark":
+            missing = [c for c in CORE["landmark"].names if c not in t.column_names]
             raise ValueError(f"study {task.study}: measurements lack columns {', '.join(missing)}")
         out[name] = t
     return out
@@ -90,7 +90,7 @@ def thread_report(_=None) -> dict:
 def execute_run(task) -> dict:
     """Execute one run (a :class:`renderlab.campaign.plan.RunTask`) and store it; return its status."""
     from renderlab.campaign import store
-    from renderlab.campaign.studies import resolve_study
+    from renderlab import plugins
     from renderlab.scenario import scenario_from_dict
 
     apply_thread_limit()
@@ -98,7 +98,7 @@ def execute_run(task) -> dict:
     status = {"run": task.index, "status": "ok", "error": "", "seconds": 0.0}
     tables = {}
     try:
-        fn = resolve_study(task.study)
+        fn = plugins.studies.get(task.study, where="campaign.study: ").run
         scenario = scenario_from_dict(task.scenario, "campaign scenario")
         workdir = Path(task.campaign_dir) / "work"
         tables = _validate_tables(fn(scenario, Path(task.base_dir), task.index, task.seed_sequence(), workdir), task)

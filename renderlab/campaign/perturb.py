@@ -1,6 +1,6 @@
 """Draw and apply the perturbations of one Monte Carlo run.
 
-Each dispersion of :class:`~renderlab.campaign.config.PerturbationConfig` has its own random
+Each dispersion of :class:`~renderlab.scenario.campaign.PerturbationConfig` has its own random
 stream (a fixed-order child of the run's perturbation ``SeedSequence``), so switching one
 dispersion on or off never changes the draws of the others. Gaussian draws with a covariance
 ``P`` use ``x = L z``, ``P = L Lᵀ`` (eigen-factorisation, so a semi-definite ``P`` is allowed).

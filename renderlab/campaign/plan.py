@@ -79,7 +79,7 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     UserError
         ``--runs`` out of range, negative seed, or an unknown study / one that does not fit the world.
     """
-    from renderlab.campaign.studies import resolve_study, study_for
+    from renderlab import plugins
 
     if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
         raise UserError(f"--runs must be an integer in 1..{MAX_RUNS}, got {runs!r}")
@@ -87,5 +87,22 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise UserError(f"campaign seed must be a non-negative integer, got {seed!r}")
     name = study or study_for(scenario)
-    resolve_study(name)  # fails early on an unknown study
+    found = plugins.studies.get(name, where="campaign.study: ")  # fails early on an unknown study
+    kind = scenario.world.kind
+    if kind not in found.worlds:
+        raise UserError(f"study '{name}' runs on world kind {' or '.join(repr(w) for w in found.worlds)}, "
+                        f"not '{kind}'")
     return CampaignPlan(scenario=scenario, base_dir=Path(base_dir).resolve(), runs=runs, seed=seed, study=name)
+
+
+def study_for(scenario) -> str:
+    """The study named by ``scenario.campaign.study`` or the default of its world kind."""
+    from renderlab import plugins
+
+    if scenario.campaign.study:
+        return scenario.campaign.study
+    kind = scenario.world.kind
+    if kind not in plugins.DEFAULT_STUDY:
+        raise UserError(f"no campaign study for world kind '{kind}' yet; set campaign.study "
+                        f"(registered: {', '.join(plugins.studies.names())})")
+    return plugins.DEFAULT_STUDY[kind]

@@ -1,10 +1,10 @@
 """Scoring campaign tables: errors against truth, bias, noise, robust statistics, failure rates, CRLB.
 
-Measurement tables (design.md): ``err = meas − truth`` per axis (s, l) and method. Per group:
+Measurement tables (:data:`renderlab.contracts.schemas.LANDMARK_CORE`): ``err = meas − truth`` per axis (s, l)
+and method. Per group:
 bias = mean (Student-t confidence interval), noise = standard deviation (χ² interval, normal errors),
 robust versions median (binomial order-statistic interval) and MAD·1.4826 (σ for normal errors),
-RMS, and the no-result rate (rows with ``flags & FLAG_NO_RESULT`` or a NaN measurement; Wilson
-interval). Breakdowns repeat this per quantile bin of a covariate (phase angle, GSD ratio, shadow
+RMS, and the no-result rate (rows with ``has_result`` false or a NaN measurement; Wilson interval). Breakdowns repeat this per quantile bin of a covariate (phase angle, GSD ratio, shadow
 fraction, albedo contrast, range).
 
 Image-registration Cramér–Rao bound: for an image I(s − δs, l − δl) of a known scene in independent
@@ -25,26 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-FLAG_NO_RESULT = 1  #: the method returned no measurement
-FLAG_OUT_OF_VIEW = 2  #: the predicted search window left the image
-FLAG_TOUCHES_EDGE = 4  #: the detection touched the search window's edge
-
-MEASUREMENT_COLUMNS = ("campaign", "run", "frame", "item", "method", "pred_s", "pred_l", "meas_s", "meas_l",
-                       "truth_s", "truth_l", "err_s", "err_l", "score", "flags", "t_ms")
-FILTER_COLUMNS = ("run", "t_s")
 BREAKDOWNS = ("phase_deg", "gsd_ratio", "shadow_fraction", "albedo_contrast", "range_m")
-#: columns that hold wall-clock timings (excluded from bit-identity checks)
-TIMING_COLUMNS = ("t_ms",)
 
 
 def table_kind(table) -> str:
-    """``"measurement"`` or ``"filter"`` from the columns present, ``"other"`` otherwise."""
-    names = set(table.column_names)
-    if set(MEASUREMENT_COLUMNS) <= names:
-        return "measurement"
-    if set(FILTER_COLUMNS) <= names and any(n.startswith("err_") for n in names):
-        return "filter"
-    return "other"
+    """``"landmark"``, ``"filter"``, ``"pose"`` or ``"other"`` (:func:`renderlab.contracts.schemas.table_kind`)."""
+    from renderlab.contracts.schemas import table_kind as kind
+
+    return kind(table)
 
 
 # ------------------------------------------------------------------------------ statistics
@@ -110,9 +98,9 @@ def _col(table, name, dtype=float):
 
 
 def no_result_mask(table) -> np.ndarray:
-    """Rows where the method gave no measurement (flag or NaN)."""
-    flags = _col(table, "flags", np.int64)
-    return ((flags & FLAG_NO_RESULT) != 0) | ~np.isfinite(_col(table, "meas_s")) | ~np.isfinite(_col(table, "meas_l"))
+    """Rows where the method gave no measurement (``has_result`` false or a NaN measurement)."""
+    has = _col(table, "has_result", bool)
+    return ~has | ~np.isfinite(_col(table, "meas_s")) | ~np.isfinite(_col(table, "meas_l"))
 
 
 def _group_rows(table, mask, keys: dict, confidence: float) -> list[dict]:

@@ -29,7 +29,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from renderlab.render.crosscheck import TARGETS, run_crosscheck
+    from renderlab.crosscheck import TARGETS, run_crosscheck
     from renderlab.scenario import load_scenario
 
     scenario, base = load_scenario(args.scenario, args.overrides)

@@ -1,5 +1,6 @@
-"""``renderlab measure TRUTHSET --method retina|spc [--out FILE] [--seed S]``: landmark measurements of an
-EV5 truth set (see :mod:`renderlab.measure`); writes one Parquet table."""
+"""``renderlab measure TRUTHSET --method NAME|module:attr [--out FILE] [--seed S]``: landmark measurements of an
+EV5 truth set by any registered landmark method (see :mod:`renderlab.measurement.runner`); writes one Parquet
+table and prints a one-line bias/noise summary."""
 
 from __future__ import annotations
 
@@ -7,9 +8,11 @@ import math
 
 
 def add_parser(subparsers) -> None:
-    p = subparsers.add_parser("measure", help="measure the landmarks of an EV5 truth set (Retina or SPC-style)")
+    p = subparsers.add_parser("measure", help="measure the landmarks of an EV5 truth set (Retina, SPC-style, yours)")
     p.add_argument("truthset", metavar="TRUTHSET", help="truth set folder with a landmark catalog")
-    p.add_argument("--method", required=True, choices=["retina", "spc"], help="measurement method")
+    p.add_argument("--method", required=True, metavar="NAME",
+                   help="landmark method: a registered name (retina, spc, or one an installed package adds through "
+                        "the 'renderlab.landmark_methods' entry point) or module:attr of your own class")
     p.add_argument("--out", metavar="FILE", help="output Parquet (default: TRUTHSET_<method>.parquet next to the truth set folder)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the a-priori pose draws (default 0)")
     p.add_argument("--sigma-pos-m", type=float, default=0.5, metavar="M",
@@ -34,9 +37,8 @@ def run(args) -> int:
 
     import numpy as np
 
-    from estimators.flags import NO_RESULT_MASK
     from renderlab.errors import UserError
-    from renderlab.measure import MeasureOptions, measure_truthset, write_table
+    from renderlab.measurement.runner import MeasureOptions, make_method, measure_truthset, write_table
     from renderlab.truthset import TruthSet
 
     if args.seed < 0:
@@ -45,6 +47,11 @@ def run(args) -> int:
         v = getattr(args, name)
         if not math.isfinite(v) or v < 0:
             raise UserError(f"--{name.replace('_', '-')} must be a finite non-negative number, got {v}")
+    opts = MeasureOptions(sigma_pos_m=(args.sigma_pos_m,) * 3, sigma_att_rad=(math.radians(args.sigma_att_deg),) * 3,
+                          n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
+                          min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
+                          photometry=args.photometry, campaign=args.campaign)
+    method = make_method(args.method, opts, allow_reference=True)  # an unknown name fails before anything is read
     ts = TruthSet.open(args.truthset)
     if not (ts.path / "landmarks.parquet").is_file():
         raise UserError(f"truth set {ts.path} has no landmark catalog (landmarks.parquet); "
@@ -54,16 +61,28 @@ def run(args) -> int:
     except ImportError:
         raise UserError("the EV5 catalog reader (renderlab.worlds.ev5.catalog) is not installed") from None
     maplets = read_catalog(ts.path)
-    opts = MeasureOptions(sigma_pos_m=(args.sigma_pos_m,) * 3, sigma_att_rad=(math.radians(args.sigma_att_deg),) * 3,
-                          n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
-                          min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
-                          photometry=args.photometry,
-                          campaign=args.campaign)
-    out = Path(args.out) if args.out else ts.path.parent / f"{ts.path.name}_{args.method}.parquet"
+    out = Path(args.out) if args.out else ts.path.parent / f"{ts.path.name}_{method.name}.parquet"
     if out.exists() and not args.overwrite:
         raise UserError(f"output {out} exists (use --overwrite to replace it)")
-    table = measure_truthset(ts, maplets, args.method, opts, np.random.default_rng(args.seed), progress=not args.quiet)
+    table = measure_truthset(ts, maplets, args.method, opts, np.random.default_rng(args.seed), progress=not args.quiet,
+                             allow_reference=True)
     write_table(table, out, overwrite=args.overwrite)
-    ok = sum(1 for f in table.column("flags").to_pylist() if not f & NO_RESULT_MASK)
-    print(f"renderlab: {table.num_rows} {args.method} measurements ({ok} with a result) -> {out}")
+    print(f"renderlab: {table.num_rows} {method.name} measurements -> {out}")
+    print(f"renderlab: {summary_line(table)}")
     return 0
+
+
+def summary_line(table) -> str:
+    """One line: results / rows, and per axis the bias and robust σ (MAD·1.4826) of err, px."""
+    import numpy as np
+
+    has = np.asarray(table.column("has_result").to_pylist(), bool)
+    parts = [f"{int(has.sum())}/{table.num_rows} with a result"]
+    for axis, name in (("s", "sample"), ("l", "line")):
+        e = np.asarray(table.column(f"err_{axis}").to_numpy(zero_copy_only=False), float)
+        e = e[has & np.isfinite(e)]
+        if e.size:
+            med = float(np.median(e))
+            parts.append(f"{name} bias {float(e.mean()):+.3f} px, robust sigma "
+                         f"{1.482602218505602 * float(np.median(np.abs(e - med))):.3f} px")
+    return "; ".join(parts)

@@ -35,7 +35,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from renderlab.worlds.earth import wgs84
     from renderlab.worlds.earth.gshhg import load_gshhg
-    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep
+    from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, visibility_sweep
 
     incs, fovs = _floats(args.inclinations), _floats(args.fovs)
     if not all(0 <= i <= 180 for i in incs):

@@ -127,7 +127,7 @@ class CameraModel:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "CameraModel":
-        """Build from the manifest camera dict (see ``design.md``; ``skew``, ``skew_yx``, ``model`` and
+        """Build from the manifest camera dict (see ``docs/architecture.md``; ``skew``, ``skew_yx``, ``model`` and
         ``distortion`` are optional). Unknown or missing keys raise :class:`UserError`."""
         if not isinstance(d, Mapping):
             raise UserError(f"camera must be a table of camera parameters, got {type(d).__name__}")

@@ -3,7 +3,7 @@
 One :class:`SceneDescription` (bodies with a photometric law and albedo) plus one
 :class:`FrameSpec` per frame (time, camera model and pose, sun) is all a backend needs. Backends
 (Mitsuba here, Cycles later) turn it into their own scene and return a :class:`RenderedFrame`
-whose arrays follow the lab's conventions (design.md: pixel centres at integers, P in the render
+whose arrays follow the lab's conventions (docs/architecture.md: pixel centres at integers, P in the render
 frame, range in metres from the camera centre, id −1 where nothing was hit).
 """
 

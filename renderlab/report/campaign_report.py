@@ -80,17 +80,13 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
 
 
 def _study_sections(study: str, tables, stage: Path) -> list[tuple[str, str]]:
-    """Extra sections from the study's own module: ``report_sections(tables, out_dir) -> [(title, html)]``
-    (optional; for tables the generic kinds do not cover)."""
-    import importlib
+    """Extra sections from the registered study's ``report_sections(tables, out_dir) -> [(title, html)]``
+    (optional; for tables the generic kinds do not cover). A study no longer registered gives none."""
+    from renderlab import plugins
 
-    from renderlab.campaign.studies import STUDIES
-
-    module = STUDIES.get(study, study).partition(":")[0]
-    try:
-        hook = getattr(importlib.import_module(module), "report_sections", None)
-    except ImportError:
+    if study not in plugins.studies:
         return []
+    hook = plugins.studies.get(study).report_sections
     return list(hook(tables, stage)) if callable(hook) else []
 
 
@@ -99,7 +95,7 @@ def _write_all(tables, stage: Path, confidence, scoring, figs) -> list[tuple[str
     sections, summary_all = [], []
     for name, t in sorted(tables.items()):
         kind = scoring.table_kind(t)
-        if kind == "measurement":
+        if kind == "landmark":
             rows = [{"table": name, **r} for r in scoring.score_measurements(t, confidence)]
             summary_all += rows
             brk = [r for col in scoring.BREAKDOWNS for r in scoring.breakdown(t, col, confidence=confidence)]

@@ -71,8 +71,7 @@ def build_scene(world, base_dir: Path) -> SceneDescription:
 
 def make_plan(scenario, base_dir: Path):
     """World plan of an analytic scenario: one static scene, frames from ``trajectory`` (line/orbit)."""
-    from renderlab.render.pipeline import frame_specs
-    from renderlab.worlds.base import WorldPlan
+    from renderlab.worlds.base import WorldPlan, frame_specs
 
     return WorldPlan(frames=frame_specs(scenario), render_frame={"name": "SCENE"},
                      static_scene=build_scene(scenario.world, base_dir))

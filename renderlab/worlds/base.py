@@ -1,7 +1,7 @@
 """What a world gives the render pipeline: a :class:`WorldPlan`.
 
-Every world kind (``analytic``, ``ev5``, ``earth``, ``microsat``) has a module with
-``make_plan(scenario, base_dir) -> WorldPlan``. The pipeline (``renderlab.render.pipeline``) is
+Every world kind (``analytic``, ``ev5``, ``earth``, ``microsat``) registers a
+``make_plan(scenario, base_dir) -> WorldPlan`` (:data:`renderlab.plugins.worlds`). The pipeline (``renderlab.pipeline``) is
 world-agnostic: it asks the plan for the frames (camera, pose, sun), for the scene each frame needs
 (most worlds have one scene for all frames, loaded once and updated in place; Earth renders a new
 local tangent tile per footprint), for extra per-frame metadata and truth-table rows, and for the
@@ -10,20 +10,15 @@ static files a truth set of that world carries (EV5: landmark catalog and maplet
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Hashable
 
-from renderlab.render.scene import FrameSpec, RenderedFrame, SceneDescription
+import numpy as np
 
-#: world kind → module with ``make_plan``
-WORLD_MODULES = {
-    "analytic": "renderlab.worlds.analytic",
-    "ev5": "renderlab.worlds.ev5",
-    "earth": "renderlab.worlds.earth",
-    "microsat": "renderlab.worlds.microsat",
-}
+from renderlab.dynamics.camera_paths import camera_path
+from renderlab.geometry.camera import CameraModel
+from renderlab.render.scene import FrameSpec, RenderedFrame, SceneDescription, SunSpec
 
 
 @dataclass
@@ -69,7 +64,18 @@ class WorldPlan:
         return {}
 
 
+def frame_specs(scenario) -> list[FrameSpec]:
+    """Camera, pose and sun of every frame of a scenario whose trajectory is a camera path (line/orbit)."""
+    camera = CameraModel.from_dict(scenario.camera.model_dump())
+    s = np.asarray(scenario.sun.direction, float)
+    sun = SunSpec(direction_render=s / np.linalg.norm(s), irradiance_w_m2=scenario.sun.irradiance_w_m2)
+    return [FrameSpec(index=k, pose=p, camera=camera, sun=sun) for k, p in enumerate(camera_path(scenario.trajectory))]
+
+
 def make_plan(scenario, base_dir: Path) -> WorldPlan:
-    """The :class:`WorldPlan` of ``scenario`` (dispatch on ``scenario.world.kind``)."""
-    module = importlib.import_module(WORLD_MODULES[scenario.world.kind])
-    return module.make_plan(scenario, Path(base_dir))
+    """The :class:`WorldPlan` of ``scenario``: the world kind's registered ``make_plan``
+    (:data:`renderlab.plugins.worlds`)."""
+    from renderlab import plugins
+
+    factory = plugins.worlds.get(scenario.world.kind, where="world.kind: ")
+    return factory(scenario, Path(base_dir))

@@ -23,7 +23,7 @@ SETS: list[str] = []   # the scene as it is: 100 frames at 3.3 frames/s (30 s), 
 
 def run(work: Path, seed: int, render: bool = True) -> None:
     from renderlab.scenario import load_scenario
-    from renderlab.studies.unknown_satellite import run_sequence
+    from renderlab.studies.unknown_satellite.sequence import run_sequence
 
     sc, base = load_scenario(REPO / "scenes" / "unknown_satellite.toml", SETS)
     run_sequence(sc, base, work, seed=seed, progress=True, render=render)

@@ -38,8 +38,8 @@ def publish(campaign: Path, long_arc: Path | None) -> None:
 
 def observability_table() -> None:
     from renderlab.scenario import load_scenario
-    from renderlab.studies.unknown_satellite_figures import write_csv
-    from renderlab.studies.unknown_satellite_observability import inertia_observability_table
+    from renderlab.studies.unknown_satellite.figures import write_csv
+    from renderlab.studies.unknown_satellite.observability import inertia_observability_table
 
     sc, _ = load_scenario(REPO / "scenes" / "unknown_satellite.toml")
     rows = inertia_observability_table(sc, progress=True).to_pylist()
@@ -55,7 +55,7 @@ def figures() -> None:
     import matplotlib.pyplot as plt
     import pyarrow.parquet as pq
 
-    from renderlab.studies.unknown_satellite_figures import campaign_figures, score_summary, write_csv
+    from renderlab.studies.unknown_satellite.figures import campaign_figures, score_summary, write_csv
 
     tables = {n: pq.read_table(str(HERE / f"{n}.parquet")) for n in TABLES if (HERE / f"{n}.parquet").is_file()}
     if "scores" in tables:

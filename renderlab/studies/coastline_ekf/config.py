@@ -12,9 +12,11 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field
 
 from renderlab.config_types import NonNegative, Positive, Strict
+from renderlab.errors import UserError
 
 
 class CoastlineStudyConfig(Strict):
@@ -40,3 +42,20 @@ class CoastlineStudyConfig(Strict):
     sensor_noise: bool = True                       # re-expose the cached radiance with this run's noise
     map_error_m: NonNegative | None = None          # None: world.coast_db_error_m; per-run map realisation
     map_error_in_filter: bool = False               # filter models the map error as a shared per-image LOS term
+
+
+SUPPORTED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps")
+
+
+def check_perturbations(p) -> None:
+    """Refuse perturbations the coastline study does not model (one line naming the key)."""
+    for name, value in p.model_dump().items():
+        if name in SUPPORTED_PERTURBATIONS or value is None:
+            continue
+        if np.any(np.asarray(value if not isinstance(value, dict) else list(value.values()) or [0.0], float) != 0):
+            raise UserError(f"study coastline_ekf does not model perturbations.{name}; the initial dispersion is "
+                            "perturbations.apriori_position_sigma_m / apriori_velocity_sigma_mps (ECI, per axis)")
+    pos, vel = np.asarray(p.apriori_position_sigma_m, float), np.asarray(p.apriori_velocity_sigma_mps, float)
+    if np.any(pos <= 0) or np.any(vel <= 0):
+        raise UserError("study coastline_ekf needs perturbations.apriori_position_sigma_m and "
+                        "apriori_velocity_sigma_mps > 0 on every axis (the filter's P0; paper: 500 m, 0.005 m/s)")

@@ -1,7 +1,7 @@
 r"""Campaign study ``coastline_ekf``: the coastline-navigation EKF of Straub & Christian from a scenario file.
 
 A scenario with ``world.kind = "earth"``, ``trajectory.kind = "leo"`` and a ``[coastline]`` section
-(:class:`renderlab.studies.coastline_config.CoastlineStudyConfig`) maps onto the study options:
+(:class:`renderlab.studies.coastline_ekf.config.CoastlineStudyConfig`) maps onto the study options:
 
 =============================  ======================================================================
 scenario key                   study option
@@ -18,8 +18,8 @@ perturbations.apriori_*        initial dispersion per ECI axis (paper: 500 m, 5 
 coastline.*                    mode, σθ (eq. 18), points per image, duration, process noise, image options
 =============================  ======================================================================
 
-``mode = "geometric"`` runs :func:`renderlab.studies.coastline_geometric.run_batch` for the run's seed
-sequence; ``mode = "image"`` runs :func:`renderlab.studies.coastline_image.run_image_study`. Both return the
+``mode = "geometric"`` runs :func:`renderlab.studies.coastline_ekf.geometric.run_batch` for the run's seed
+sequence; ``mode = "image"`` runs :func:`renderlab.studies.coastline_ekf.image.run_image_study`. Both return the
 design's filter table (``run, t_s, err_r/i/c_m, err_vr/vi/vc_mps, sig_*, nees, nis, n_meas``) under the name
 ``coastline_filter``; the image mode adds ``coastline_frames`` (per-image extraction/matching diagnostics).
 """
@@ -34,25 +34,11 @@ from renderlab.errors import UserError
 
 __all__ = ["geometric_options", "run", "check_perturbations"]
 
-SUPPORTED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps")
-
-
-def check_perturbations(p) -> None:
-    """Refuse perturbations the coastline study does not model (one line naming the key)."""
-    for name, value in p.model_dump().items():
-        if name in SUPPORTED_PERTURBATIONS or value is None:
-            continue
-        if np.any(np.asarray(value if not isinstance(value, dict) else list(value.values()) or [0.0], float) != 0):
-            raise UserError(f"study coastline_ekf does not model perturbations.{name}; the initial dispersion is "
-                            "perturbations.apriori_position_sigma_m / apriori_velocity_sigma_mps (ECI, per axis)")
-    pos, vel = np.asarray(p.apriori_position_sigma_m, float), np.asarray(p.apriori_velocity_sigma_mps, float)
-    if np.any(pos <= 0) or np.any(vel <= 0):
-        raise UserError("study coastline_ekf needs perturbations.apriori_position_sigma_m and "
-                        "apriori_velocity_sigma_mps > 0 on every axis (the filter's P0; paper: 500 m, 0.005 m/s)")
+from renderlab.studies.coastline_ekf.config import SUPPORTED_PERTURBATIONS, check_perturbations  # noqa: F401,E402
 
 
 def _section(scenario):
-    from renderlab.studies.coastline_config import CoastlineStudyConfig
+    from renderlab.studies.coastline_ekf.config import CoastlineStudyConfig
 
     if scenario.world.kind != "earth" or scenario.trajectory.kind != "leo":
         raise UserError(f"study coastline_ekf needs world.kind = 'earth' and trajectory.kind = 'leo', got "
@@ -77,7 +63,7 @@ def gmst_at_epoch(epoch_utc: str) -> float:
 
 def geometric_options(scenario):
     """:class:`CoastlineGeometricOptions` of a validated scenario (UserError on what the study cannot do)."""
-    from renderlab.studies.coastline_geometric import CoastlineGeometricOptions
+    from renderlab.studies.coastline_ekf.geometric import CoastlineGeometricOptions
 
     c = _section(scenario)
     tr, p = scenario.trajectory, scenario.perturbations
@@ -100,10 +86,10 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """Campaign-engine entry point: one run → ``{"coastline_filter": table, ...}`` (module docstring)."""
     c = _section(scenario)
     if c.mode == "image":
-        from renderlab.studies.coastline_image import run_image_study
+        from renderlab.studies.coastline_ekf.image import run_image_study
 
         return run_image_study(scenario, base_dir, run_index, seed_sequence, workdir)
-    from renderlab.studies.coastline_geometric import run_batch
+    from renderlab.studies.coastline_ekf.geometric import run_batch
 
     o = geometric_options(scenario)
     return {"coastline_filter": run_batch(o, [seed_sequence], [run_index])["table"]}
@@ -113,7 +99,7 @@ def report_sections(tables: dict, stage) -> list[tuple[str, str]]:
     """``renderlab report`` hook: the coastline section (Figs. 5-9, ANEES/ANIS with 2m-dof bands) per filter table."""
     from pathlib import Path
 
-    from renderlab.report.coastline_campaign import coastline_section, is_coastline_table
+    from renderlab.studies.coastline_ekf.report_section import coastline_section, is_coastline_table
 
     return [coastline_section(name, t, Path(stage)) for name, t in sorted(tables.items()) if is_coastline_table(t)]
 

@@ -7,7 +7,7 @@ noise:
 
 * a-priori pose per frame: position δt ~ N(0, diag σ_t²) (``apriori_position_sigma_m``, or the position
   block of ``apriori_cov``) and attitude δθ ~ N(0, σ_θ²) per camera axis (``apriori_attitude_sigma_deg``),
-  drawn by :func:`renderlab.measure.draw_apriori`; the search distance is 3σ of its projection;
+  drawn by :func:`renderlab.measurement.runner.draw_apriori`; the search distance is 3σ of its projection;
 * camera knowledge (the pixel map, eq. 4): ``fx, fy ← (1+δf)·(fx, fy)``, ``(cx, cy) += δc`` and
   distortion ``k += δk`` — the estimator projects (eqs. 1–4) with the believed camera, the image was
   taken with the true one;
@@ -70,7 +70,7 @@ def apriori_sigmas(p) -> tuple[tuple, tuple]:
 
 class BelievedTruthSet:
     """A truth set as the onboard system sees it: believed camera and Sun in the frame records, and
-    the DN images re-exposed with this run's noise. Only what :func:`renderlab.measure.measure_truthset`
+    the DN images re-exposed with this run's noise. Only what :func:`renderlab.measurement.runner.measure_truthset`
     reads (``path``, ``frames``, ``len``, ``load``, ``read_table``)."""
 
     def __init__(self, ts, draw, sensor_options, noise_seeds):
@@ -168,7 +168,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
     from renderlab.campaign.cache import cached_truthset
     from renderlab.campaign.perturb import draw_perturbation
-    from renderlab.measure import MeasureOptions, measure_truthset
+    from renderlab.measurement.runner import MeasureOptions, measure_truthset
     from renderlab.scenario import scenario_from_dict
     from renderlab.sensor import SensorOptions
     from renderlab.truthset import TruthSet

@@ -2,10 +2,10 @@
 
 The generic filter section of :mod:`renderlab.report.campaign_report` scores every ``err_*`` column and takes
 2 degrees of freedom per NIS row; the coastline NIS has 2m (m matched LOS in that image), so this section
-recomputes the consistency with :func:`renderlab.report.coastline_scoring.per_time_summary` (99 % two-sided
+recomputes the consistency with :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary` (99 % two-sided
 χ² bands, Bar-Shalom §5.4) and draws the paper's figures. The posterior Cramér–Rao bound needs the truth
-geometry; :mod:`renderlab.report.coastline_publish` adds it, the campaign report shows it when given.
-Hooked in through ``report_sections`` of :mod:`renderlab.studies.coastline_study`.
+geometry; :mod:`renderlab.studies.coastline_ekf.publish` adds it, the campaign report shows it when given.
+Hooked in through ``report_sections`` of :mod:`renderlab.studies.coastline_ekf.study`.
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ def is_coastline_table(table) -> bool:
 def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | None = None) -> tuple[str, str]:
     """Write ``<name>_coastline_{errors,consistency}.png`` and ``<name>_coastline_steady_state.csv`` into
     ``stage``; return the HTML section (title, body). ``pcrb_sigma`` (K, 6): optional PCRB σ per RIC axis."""
-    from renderlab.report.coastline_figures import plot_consistency, plot_errors
-    from renderlab.report.coastline_scoring import nis_total_test, per_time_summary, steady_state
+    from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors
+    from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary, steady_state
 
     runs = table["run"].to_numpy()
     t = table["t_s"].to_numpy()

@@ -30,18 +30,7 @@ import numpy as np
 
 from renderlab.errors import UserError
 
-#: run flags (bits of ``scores.flags``)
-FLAG_NOT_CONVERGED = 1          # stage 1 stopped on its evaluation budget
-FLAG_INERTIA_BOUNDARY = 2       # the free inertia solve was unphysical; the physical re-solve was used
-FLAG_RIGIDITY_REJECTED = 4      # the rigidity test rejected at least one track
-FLAG_STAGE2_GAPS = 8            # stage 2 left at least one frame without a pose (too few / coplanar points)
-FLAG_RANK = 16                  # FIM rank deficient beyond the inertia scale (eq. 7)
-FLAG_UNMATCHED_POINT = 32       # a database point follows no knob tip (a spurious feature)
-FLAG_AXES_RELABELLED = 64       # the principal axes came out relabelled (a discrete gauge; *_aligned scores)
-FLAG_NAMES = {FLAG_NOT_CONVERGED: "not_converged", FLAG_INERTIA_BOUNDARY: "inertia_boundary",
-              FLAG_RIGIDITY_REJECTED: "rigidity_rejected", FLAG_STAGE2_GAPS: "stage2_gaps",
-              FLAG_RANK: "rank_deficient", FLAG_UNMATCHED_POINT: "unmatched_point",
-              FLAG_AXES_RELABELLED: "axes_relabelled"}
+from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
 #: generic [perturbations] keys this study uses; any other non-zero one is refused
 USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", "apriori_attitude_sigma_deg",
@@ -51,7 +40,7 @@ CAMPAIGN_SECTIONS = ("perturbations", "campaign", "unknown_satellite", "coastlin
 
 def study_config(scenario):
     """The ``[unknown_satellite]`` section (defaults when absent)."""
-    from renderlab.studies.unknown_satellite_config import UnknownSatelliteStudyConfig
+    from renderlab.studies.unknown_satellite.config import UnknownSatelliteStudyConfig
 
     return getattr(scenario, "unknown_satellite", None) or UnknownSatelliteStudyConfig()
 
@@ -99,7 +88,7 @@ def truth_scenario_dict(scenario, draw: dict) -> dict:
 
 class NoisyTruthSet:
     """A truth set whose DN images are re-exposed with this run's sensor noise (what
-    :func:`renderlab.studies.unknown_satellite.analyse_truthset` reads: ``path, frames, len, load, read_table``)."""
+    :func:`renderlab.studies.unknown_satellite.sequence.analyse_truthset` reads: ``path, frames, len, load, read_table``)."""
 
     def __init__(self, ts, sensor_options, noise_seed_sequence: np.random.SeedSequence):
         self._ts, self.path, self.frames, self._opts = ts, ts.path, ts.frames, sensor_options
@@ -125,15 +114,14 @@ class NoisyTruthSet:
 
 
 def score_row(summary: dict, run: int) -> dict:
-    """The run's ``scores`` row from the sequence summary (scalars, lists flattened) with its ``flags``."""
+    """The run's ``scores`` row (pose-table kind, :data:`renderlab.contracts.schemas.POSE_CORE`) from the
+    sequence summary (scalars, lists flattened), with one boolean ``flag_<name>`` column per condition of
+    :data:`~renderlab.studies.unknown_satellite.config.RUN_FLAGS` and their names in ``diagnostics``."""
     s = summary
-    flags = ((0 if s["stage1_converged"] else FLAG_NOT_CONVERGED)
-             | (FLAG_INERTIA_BOUNDARY if s["stage1_inertia_fallback"] else 0)
-             | (FLAG_RIGIDITY_REJECTED if s["rigidity_rejected_tracks"] else 0)
-             | (FLAG_STAGE2_GAPS if s["stage2_flagged_frames"] else 0)
-             | (FLAG_RANK if s["fim_rank"] < s["fim_params"] - 1 else 0)
-             | (FLAG_UNMATCHED_POINT if s["matched_points"] < s["database_points"] else 0)
-             | (FLAG_AXES_RELABELLED if s["axes_relabelled"] else 0))
+    on = {"not_converged": not s["stage1_converged"], "inertia_boundary": bool(s["stage1_inertia_fallback"]),
+          "rigidity_rejected": bool(s["rigidity_rejected_tracks"]), "stage2_gaps": bool(s["stage2_flagged_frames"]),
+          "rank_deficient": s["fim_rank"] < s["fim_params"] - 1,
+          "unmatched_point": s["matched_points"] < s["database_points"], "axes_relabelled": bool(s["axes_relabelled"])}
     row = {"run": int(run)}
     for k, v in s.items():
         if k in ("run", "stage1_message"):
@@ -161,8 +149,10 @@ def score_row(summary: dict, run: int) -> dict:
     row["err_ratio_12"] = s["ratio_I1_I3_est"] - s["ratio_I1_I3_true"]
     row["err_ratio_23"] = s["ratio_I2_I3_est"] - s["ratio_I2_I3_true"]
     row["w0_norm_err_deg_s"] = s["w0_norm_est_deg_s"] - s["w0_norm_true_deg_s"]
-    row["flags"] = int(flags)
-    row["flag_names"] = ",".join(n for b, n in FLAG_NAMES.items() if flags & b)
+    for name in RUN_FLAGS:
+        row[f"flag_{name}"] = bool(on[name])
+    row["has_result"], row["reason"] = True, "ok"  # a run that fails raises and is recorded as a failed run
+    row["diagnostics"] = ",".join(n for n in RUN_FLAGS if on[n])
     row["stage1_message"] = str(s["stage1_message"])
     return row
 
@@ -174,7 +164,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     from renderlab.campaign.cache import cached_truthset
     from renderlab.scenario import scenario_from_dict
     from renderlab.sensor import SensorOptions
-    from renderlab.studies.unknown_satellite import PriorOptions, StudyOptions, analyse_truthset
+    from renderlab.studies.unknown_satellite.sequence import PriorOptions, StudyOptions, analyse_truthset
     from renderlab.truthset import TruthSet
 
     if scenario.world.kind != "microsat":
@@ -205,6 +195,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
 def report_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     """Report hook: figures like Figs 5-7 and 13-14 over the campaign and the score summary (HTML sections)."""
-    from renderlab.studies.unknown_satellite_figures import campaign_sections
+    from renderlab.studies.unknown_satellite.figures import campaign_sections
 
     return campaign_sections(tables, Path(out_dir))

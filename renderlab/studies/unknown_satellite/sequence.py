@@ -59,6 +59,13 @@ class SequenceResult:
     gauge_free: object = None            # estimators.pose.gauge.GaugeFree at the stage-1 solution
 
 
+def _stage2_text(flags: int) -> str:
+    """Stage 2's per-frame flag bits (:data:`estimators.pose.stage2.FLAG_NAMES`) as text."""
+    from estimators.pose.stage2 import FLAG_NAMES
+
+    return ",".join(n for b, n in FLAG_NAMES.items() if flags & b)
+
+
 def _rot(q):
     from scipy.spatial.transform import Rotation
 
@@ -229,7 +236,9 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     e_v = s2.v - tr["v_lvlh_mps"]
     e_w = np.degrees(s2.w - tr["omega_body_rad_s"])
     s2_rows = {"run": [run] * len(frames), "method": ["stage2_cgkf"] * len(frames), "frame": frames.tolist(),
-               "t_s": times.tolist(), "n_points": s2.n_points.tolist(), "flags": s2.flags.tolist(),
+               "t_s": times.tolist(), "n_points": s2.n_points.tolist(), "has_result": (s2.flags == 0).tolist(),
+               "reason": ["ok" if f == 0 else "no_measurement" for f in s2.flags],
+               "diagnostics": [_stage2_text(int(f)) for f in s2.flags],
                "rms_px": s2.rms_px.tolist(), "err_att_deg": e_att.tolist(),
                "err_meas_r_m": np.linalg.norm(s2.r_meas - tr["r_lvlh_m"], axis=1).tolist()}
     for a, ax in enumerate("xyz"):
@@ -320,7 +329,7 @@ def run_sequence(scenario, base_dir, out_dir, seed: int = 0, opts: StudyOptions 
 
     import pyarrow.parquet as pq
 
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
 
     if scenario.world.kind != "microsat":
         raise UserError(f"the unknown-satellite study needs world.kind 'microsat', got '{scenario.world.kind}'")

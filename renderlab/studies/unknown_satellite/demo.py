@@ -13,7 +13,7 @@ from pathlib import Path
 
 DEMO_RUNS = 4
 
-DEMO_SCENARIO = """# renderlab demo: unknown tumbling microsatellite (renderlab.studies.unknown_satellite_demo)
+DEMO_SCENARIO = """# renderlab demo: unknown tumbling microsatellite (renderlab.studies.unknown_satellite.demo)
 name = "unknown_satellite_demo"
 description = "Chibis-M-like microsatellite after separation: 8 frames 4 s apart, 256x192."
 
@@ -90,7 +90,6 @@ def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEM
     def med(key, scale=1.0):
         v = np.asarray(sc.get(key, [np.nan]), float)
         return float(np.median(v[np.isfinite(v)]) * scale) if np.isfinite(v).any() else float("nan")
-    flags = np.asarray(sc["flags"], np.int64)
     return {"report": page, "campaign": camp, "runs": res.runs, "failed": len(res.failed),
             "failed_errors": [f"run {f['run']}: {f['error']}" for f in res.failed],
             "point_lvlh_err_cm": med("point_lvlh_err_rms_m", 100), "point_lvlh_crlb_cm": med("point_lvlh_crlb_rms_m", 100),
@@ -100,4 +99,5 @@ def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEM
             "ratio_err_12": med("err_ratio_12_aligned"), "ratio_err_23": med("err_ratio_23_aligned"),
             "ratio_sigma_1": med("ratio_sigma_1"), "ratio_sigma_2": med("ratio_sigma_2"),
             "fim_rank": int(np.min(sc["fim_rank"])), "fim_params": int(np.max(sc["fim_params"])),
-            "runs_scored": len(flags), "flag_names": sorted({n for f in sc["flag_names"] for n in str(f).split(",") if n})}
+            "runs_scored": len(sc["run"]),
+            "flag_names": sorted({n for f in sc["diagnostics"] for n in str(f).split(",") if n})}

@@ -21,11 +21,9 @@ from typing import Annotated, Any, Literal
 import pydantic
 from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 
-from renderlab.campaign.config import CampaignConfig, PerturbationConfig
+from renderlab.scenario.campaign import CampaignConfig, PerturbationConfig
 from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
-from renderlab.studies.coastline_config import CoastlineStudyConfig
-from renderlab.studies.unknown_satellite_config import UnknownSatelliteStudyConfig
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
 from renderlab.worlds.ev5.config import EV5DescentTrajectory, EV5World
 from renderlab.worlds.microsat.config import MicrosatWorld, SeparationTrajectory
@@ -202,7 +200,9 @@ Trajectory = Annotated[
 
 
 class Scenario(_Strict):
-    """A validated scenario. ``source`` is the file it came from (not part of the saved dict)."""
+    """A validated scenario: the core sections. Study sections (``[coastline]``, ``[unknown_satellite]``, a
+    plug-in's own) are registered in :data:`renderlab.plugins.scenario_sections` and added as optional fields
+    by :func:`scenario_model`; :func:`scenario_from_dict` validates with that model."""
 
     name: str = "scenario"
     description: str = ""
@@ -214,8 +214,6 @@ class Scenario(_Strict):
     render: RenderConfig = RenderConfig()
     perturbations: PerturbationConfig = PerturbationConfig()
     campaign: CampaignConfig = CampaignConfig()
-    coastline: CoastlineStudyConfig | None = None  # study section (renderlab.studies.coastline_config)
-    unknown_satellite: UnknownSatelliteStudyConfig | None = None  # study section (unknown_satellite_config)
 
     @model_validator(mode="after")
     def _world_fits_trajectory(self):
@@ -228,6 +226,21 @@ class Scenario(_Strict):
     def to_dict(self) -> dict[str, Any]:
         """The validated scenario as plain JSON-able data (what the manifest stores)."""
         return self.model_dump(mode="json")
+
+
+def scenario_model() -> type[Scenario]:
+    """:class:`Scenario` with one optional field per registered study section (built once per registry state)."""
+    from renderlab import plugins
+
+    names = tuple(plugins.scenario_sections.names())
+    if _MODEL_CACHE.get("names") != names:
+        fields = {n: (plugins.scenario_sections.get(n) | None, None) for n in names}
+        _MODEL_CACHE["names"] = names
+        _MODEL_CACHE["model"] = pydantic.create_model("Scenario", __base__=Scenario, **fields)
+    return _MODEL_CACHE["model"]
+
+
+_MODEL_CACHE: dict[str, Any] = {}
 
 
 def _format_error(err: pydantic.ValidationError, source: str) -> str:
@@ -288,7 +301,7 @@ def apply_overrides(data: dict[str, Any], overrides: list[str]) -> dict[str, Any
 def scenario_from_dict(data: dict[str, Any], source: str = "scenario") -> Scenario:
     """Validate plain data into a :class:`Scenario` (UserError with one line on failure)."""
     try:
-        return Scenario.model_validate(data)
+        return scenario_model().model_validate(data)
     except pydantic.ValidationError as err:
         raise UserError(_format_error(err, source)) from None
     except UserError as err:

@@ -77,12 +77,14 @@ def score_summary(scores) -> list[dict]:
         rows.append({"score": col, "label": label, "unit": unit, "runs": len(v), "mean": float(v.mean()),
                      "std": float(v.std(ddof=1)) if len(v) > 1 else float("nan"), "median": float(med),
                      "p10": float(p10), "p90": float(p90)})
-    flags = _np(scores, "flags", np.int64)
-    from renderlab.studies.unknown_satellite_campaign import FLAG_NAMES
+    from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
-    for bit, name in FLAG_NAMES.items():
-        rows.append({"score": f"flag_{name}", "label": f"runs flagged {name}", "unit": "runs", "runs": len(flags),
-                     "mean": float(np.mean((flags & bit) != 0)), "median": float(np.sum((flags & bit) != 0))})
+    for name in RUN_FLAGS:
+        if f"flag_{name}" not in scores.column_names:
+            continue
+        on = _np(scores, f"flag_{name}", bool)
+        rows.append({"score": f"flag_{name}", "label": f"runs flagged {name}", "unit": "runs", "runs": len(on),
+                     "mean": float(np.mean(on)), "median": float(np.sum(on))})
     return rows
 
 
@@ -134,7 +136,7 @@ def fig6_inertia(hist, scores, path: Path) -> None:
     e1 = _np(scores, "ratio_I1_I3_aligned" if al else "ratio_I1_I3_est")
     e2 = _np(scores, "ratio_I2_I3_aligned" if al else "ratio_I2_I3_est")
     s1, s2 = _np(scores, "ratio_sigma_1"), _np(scores, "ratio_sigma_2")
-    fb = (_np(scores, "flags", np.int64) & 2) != 0
+    fb = _np(scores, "flag_inertia_boundary", bool)
     for m, mk, lab in ((~fb, "o", "free solve"), (fb, "s", "physical re-solve (boundary)")):
         if m.any():
             ax[1].errorbar(e1[m], e2[m], xerr=s1[m], yerr=s2[m], fmt=mk, ms=4, lw=0.6, alpha=0.7, label=lab)

@@ -99,7 +99,7 @@ def pcrb_ric_sigma(geometry, options) -> np.ndarray:
     from estimators.coastline.dynamics import propagate_state_stm, white_acceleration_qd
     from estimators.coastline.los import los_jacobian_position, los_predict, skew_batch
 
-    from renderlab.studies.coastline_geometric import ric_axes
+    from renderlab.studies.coastline_ekf.geometric import ric_axes
 
     x, t, T = geometry.x_true, geometry.t_s, geometry.T_cam_from_eci
     K = len(t)

@@ -2,7 +2,7 @@
 
 One Mitsuba render of a small procedural EV5 landing site (128², 3 frames at 65, 45 and 30 m, 4 spp; the
 truth cache serves every run), then :data:`DEMO_RUNS` Monte Carlo runs of study ``retina_vs_spc``
-(:mod:`renderlab.campaign.study_retina_spc`: a-priori pose, camera, distortion, maplet spacing and Sun
+(:mod:`renderlab.studies.retina_vs_spc.run`: a-priori pose, camera, distortion, maplet spacing and Sun
 knowledge errors, fresh sensor noise per run) in this process, then the campaign report (scatter with
 bias/noise ellipses, error vs fractional shift, failure rates, ratio to the CRLB, summary table, HTML).
 Running it again into the same folder resumes: finished runs are kept.
@@ -16,7 +16,7 @@ from renderlab.errors import UserError
 
 DEMO_RUNS = 40
 
-DEMO_SCENARIO = """# renderlab demo campaign: Retina vs SPC on a tiny EV5 descent (written by renderlab.demo_campaign)
+DEMO_SCENARIO = """# renderlab demo campaign: Retina vs SPC on a tiny EV5 descent (written by renderlab.studies.retina_vs_spc.demo)
 name = "ev5_demo_campaign"
 description = "Tiny EV5 landing site (30 m at 5 cm, 4 m global facets), 128x128 camera, 65/45/30 m."
 

@@ -11,23 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.dynamics.camera_paths import camera_path
 from renderlab.errors import UserError
-from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import quat_xyzw
-from renderlab.render.scene import FrameSpec, RenderSettings, SunSpec
+from renderlab.render.scene import RenderSettings
 from renderlab.scenario import Scenario
 from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
 from renderlab.truthset import TruthSetWriter
-
-
-def frame_specs(scenario: Scenario) -> list[FrameSpec]:
-    """Camera, pose and sun of every frame of the scenario."""
-    cam_cfg = scenario.camera.model_dump()
-    camera = CameraModel.from_dict(cam_cfg)
-    s = np.asarray(scenario.sun.direction, float)
-    sun = SunSpec(direction_render=s / np.linalg.norm(s), irradiance_w_m2=scenario.sun.irradiance_w_m2)
-    return [FrameSpec(index=k, pose=p, camera=camera, sun=sun) for k, p in enumerate(camera_path(scenario.trajectory))]
+from renderlab.worlds.base import frame_specs  # noqa: F401  (re-exported)
 
 
 def make_backend(scenario: Scenario, scene, renderer: str):
@@ -39,23 +29,18 @@ def make_backend(scenario: Scenario, scene, renderer: str):
         near_clip_m=scenario.render.near_clip_m,
         far_clip_m=scenario.render.far_clip_m,
     )
-    if renderer == "mitsuba":
-        from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab import plugins
 
-        try:
-            return MitsubaBackend(scene, settings)
-        except RuntimeError as exc:  # Mitsuba reports an unreadable mesh as 'At dictionary node "bodyK": ...'
-            for body in scene.bodies:
-                if body.mesh_path is not None and f'"body{body.body_id}"' in str(exc):
-                    detail = str(exc).rsplit("] ", 1)[-1]
-                    raise UserError(f"world.bodies.{body.body_id}.file: cannot load mesh "
-                                    f"{body.mesh_path.name}: {detail}") from None
-            raise
-    if renderer == "cycles":
-        from renderlab.render.cycles_backend import CyclesBackend
-
-        return CyclesBackend(scene, settings)
-    raise UserError(f"unknown renderer '{renderer}' (mitsuba, cycles)")
+    backend_cls = plugins.renderers.get(renderer, where="render.renderer: ")
+    try:
+        return backend_cls(scene, settings)
+    except RuntimeError as exc:  # Mitsuba reports an unreadable mesh as 'At dictionary node "bodyK": ...'
+        for body in scene.bodies:
+            if body.mesh_path is not None and f'"body{body.body_id}"' in str(exc):
+                detail = str(exc).rsplit("] ", 1)[-1]
+                raise UserError(f"world.bodies.{body.body_id}.file: cannot load mesh "
+                                f"{body.mesh_path.name}: {detail}") from None
+        raise
 
 
 def render_truthset(
@@ -76,7 +61,7 @@ def render_truthset(
     """
     from tqdm import tqdm
 
-    from renderlab.worlds.base import make_plan
+    from renderlab.worlds.base import make_plan  # noqa: F401
 
     seed = scenario.render.seed if seed is None else int(seed)
     if seed < 0:

@@ -1,6 +1,6 @@
 """Publish the image-in-the-loop coastline campaign beside the paper's idealised (geometric) measurements.
 
-    python -m renderlab.report.coastline_image_publish --runs 8 --work out/coastline_image \\
+    python -m renderlab.studies.coastline_ekf.publish_image --runs 8 --work out/coastline_image \\
         --out results/coastline_ekf/image_in_the_loop
 
 (``--truth-cache OTHER_WORK/work/truth_cache`` reuses another variant's renders.)
@@ -36,7 +36,7 @@ def _mpl():
 
 
 def _mode_summary(name: str, table) -> dict:
-    from renderlab.report.coastline_scoring import chi2_band, nis_total_test, per_time_summary
+    from renderlab.studies.coastline_ekf.scoring import chi2_band, nis_total_test, per_time_summary
 
     s = per_time_summary(table)
     n = int(s["n_runs"].to_numpy()[0])
@@ -91,10 +91,10 @@ def main(argv=None) -> int:
     from renderlab.campaign.runner import run_campaign_file
     from renderlab.report.campaign_report import make_report
     from renderlab.scenario import load_scenario
-    from renderlab.studies.coastline_geometric import run_batch
-    from renderlab.studies.coastline_study import geometric_options
+    from renderlab.studies.coastline_ekf.geometric import run_batch
+    from renderlab.studies.coastline_ekf.study import geometric_options
 
-    p = argparse.ArgumentParser(prog="python -m renderlab.report.coastline_image_publish", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m renderlab.studies.coastline_ekf.publish_image", description=__doc__.split("\n")[0])
     p.add_argument("--scenario", type=Path, default=Path("scenes/coastline_image.toml"))
     p.add_argument("--runs", type=int, default=8)
     p.add_argument("--work", type=Path, required=True, help="campaign folder (renders, runs)")

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.campaign.scoring import FLAG_NO_RESULT, FLAG_OUT_OF_VIEW, FLAG_TOUCHES_EDGE
+from renderlab.contracts.reasons import LandmarkReason as R
 from renderlab.errors import UserError
 
 METHODS = ("centroid", "ellipse")
@@ -84,7 +84,8 @@ def _segment(win: np.ndarray, levels: int = 3):
 
 
 def measure_sphere(dn: np.ndarray, pred_sl: np.ndarray, radius_px: float) -> dict[str, tuple]:
-    """Both methods on one image: ``{method: (s, l, score, flags, t_ms)}`` (NaN s, l when no result)."""
+    """Both methods on one image: ``{method: (s, l, score, reason, t_ms)}`` (NaN s, l when no result; reason a
+    :class:`~renderlab.contracts.reasons.LandmarkReason` value)."""
     import cv2
 
     h, w = dn.shape
@@ -92,7 +93,7 @@ def measure_sphere(dn: np.ndarray, pred_sl: np.ndarray, radius_px: float) -> dic
     c = np.rint(pred_sl).astype(int) if np.all(np.isfinite(pred_sl)) else np.array([-10**9, -10**9])
     s0, s1 = max(c[0] - half, 0), min(c[0] + half + 1, w)
     l0, l1 = max(c[1] - half, 0), min(c[1] + half + 1, h)
-    out = {m: (math.nan, math.nan, math.nan, FLAG_NO_RESULT | FLAG_OUT_OF_VIEW, 0.0) for m in METHODS}
+    out = {m: (math.nan, math.nan, math.nan, R.OFF_IMAGE.value, 0.0) for m in METHODS}
     if s1 - s0 < 5 or l1 - l0 < 5:
         return out
     t0 = time.perf_counter()
@@ -100,27 +101,27 @@ def measure_sphere(dn: np.ndarray, pred_sl: np.ndarray, radius_px: float) -> dic
     seg = _segment(win)
     t_seg = time.perf_counter() - t0
     if seg is None:
-        return {m: (math.nan, math.nan, math.nan, FLAG_NO_RESULT, 1e3 * t_seg) for m in METHODS}
+        return {m: (math.nan, math.nan, math.nan, R.NO_DETECTION.value, 1e3 * t_seg) for m in METHODS}
     mask, thr = seg
     ll, ss = np.nonzero(mask)
     edge = ll.min() == 0 or ss.min() == 0 or ll.max() == mask.shape[0] - 1 or ss.max() == mask.shape[1] - 1
     if edge or len(ll) < 5:
-        flags = FLAG_NO_RESULT | (FLAG_TOUCHES_EDGE if edge else 0)
-        return {m: (math.nan, math.nan, math.nan, flags, 1e3 * t_seg) for m in METHODS}
+        why = (R.SEARCH_BORDER if edge else R.TOO_FEW_PIXELS).value
+        return {m: (math.nan, math.nan, math.nan, why, 1e3 * t_seg) for m in METHODS}
     t1 = time.perf_counter()
     wgt = win[ll, ss] - thr
     wgt = np.where(wgt > 0, wgt, 0.0) + 1e-12
     cs, cl = float(np.dot(wgt, ss) / wgt.sum()) + s0, float(np.dot(wgt, ll) / wgt.sum()) + l0
-    out["centroid"] = (cs, cl, float(len(ll)), 0, 1e3 * (t_seg + time.perf_counter() - t1))
+    out["centroid"] = (cs, cl, float(len(ll)), R.OK.value, 1e3 * (t_seg + time.perf_counter() - t1))
     t2 = time.perf_counter()
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     cont = max(contours, key=len)
     if len(cont) >= 5:
         (es, el), (a, b), _ = cv2.fitEllipse(cont)
-        out["ellipse"] = (float(es) + s0, float(el) + l0, float(min(a, b) / max(a, b, 1e-12)), 0,
+        out["ellipse"] = (float(es) + s0, float(el) + l0, float(min(a, b) / max(a, b, 1e-12)), R.OK.value,
                           1e3 * (t_seg + time.perf_counter() - t2))
     else:
-        out["ellipse"] = (math.nan, math.nan, math.nan, FLAG_NO_RESULT, 1e3 * t_seg)
+        out["ellipse"] = (math.nan, math.nan, math.nan, R.TOO_FEW_PIXELS.value, 1e3 * t_seg)
     return out
 
 
@@ -168,7 +169,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     from renderlab.campaign.cache import cached_truthset
     from renderlab.campaign.perturb import draw_perturbation, perturb_pose, perturb_scenario_dict
     from renderlab.geometry.camera import CameraModel
-    from renderlab.render.pipeline import frame_specs
+    from renderlab.worlds.base import frame_specs
     from renderlab.scenario import scenario_from_dict
     from renderlab.sensor import SensorOptions
     from renderlab.truthset import TruthSet
@@ -208,17 +209,19 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
         shadow, contrast, crlb_s, crlb_l = _frame_truth(fr, body_id, center, sun_t, truth_sl, half, opts)
         gsd_ratio = (rng_t / cam_t.fx) / (rng_nom / cam_nom.fx)
         for method in METHODS:
-            ms, ml, score, flags, t_ms = res[method]
+            ms, ml, score, reason, t_ms = res[method]
             rows.append({
                 "campaign": scenario.name, "run": int(run_index), "frame": int(spec.index), "item": body_id,
                 "method": method, "pred_s": float(pred_sl[0]), "pred_l": float(pred_sl[1]),
                 "meas_s": ms, "meas_l": ml, "truth_s": float(truth_sl[0]), "truth_l": float(truth_sl[1]),
                 "err_s": ms - float(truth_sl[0]), "err_l": ml - float(truth_sl[1]),
-                "score": score, "flags": int(flags), "t_ms": float(t_ms),
+                "score": score, "has_result": reason == R.OK.value, "reason": reason, "outlier": False,
+                "diagnostics": "" if reason == R.OK.value else reason, "t_ms": float(t_ms),
                 "phase_deg": phase, "range_m": rng_t, "gsd_ratio": gsd_ratio, "shadow_fraction": shadow,
                 "albedo_contrast": float(contrast), "crlb_s": float(crlb_s), "crlb_l": float(crlb_l),
             })
-    cols = list(rows[0])
-    meas = pa.table({c: [r[c] for r in rows] for c in cols})
+    from renderlab.contracts.schemas import LANDMARK_CORE, table_from_rows
+
+    meas = table_from_rows(rows, LANDMARK_CORE, "landmark")
     prow = {"campaign": scenario.name, "run": int(run_index), **draw.to_row()}
     return {"measurements": meas, "perturbations": pa.table({k: [v] for k, v in prow.items()})}

@@ -345,7 +345,7 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
     import pyarrow.parquet as pq
 
     from renderlab.errors import UserError
-    from renderlab.render.pipeline import render_truthset
+    from renderlab.pipeline import render_truthset
 
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():

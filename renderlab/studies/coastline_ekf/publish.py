@@ -1,6 +1,6 @@
 """Publish the geometric coastline-EKF Monte Carlo (Straub & Christian Table 1, Figs. 5-9) into a folder.
 
-    python -m renderlab.report.coastline_publish --out results/coastline_ekf --runs 1000 --orbits all
+    python -m renderlab.studies.coastline_ekf.publish --out results/coastline_ekf --runs 1000 --orbits all
 
 For each orbit: the per-time summary (``<case>_timeseries.parquet``: MC mean/RMS, filter σ, PCRB σ per RIC
 axis, ANEES/ANIS with 99 % χ² bands), ``<case>_errors.png`` (Figs. 5-9 style) and ``<case>_consistency.png``;
@@ -28,7 +28,7 @@ PAPER_TABLE1 = {  # case: along-track, cross-track, radial position [km]; along,
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m renderlab.report.coastline_publish", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m renderlab.studies.coastline_ekf.publish", description=__doc__.split("\n")[0])
     p.add_argument("--out", required=True, type=Path)
     p.add_argument("--runs", type=int, default=1000)
     p.add_argument("--orbits", default="all", help="comma list of i00_h1000,i45_h1000,i90_h1000,i45_h500,i90_h500")
@@ -46,9 +46,9 @@ def publish_orbit(case: str, args) -> dict:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from renderlab.report.coastline_figures import plot_consistency, plot_errors
-    from renderlab.report.coastline_scoring import nis_total_test, pcrb_ric_sigma, per_time_summary, steady_state
-    from renderlab.studies.coastline_geometric import paper_orbit, run_batch, truth_geometry
+    from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors
+    from renderlab.studies.coastline_ekf.scoring import nis_total_test, pcrb_ric_sigma, per_time_summary, steady_state
+    from renderlab.studies.coastline_ekf.geometric import paper_orbit, run_batch, truth_geometry
 
     o = paper_orbit(case, cadence_s=args.cadence_s, sigma_theta_rad=args.sigma_theta_mrad * 1e-3,
                     points_per_image=args.points_per_image)
@@ -98,7 +98,7 @@ def _table1(rows: list[dict]) -> str:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    from renderlab.studies.coastline_geometric import PAPER_ORBITS
+    from renderlab.studies.coastline_ekf.geometric import PAPER_ORBITS
 
     cases = list(PAPER_ORBITS) if args.orbits == "all" else [c.strip() for c in args.orbits.split(",")]
     args.out.mkdir(parents=True, exist_ok=True)

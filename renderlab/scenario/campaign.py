@@ -64,7 +64,7 @@ class PerturbationConfig(Strict):
 class CampaignConfig(Strict):
     """What a campaign runs: the study (registry name or ``module:function``) and the root seed.
 
-    ``study = ""`` picks the default study of the world kind (:data:`renderlab.campaign.studies.DEFAULT_STUDY`).
+    ``study = ""`` picks the default study of the world kind (:data:`renderlab.plugins.DEFAULT_STUDY`).
     ``target`` names the body a study measures where it needs one (``analytic_pointing``: a sphere).
     """
 

@@ -40,6 +40,7 @@ __all__ = ["CoastlineGeometricOptions", "Geometry", "PAPER_ORBITS", "paper_orbit
 R_EARTH_M = 6378137.0
 OMEGA_EARTH = 7.292115e-5
 
+#: the coastline filter table (then ``has_result``, ``reason``: :data:`renderlab.contracts.schemas.FILTER_CORE`)
 FILTER_COLUMNS = ["run", "t_s", "err_r_m", "err_i_m", "err_c_m", "err_vr_mps", "err_vi_mps", "err_vc_mps",
                   "sig_r_m", "sig_i_m", "sig_c_m", "sig_vr_mps", "sig_vi_mps", "sig_vc_mps", "nees", "nis",
                   "n_meas"]
@@ -335,10 +336,23 @@ def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=No
     cols["nees"] = nees_v.ravel()
     cols["nis"] = nis.ravel()
     cols["n_meas"] = np.tile(geo.n_meas.astype(np.int32), N)
+    cols.update(filter_status(cols["n_meas"], np.tile(np.arange(K) == 0, N)))
     out = {"table": pa.table(cols), "geometry": geo}
     if keep_history:
         out.update(x_hat=xs, P=Ps)
     return out
+
+
+def filter_status(n_meas, is_prior) -> dict:
+    """``has_result`` (an update with ≥ 1 measurement) and ``reason`` (:class:`renderlab.contracts.reasons.FilterReason`:
+    ``prior`` for the initial estimate, ``no_measurement`` for a time without line of sight) of filter rows."""
+    import pyarrow as pa
+
+    n = np.asarray(n_meas)
+    prior = np.asarray(is_prior, bool)
+    has = (n > 0) & ~prior
+    reason = np.where(prior, "prior", np.where(has, "ok", "no_measurement"))
+    return {"has_result": has, "reason": pa.array(reason.tolist(), pa.string()).dictionary_encode()}
 
 
 def options_from_mapping(scenario) -> CoastlineGeometricOptions:
@@ -360,7 +374,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
     ``scenario`` is a :class:`CoastlineGeometricOptions` or a mapping of its fields; ``base_dir`` and ``workdir``
     are unused (the study writes no files). Scenario files go through study ``coastline_ekf``
-    (:func:`renderlab.studies.coastline_study.run`), which maps the scenario onto these options.
+    (:func:`renderlab.studies.coastline_ekf.study.run`), which maps the scenario onto these options.
     """
     o = options_from_mapping(scenario)
     return {"coastline_filter": run_batch(o, [seed_sequence], [run_index])["table"]}

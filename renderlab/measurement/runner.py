@@ -1,5 +1,7 @@
 """The landmark-measurement runner: a truth set + maplets → the measurement table (one row per landmark
-attempted per frame), for Retina or the SPC-style method.
+attempted per frame, :data:`renderlab.contracts.schemas.LANDMARK_RUNNER`) for any registered landmark method
+(:data:`renderlab.plugins.landmark_methods`: ``retina``, ``spc``, entry points, or ``module:attr`` typed by
+the user).
 
 Per frame: the true camera pose (manifest ``pose``) is perturbed by a seeded draw from the a-priori
 covariance (position δt ~ N(0, Σ_t) in the body/render frame; attitude δθ ~ N(0, Σ_θ), a rotation of the
@@ -16,9 +18,9 @@ fitted to the body's catalogued law (``fitted:<law>``, default) or with β = exp
 Both methods get the same ground knowledge, so what separates them is how they predict the image
 (Retina: ray-traced facets and shadows in image space; SPC: grid shading, approximate shadows, maplet frame).
 
-``flags`` is the bit mask of :mod:`estimators.flags` (``flags_text`` spells it out, ``ok`` when 0):
-off_image 1, too_few_pixels 2, flat_template 4, low_correlation 8, search_border 16, outlier 32 (final
-output phase, kept), not_visible_truth 64 (truth: not visible or occluded), facing_away 128.
+``has_result`` and ``reason`` (:class:`~renderlab.contracts.reasons.LandmarkReason`) say whether and why not a
+shift was measured; ``outlier`` is the method's own consistency flag (kept); ``truth_visible`` is false where the
+truth says the landmark is hidden or occluded; ``diagnostics`` is the method's own flag text.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ import numpy as np
 
 from renderlab.errors import UserError
 
-METHODS = ("retina", "spc")
 PHOTOMETRY = ("fitted", "fixed")
 
 
@@ -195,8 +196,55 @@ def draw_apriori(R_true: np.ndarray, pos_true: np.ndarray, options: MeasureOptio
     return R_true @ Rotation.from_rotvec(drot).as_matrix(), pos_true + dpos, dpos, drot
 
 
-def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = MeasureOptions(),
-                     rng: np.random.Generator | None = None, progress: bool = False):
+def make_method(method, options: MeasureOptions, L_table: tuple = (), *, allow_reference: bool = False):
+    """A landmark-method object from a registered name (or a user-typed ``module:attr`` with
+    ``allow_reference``), an already made method, or a factory; UserError naming the registered ones."""
+    from renderlab import plugins
+    from renderlab.contracts.landmark import LandmarkMethod, LandmarkMethodOptions
+
+    if isinstance(method, LandmarkMethod) and not isinstance(method, type):
+        return method
+    if isinstance(method, str):
+        factory = plugins.landmark_methods.get(method, allow_reference=allow_reference, where="--method: ")
+    else:
+        factory = method
+    mopts = LandmarkMethodOptions(peak=options.peak, min_correlation=options.min_correlation,
+                                  supersample=options.supersample, psf_sigma_px=options.psf_sigma_px, L_table=L_table)
+    obj = factory(mopts)
+    if not isinstance(obj, LandmarkMethod) or not isinstance(getattr(obj, "name", None), str):
+        raise UserError(f"landmark method {method!r} does not follow the contract (needs a 'name' string and "
+                        "measure_frame(frame); see renderlab.contracts.landmark)")
+    return obj
+
+
+def _row(fr, lid, res, method_name, photometry, peak, tp, trow, cam, draw, sigma_cols, options) -> dict:
+    """One measurement-table row (:data:`renderlab.contracts.schemas.LANDMARK_RUNNER`)."""
+    dpos, drot = draw
+    ts_, tl_ = (float(trow["s"]), float(trow["l"])) if trow else (float(tp[0]), float(tp[1]))
+    if trow is None:
+        visible = bool(cam.in_image(tp))
+    else:
+        visible = bool(trow.get("visible", True)) and not bool(trow.get("occluded", False))
+    ok = res.has_result
+    ms, ml = (res.meas_s, res.meas_l) if ok else (math.nan, math.nan)
+    row = {"campaign": options.campaign, "run": int(options.run), "frame": fr.index, "item": lid,
+           "method": method_name, "pred_s": float(res.pred_s), "pred_l": float(res.pred_l), "meas_s": ms,
+           "meas_l": ml, "truth_s": ts_, "truth_l": tl_, "err_s": ms - ts_, "err_l": ml - tl_,
+           "score": float(res.score), "has_result": bool(ok), "reason": res.reason, "outlier": bool(res.outlier),
+           "diagnostics": res.diagnostics, "t_ms": float(res.t_ms), "peak": peak, "search_px": int(res.search_px),
+           "n_pixels": int(res.n_pixels), "pred_shadow_fraction": float(res.shadow_fraction),
+           "truth_visible": visible,
+           **{f"apriori_dpos_{a}_m": float(v) for a, v in zip("xyz", dpos)},
+           **{f"apriori_drot_{a}_rad": float(v) for a, v in zip("xyz", drot)}, **sigma_cols}
+    for c in ("gsd_ratio", "phase_deg", "incidence_deg", "emission_deg", "shadow_fraction"):
+        row[c] = float(trow[c]) if trow and c in trow and trow[c] is not None else math.nan
+    row["photometry"] = photometry
+    return row
+
+
+def measure_truthset(ts, maplets: list, method, options: MeasureOptions = MeasureOptions(),
+                     rng: np.random.Generator | None = None, progress: bool = False, *,
+                     allow_reference: bool = False):
     """Measure every landmark of every frame of an open :class:`~renderlab.truthset.TruthSet`.
 
     Parameters
@@ -205,108 +253,73 @@ def measure_truthset(ts, maplets: list, method: str, options: MeasureOptions = M
         The truth set (frames with camera, pose, sun; DN images).
     maplets : list of Maplet
         The landmark catalog (in memory).
-    method : {"retina", "spc"}
+    method : str or LandmarkMethod or factory
+        A registered landmark-method name (``retina``, ``spc``, ...), a method object or its factory.
     options : MeasureOptions
     rng : numpy.random.Generator
         Source of the a-priori pose draws (one draw of 6 normals per frame, in frame order).
     progress : bool
         Show a tqdm bar over frames.
+    allow_reference : bool
+        Accept ``module:attr`` for ``method`` (only for a name the user typed on the command line).
 
     Returns
     -------
     pyarrow.Table
-        One row per landmark attempted per frame (columns: module docstring and design.md).
+        One row per landmark attempted per frame (:data:`renderlab.contracts.schemas.LANDMARK_RUNNER`).
     """
-    import pyarrow as pa
     from tqdm import tqdm
 
-    from estimators import flags as F
-    from estimators.retina import CameraPoseEstimate, RetinaOptions, TemplateOptions, build_mesh, search_radius_px
-    from estimators.retina import measure_frame as retina_frame
-    from estimators.spc import SpcOptions
-    from estimators.spc import measure_frame as spc_frame
+    from estimators.retina import search_radius_px
+    from renderlab.contracts.landmark import CameraPose, LandmarkFrame
+    from renderlab.contracts.schemas import LANDMARK_RUNNER, table_from_rows
 
-    if method not in METHODS:
-        raise UserError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     if not maplets:
         raise UserError(f"truth set {ts.path}: the landmark catalog is empty")
     rng = np.random.default_rng(0) if rng is None else rng
     L_table, photometry = onboard_photometry(ts, options)
-    if method == "retina":
-        opts = RetinaOptions(template=TemplateOptions(supersample=options.supersample, psf_sigma_px=options.psf_sigma_px,
-                                                      L_table=L_table),
-                             peak=options.peak or "retina_3x3", min_correlation=options.min_correlation)
-        items = [build_mesh(m) for m in maplets]
-        frame_fn = retina_frame
-    else:
-        opts = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation,
-                          L_table=L_table)
-        items = list(maplets)
-        frame_fn = spc_frame
+    impl = make_method(method, options, L_table, allow_reference=allow_reference)
+    peak = str(getattr(impl, "peak", "") or "")
     truth = _truth_lookup(ts)
     sigma_cols = {**{f"apriori_sigma_pos_{a}_m": v for a, v in zip("xyz", options.sigma_pos_m)},
                   **{f"apriori_sigma_att_{a}_rad": v for a, v in zip("xyz", options.sigma_att_rad)},
                   "n_sigma": float(options.n_sigma)}
     cov_p = np.diag(np.square(options.sigma_pos_m))
     cov_r = np.diag(np.square(options.sigma_att_rad))
+    centres = np.array([m.center_m for m in maplets], float)
     rows: list[dict] = []
-    for i in tqdm(range(len(ts)), desc=f"measure {method}", unit="frame", disable=not progress):
+    for i in tqdm(range(len(ts)), desc=f"measure {impl.name}", unit="frame", disable=not progress):
         fr = _frame_record(ts, i)
         R_ap, p_ap, dpos, drot = draw_apriori(fr.R, fr.position, options, rng)
-        apriori = CameraPoseEstimate(R_ap, p_ap)
-        true_pose = CameraPoseEstimate(fr.R, fr.position)
+        apriori, true_pose = CameraPose(R_ap, p_ap), CameraPose(fr.R, fr.position)
         cam = fr.camera
-        centres = np.array([m.center_m for m in maplets], float)
         pred = cam.project(apriori.to_camera(centres))
         attempt = np.flatnonzero(cam.in_image(pred))
         if attempt.size == 0:
             continue
         image = ts.load(i).dn.astype(np.float64)
         a_valid = image < fr.adc_max if fr.adc_max is not None else None
-        radii = [search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
-                                  options.min_search_px, options.max_search_px) for k in attempt]
-        results = frame_fn(image, [items[k] for k in attempt], cam, apriori, fr.sun, radii, opts, a_valid)
+        radii = np.array([search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
+                                           options.min_search_px, options.max_search_px) for k in attempt], int)
+        frame = LandmarkFrame(image=image, valid=a_valid, camera=cam, pose=apriori, sun_body=fr.sun,
+                              landmarks=[maplets[k] for k in attempt], search_px=radii, index=fr.index,
+                              seed=int(options.run) * 1_000_003 + fr.index)
+        results = impl.measure_frame(frame)
+        if len(results) != attempt.size:
+            raise UserError(f"landmark method '{impl.name}' returned {len(results)} results for "
+                            f"{attempt.size} landmarks in frame {fr.index}")
         truth_px = cam.project(true_pose.to_camera(centres[attempt]))
         for k, res, tp in zip(attempt, results, truth_px):
+            try:
+                res.check(f"landmark method '{impl.name}', frame {fr.index}: ")
+            except ValueError as err:
+                raise UserError(str(err)) from None
             lid = int(maplets[k].landmark_id)
-            trow = truth.get((fr.index, lid))
-            row = {"campaign": options.campaign, "run": int(options.run), "frame": fr.index, "item": lid,
-                   "method": method, "pred_s": res.pred_s, "pred_l": res.pred_l, "photometry": photometry}
-            ts_, tl_ = (float(trow["s"]), float(trow["l"])) if trow else (float(tp[0]), float(tp[1]))
-            visible = bool(cam.in_image(tp)) if trow is None else bool(trow.get("visible", True)) and not bool(trow.get("occluded", False))
-            flags = res.flags | (0 if visible else F.NOT_VISIBLE_TRUTH)
-            ok = res.has_result
-            ms, ml = (res.meas_s, res.meas_l) if ok else (math.nan, math.nan)
-            row.update(meas_s=ms, meas_l=ml, truth_s=ts_, truth_l=tl_, err_s=ms - ts_, err_l=ml - tl_,
-                       score=res.score, flags=int(flags), flags_text=F.describe(flags), t_ms=res.t_ms,
-                       peak=opts.peak, search_px=int(res.search_px), n_pixels=int(res.n_pixels),
-                       pred_shadow_fraction=res.shadow_fraction, truth_visible=visible,
-                       apriori_dpos_x_m=dpos[0], apriori_dpos_y_m=dpos[1], apriori_dpos_z_m=dpos[2],
-                       apriori_drot_x_rad=drot[0], apriori_drot_y_rad=drot[1], apriori_drot_z_rad=drot[2],
-                       **sigma_cols)
-            for c in ("gsd_ratio", "phase_deg", "incidence_deg", "emission_deg", "shadow_fraction"):
-                row[c] = float(trow[c]) if trow and c in trow and trow[c] is not None else math.nan
-            rows.append(row)
-    return pa.Table.from_pylist(rows, schema=_schema())
-
-
-def _schema():
-    import pyarrow as pa
-
-    f64, i64 = pa.float64(), pa.int64()
-    cols = [("campaign", pa.string()), ("run", i64), ("frame", i64), ("item", i64), ("method", pa.string()),
-            ("pred_s", f64), ("pred_l", f64), ("meas_s", f64), ("meas_l", f64), ("truth_s", f64), ("truth_l", f64),
-            ("err_s", f64), ("err_l", f64), ("score", f64), ("flags", i64), ("flags_text", pa.string()),
-            ("t_ms", f64), ("peak", pa.string()), ("search_px", i64), ("n_pixels", i64),
-            ("pred_shadow_fraction", f64), ("truth_visible", pa.bool_()),
-            ("apriori_dpos_x_m", f64), ("apriori_dpos_y_m", f64), ("apriori_dpos_z_m", f64),
-            ("apriori_drot_x_rad", f64), ("apriori_drot_y_rad", f64), ("apriori_drot_z_rad", f64),
-            ("apriori_sigma_pos_x_m", f64), ("apriori_sigma_pos_y_m", f64), ("apriori_sigma_pos_z_m", f64),
-            ("apriori_sigma_att_x_rad", f64), ("apriori_sigma_att_y_rad", f64), ("apriori_sigma_att_z_rad", f64),
-            ("n_sigma", f64),
-            ("gsd_ratio", f64), ("phase_deg", f64), ("incidence_deg", f64), ("emission_deg", f64),
-            ("shadow_fraction", f64), ("photometry", pa.string())]
-    return pa.schema(cols)
+            rows.append(_row(fr, lid, res, impl.name, photometry, peak, tp, truth.get((fr.index, lid)), cam,
+                             (dpos, drot), sigma_cols, options))
+    if not rows:
+        return LANDMARK_RUNNER.empty_table()
+    return table_from_rows(rows, LANDMARK_RUNNER, "landmark")
 
 
 def write_table(table, out_path, overwrite: bool = False) -> None:

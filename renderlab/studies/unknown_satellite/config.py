@@ -3,7 +3,7 @@ estimator is set up (Ivanov et al. 2018). Light: pydantic only.
 
 Dispersions are 1σ of zero-mean Gaussians, drawn per run from the run's seed. Besides these, the study
 reads the generic ``[perturbations]`` keys that mean the same thing here (see
-:mod:`renderlab.studies.unknown_satellite_campaign`): ``apriori_position_sigma_m``,
+:mod:`renderlab.studies.unknown_satellite.run`): ``apriori_position_sigma_m``,
 ``apriori_velocity_sigma_mps`` and ``apriori_attitude_sigma_deg`` are the stage-1 initial-value errors of
 r0, v0 (LVLH, per axis) and of the initial attitude; ``position_sigma_m`` and ``velocity_sigma_mps``
 disperse the *true* r0, v0 (a new render per run). Units: m, m/s, deg, deg/s, px.
@@ -35,3 +35,16 @@ class UnknownSatelliteStudyConfig(Strict):
     epsilon_px: Positive = 12.0                      # ε-neighbourhood of the tracker
     min_track_frames: Annotated[int, Field(ge=2, le=10000)] = 5
     max_nfev: Annotated[int, Field(ge=10, le=100000)] = 300
+
+
+#: conditions of a run, one boolean ``flag_<name>`` column each in the ``scores`` table (and named in its
+#: ``diagnostics``); none of them means "no result" (a run that cannot be scored fails and is recorded as failed)
+RUN_FLAGS = {
+    "not_converged": "stage 1 stopped on its evaluation budget",
+    "inertia_boundary": "the free inertia solve was unphysical; the physical re-solve was used",
+    "rigidity_rejected": "the rigidity test rejected at least one track",
+    "stage2_gaps": "stage 2 left at least one frame without a pose (too few / coplanar points)",
+    "rank_deficient": "FIM rank deficient beyond the inertia scale (eq. 7)",
+    "unmatched_point": "a database point follows no knob tip (a spurious feature)",
+    "axes_relabelled": "the principal axes came out relabelled (a discrete gauge; *_aligned scores)",
+}

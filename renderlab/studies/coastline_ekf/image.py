@@ -80,8 +80,8 @@ def run_image_study(scenario, base_dir, run_index: int, seed_sequence, workdir) 
     from renderlab.geometry.camera import CameraModel
     from renderlab.scenario import scenario_from_dict
     from renderlab.sensor import SensorOptions, expose
-    from renderlab.studies.coastline_geometric import FILTER_COLUMNS, ric_axes
-    from renderlab.studies.coastline_study import check_perturbations
+    from renderlab.studies.coastline_ekf.geometric import FILTER_COLUMNS, filter_status, ric_axes
+    from renderlab.studies.coastline_ekf.config import check_perturbations
     from renderlab.truthset import TruthSet
 
     c = scenario.coastline
@@ -174,6 +174,7 @@ def run_image_study(scenario, base_dir, run_index: int, seed_sequence, workdir) 
     for j, name in enumerate(FILTER_COLUMNS[2:14]):
         cols[name] = vals[:, j]
     cols.update(nees=nees(err, Ps), nis=np.array(nis_l), n_meas=np.array(nm_l, np.int32))
+    cols.update(filter_status(cols["n_meas"], np.arange(len(ts_s)) == 0))
     ft = pa.table({k: [r[k] for r in frames] for k in frames[0]}) if frames else None
     if ft is not None:
         ft = ft.add_column(0, "run", pa.array([run_index] * len(frames), pa.int64()))

@@ -1,0 +1,123 @@
+"""Table schemas, written once: the measurement (landmark), filter and pose tables of the lab.
+
+Every runner builds its table with these schemas, every scorer and report reads columns by these names,
+and the tests import them. Studies may append their own columns after the schema's (e.g. ``range_m``,
+``crlb_s``); :func:`check_table` verifies the schema's columns and types are there.
+
+Landmark measurement table (one row per landmark attempted per image; px unless stated):
+
+========================  =======  =============================================================
+column                    type     meaning
+========================  =======  =============================================================
+campaign, run             str,int  campaign name and run index
+frame, item               int      frame index; landmark id
+method                    str      registered landmark-method name
+pred_s, pred_l            float    landmark centre projected with the a-priori pose and believed camera
+meas_s, meas_l            float    pred + measured shift (NaN without result)
+truth_s, truth_l          float    true projection (``landmark_truth.parquet`` when present)
+err_s, err_l              float    meas − truth
+score                     float    the method's match score (correlation coefficient for NCC methods)
+has_result                bool     a shift was measured
+reason                    dict     :class:`~renderlab.contracts.reasons.LandmarkReason` value
+outlier                   bool     flagged by the method's own consistency check, kept
+diagnostics               str      the method's own flags as text (not for scoring)
+t_ms                      float    wall time of the measurement (excluded from bit-identity checks)
+========================  =======  =============================================================
+
+The landmark runner adds: ``peak`` (finder), ``search_px``, ``n_pixels``, ``pred_shadow_fraction``,
+``truth_visible``, the a-priori draw ``apriori_dpos_{x,y,z}_m`` / ``apriori_drot_{x,y,z}_rad`` with its 1σ
+``apriori_sigma_pos_{x,y,z}_m`` / ``apriori_sigma_att_{x,y,z}_rad`` and ``n_sigma``, the truth geometry
+``gsd_ratio``, ``phase_deg``, ``incidence_deg``, ``emission_deg``, ``shadow_fraction``, and ``photometry``.
+
+Filter table (one row per run and time): ``run, t_s, has_result`` (a measurement update happened) and ``reason``
+(:class:`~renderlab.contracts.reasons.FilterReason`), then errors ``err_*`` and, for filters with a covariance, their
+1σ ``sig_*`` (units in the name: ``_m``, ``_mps``), ``nees`` (state dof), ``nis`` (2 per line of sight; NaN without
+measurement) and ``n_meas``.
+
+Pose score table (one row per run): ``campaign, run, has_result, reason``
+(:class:`~renderlab.contracts.reasons.PoseReason`), ``diagnostics`` and the study's scores.
+"""
+
+from __future__ import annotations
+
+import pyarrow as pa
+
+from renderlab.contracts.reasons import reason_values
+
+F64, I64, STR, BOOL = pa.float64(), pa.int64(), pa.string(), pa.bool_()
+REASON = pa.dictionary(pa.int32(), pa.string())
+
+LANDMARK_CORE = pa.schema([
+    ("campaign", STR), ("run", I64), ("frame", I64), ("item", I64), ("method", STR),
+    ("pred_s", F64), ("pred_l", F64), ("meas_s", F64), ("meas_l", F64), ("truth_s", F64), ("truth_l", F64),
+    ("err_s", F64), ("err_l", F64), ("score", F64), ("has_result", BOOL), ("reason", REASON), ("outlier", BOOL),
+    ("diagnostics", STR), ("t_ms", F64),
+])
+
+LANDMARK_RUNNER = pa.schema(list(LANDMARK_CORE) + [
+    ("peak", STR), ("search_px", I64), ("n_pixels", I64), ("pred_shadow_fraction", F64), ("truth_visible", BOOL),
+    *[(f"apriori_dpos_{a}_m", F64) for a in "xyz"], *[(f"apriori_drot_{a}_rad", F64) for a in "xyz"],
+    *[(f"apriori_sigma_pos_{a}_m", F64) for a in "xyz"], *[(f"apriori_sigma_att_{a}_rad", F64) for a in "xyz"],
+    ("n_sigma", F64), ("gsd_ratio", F64), ("phase_deg", F64), ("incidence_deg", F64), ("emission_deg", F64),
+    ("shadow_fraction", F64), ("photometry", STR),
+])
+
+FILTER_CORE = pa.schema([("run", I64), ("t_s", F64), ("has_result", BOOL), ("reason", REASON)])
+
+POSE_CORE = pa.schema([("campaign", STR), ("run", I64), ("has_result", BOOL), ("reason", REASON),
+                       ("diagnostics", STR)])
+
+#: kind → the columns every table of that kind has
+CORE = {"landmark": LANDMARK_CORE, "filter": FILTER_CORE, "pose": POSE_CORE}
+
+#: columns holding wall-clock timings (excluded from bit-identity checks)
+TIMING_COLUMNS = ("t_ms",)
+
+
+def table_kind(table: pa.Table) -> str:
+    """``"landmark"``, ``"filter"``, ``"pose"`` or ``"other"`` from the columns a table has."""
+    names = set(table.column_names)
+    for kind in ("landmark", "filter", "pose"):
+        if set(CORE[kind].names) <= names:
+            return kind
+    return "other"
+
+
+def reason_array(values, kind: str) -> pa.DictionaryArray:
+    """A ``reason`` column from strings, refusing values outside the kind's enum."""
+    allowed = reason_values(kind)
+    bad = sorted({v for v in values if v not in allowed})
+    if bad:
+        raise ValueError(f"reason {bad[0]!r} is not a {kind} reason ({', '.join(allowed)})")
+    return pa.array(list(values), STR).dictionary_encode().cast(REASON)
+
+
+def table_from_rows(rows: list[dict], schema: pa.Schema, kind: str) -> pa.Table:
+    """Rows (dicts) → a table with ``schema`` (extra keys of the rows appended as float64/str columns)."""
+    cols = {}
+    for f in schema:
+        vals = [r.get(f.name) for r in rows]
+        cols[f.name] = reason_array(vals, kind) if f.name == "reason" else pa.array(vals, f.type)
+    extra = [k for k in (rows[0] if rows else {}) if k not in cols]
+    for k in extra:
+        vals = [r.get(k) for r in rows]
+        cols[k] = pa.array(vals)
+    return pa.table(cols)
+
+
+def check_table(table: pa.Table, kind: str, where: str = "table") -> None:
+    """Raise ``ValueError`` naming the first missing or mistyped column of the kind's core schema."""
+    for f in CORE[kind]:
+        if f.name not in table.column_names:
+            raise ValueError(f"{where}: {kind} table lacks column {f.name!r}")
+        t = table.schema.field(f.name).type
+        if f.name == "reason":
+            if not (pa.types.is_dictionary(t) or pa.types.is_string(t)):
+                raise ValueError(f"{where}: column 'reason' must be a string/dictionary column, got {t}")
+        elif t != f.type and not (pa.types.is_null(t)):
+            raise ValueError(f"{where}: column {f.name!r} must be {f.type}, got {t}")
+
+
+def empty_landmark_table() -> pa.Table:
+    """A zero-row table with the landmark runner's schema."""
+    return LANDMARK_RUNNER.empty_table()

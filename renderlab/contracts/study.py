@@ -1,0 +1,52 @@
+"""The study contract: what a campaign runs, how its tables are reported, and its scenario section.
+
+A study is registered (``renderlab.plugins.studies``, entry-point group ``renderlab.studies``) as a
+:class:`Study`. ``run(scenario, base_dir, run_index, seed_sequence, workdir) -> {table_name: pyarrow.Table}``
+perturbs the scenario (``scenario.perturbations``), renders through the truth cache under ``workdir``, runs the
+estimators and returns tables of the kinds in :mod:`renderlab.contracts.schemas`. Every random draw comes from
+``seed_sequence``. The engine adds ``campaign`` and ``run`` if a table lacks them.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Any, Callable
+
+
+def lazy(target: str) -> Callable:
+    """A callable that imports ``"module:function"`` on first call (keeps study registration light)."""
+    mod_name, _, fn_name = target.partition(":")
+
+    def call(*args, **kwargs):
+        return getattr(importlib.import_module(mod_name), fn_name)(*args, **kwargs)
+
+    call.__name__ = fn_name
+    call.__qualname__ = target
+    return call
+
+
+@dataclass(frozen=True)
+class Study:
+    """A registered study.
+
+    Attributes
+    ----------
+    name : str
+        Registry name (``campaign.study`` in a scenario).
+    run : callable
+        One Monte Carlo run (module docstring).
+    worlds : tuple of str
+        World kinds the study can run on; the first study listing a kind is its default.
+    description : str
+        One line for ``renderlab scenes`` and reports.
+    report_sections : callable or None
+        ``(tables, out_dir) -> [(title, html)]`` for the study's own report sections.
+    """
+
+    name: str
+    run: Callable[..., dict]
+    worlds: tuple[str, ...]
+    description: str = ""
+    report_sections: Callable[..., list] | None = None
+    demo: Callable[..., Any] | None = None

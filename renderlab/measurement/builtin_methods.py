@@ -1,0 +1,96 @@
+"""The lab's own landmark methods behind the :class:`~renderlab.contracts.landmark.LandmarkMethod` contract:
+Retina (:mod:`estimators.retina`) and the SPC-style method (:mod:`estimators.spc`).
+
+The estimators stay self-contained (numpy/numba, their own result type with a bit mask of
+:mod:`estimators.flags`); these adapters translate that mask into the contract's ``reason`` (first applicable
+in :class:`~renderlab.contracts.reasons.LandmarkReason` order), ``outlier`` (the final output phase's flag,
+kept) and ``diagnostics`` (the mask spelled out).
+"""
+
+from __future__ import annotations
+
+from renderlab.contracts.landmark import LandmarkFrame, LandmarkMethodOptions, LandmarkResult
+from renderlab.contracts.reasons import LandmarkReason
+
+#: estimator flag name → contract reason, in priority order
+_REASON_OF_FLAG = (("off_image", LandmarkReason.OFF_IMAGE), ("facing_away", LandmarkReason.FACING_AWAY),
+                   ("too_few_pixels", LandmarkReason.TOO_FEW_PIXELS), ("flat_template", LandmarkReason.FLAT_TEMPLATE),
+                   ("search_border", LandmarkReason.SEARCH_BORDER),
+                   ("low_correlation", LandmarkReason.LOW_CORRELATION))
+
+
+def result_from_estimator(m) -> LandmarkResult:
+    """:class:`estimators.retina.LandmarkMeasurement` → :class:`LandmarkResult`."""
+    from estimators import flags as F
+
+    names = {F.NAMES[b] for b in F.NAMES if m.flags & b}
+    if m.has_result:
+        reason, ds, dl = LandmarkReason.OK, float(m.ds), float(m.dl)
+    else:
+        reason = next((r for n, r in _REASON_OF_FLAG if n in names), LandmarkReason.NO_DETECTION)
+        ds = dl = float("nan")
+    return LandmarkResult(landmark_id=int(m.landmark_id), pred_s=float(m.pred_s), pred_l=float(m.pred_l), ds=ds, dl=dl,
+                          score=float(m.score), reason=reason.value, outlier=bool(m.flags & F.OUTLIER),
+                          search_px=int(m.search_px), n_pixels=int(m.n_pixels),
+                          shadow_fraction=float(m.shadow_fraction), diagnostics=F.describe(m.flags), t_ms=float(m.t_ms))
+
+
+def _pose(frame: LandmarkFrame):
+    from estimators.retina import CameraPoseEstimate
+
+    return CameraPoseEstimate(frame.pose.R_body_from_cam, frame.pose.position_m)
+
+
+class RetinaMethod:
+    """Retina (Wright et al.): ray-traced maplet prediction with shadow rays, McEwen shading, eq. 9 correlation,
+    sub-pixel peak (the paper's 3×3 step by default), final output phase."""
+
+    name = "retina"
+
+    def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
+        from estimators.retina import RetinaOptions, TemplateOptions
+
+        self.options = RetinaOptions(template=TemplateOptions(supersample=options.supersample,
+                                                              psf_sigma_px=options.psf_sigma_px,
+                                                              L_table=tuple(options.L_table)),
+                                     peak=options.peak or "retina_3x3", min_correlation=options.min_correlation)
+        self.peak = self.options.peak
+        self._meshes: dict[int, tuple] = {}
+
+    def _mesh(self, maplet):
+        from estimators.retina import build_mesh
+
+        hit = self._meshes.get(id(maplet))
+        if hit is None or hit[0] is not maplet:
+            hit = (maplet, build_mesh(maplet))
+            self._meshes[id(maplet)] = hit
+        return hit[1]
+
+    def measure_frame(self, frame: LandmarkFrame) -> list[LandmarkResult]:
+        from estimators.retina import measure_frame
+
+        meshes = [self._mesh(m) for m in frame.landmarks]
+        res = measure_frame(frame.image, meshes, frame.camera, _pose(frame), frame.sun_body,
+                            [int(r) for r in frame.search_px], self.options, frame.valid)
+        return [result_from_estimator(r) for r in res]
+
+
+class SpcMethod:
+    """SPC-style (Gaskell et al.): image resampled into the maplet frame, grid shading with approximate shadows,
+    correlation and quadric peak in the maplet frame, final output phase."""
+
+    name = "spc"
+
+    def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
+        from estimators.spc import SpcOptions
+
+        self.options = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation,
+                                  L_table=tuple(options.L_table))
+        self.peak = self.options.peak
+
+    def measure_frame(self, frame: LandmarkFrame) -> list[LandmarkResult]:
+        from estimators.spc import measure_frame
+
+        res = measure_frame(frame.image, list(frame.landmarks), frame.camera, _pose(frame), frame.sun_body,
+                            [int(r) for r in frame.search_px], self.options, frame.valid)
+        return [result_from_estimator(r) for r in res]

@@ -1,0 +1,172 @@
+"""Plug-in registries: landmark methods, navigation filters, studies, worlds and renderer backends by name.
+
+Each registry maps a name to a lazily imported ``"module:attr"`` target. It is filled by the lab's own modules
+(the ``BUILTIN`` tables below, so ``renderlab --help`` imports nothing heavy) and by installed packages through
+Python entry points, one group per registry::
+
+    # pyproject.toml of your package
+    [project.entry-points."renderlab.landmark_methods"]
+    my_ncc = "mypkg.method:MyMethod"
+
+A name given in a data file (a scenario, ``campaign.json``) resolves **only** through a registry: a data file
+never names an importable module. ``module:attr`` is accepted only where the user types it on the command line
+(``renderlab measure TRUTHSET --method mypkg:MyMethod``, ``renderlab campaign ... --plugin mypkg:MyMethod``),
+through :meth:`Registry.get` with ``allow_reference=True`` or :meth:`Registry.add_reference`.
+
+An unknown name is a :class:`~renderlab.errors.UserError` listing the registered names (and the closest one).
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+from importlib.metadata import entry_points
+from typing import Any
+
+from renderlab.errors import UserError
+
+#: registry name → (entry-point group, built-in {name: "module:attr"})
+BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
+    "landmark_methods": ("renderlab.landmark_methods", {
+        "retina": "renderlab.measurement.builtin_methods:RetinaMethod",
+        "spc": "renderlab.measurement.builtin_methods:SpcMethod",
+    }),
+    "filters": ("renderlab.filters", {
+        "coastline_ekf": "renderlab.measurement.builtin_filters:CoastlineEKF",
+        "coastline_sqrt_ekf": "renderlab.measurement.builtin_filters:CoastlineSqrtEKF",
+    }),
+    "studies": ("renderlab.studies", {
+        "analytic_pointing": "renderlab.studies.analytic_pointing:STUDY",
+        "retina_vs_spc": "renderlab.studies.retina_vs_spc:STUDY",
+        "coastline_ekf": "renderlab.studies.coastline_ekf:STUDY",
+        "unknown_satellite": "renderlab.studies.unknown_satellite:STUDY",
+    }),
+    "worlds": ("renderlab.worlds", {
+        "analytic": "renderlab.worlds.analytic:make_plan",
+        "ev5": "renderlab.worlds.ev5:make_plan",
+        "earth": "renderlab.worlds.earth:make_plan",
+        "microsat": "renderlab.worlds.microsat:make_plan",
+    }),
+    "scenario_sections": ("renderlab.scenario_sections", {
+        "coastline": "renderlab.studies.coastline_ekf.config:CoastlineStudyConfig",
+        "unknown_satellite": "renderlab.studies.unknown_satellite.config:UnknownSatelliteStudyConfig",
+    }),
+    "renderers": ("renderlab.renderers", {
+        "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",
+        "cycles": "renderlab.render.cycles_backend:CyclesBackend",
+    }),
+}
+
+_LABELS = {"landmark_methods": "landmark method", "filters": "filter", "studies": "study", "worlds": "world kind",
+           "renderers": "renderer", "scenario_sections": "scenario section"}
+
+
+def _load_target(target: str, what: str) -> Any:
+    mod_name, sep, attr = target.partition(":")
+    if not sep or not mod_name or not attr:
+        raise UserError(f"{what}: {target!r} is not of the form module:attr")
+    try:
+        module = importlib.import_module(mod_name)
+    except ImportError as exc:
+        raise UserError(f"{what}: cannot import {mod_name} ({exc})") from None
+    obj = module
+    for part in attr.split("."):
+        obj = getattr(obj, part, None)
+        if obj is None:
+            raise UserError(f"{what}: {mod_name} has no attribute {attr}")
+    return obj
+
+
+class Registry:
+    """Names → lazily loaded objects (module docstring)."""
+
+    def __init__(self, name: str, group: str, builtin: dict[str, str]):
+        self.name, self.group, self.label = name, group, _LABELS.get(name, name)
+        self._targets: dict[str, str] = dict(builtin)
+        self._objects: dict[str, Any] = {}
+        self._entry_points_loaded = False
+
+    def _load_entry_points(self) -> None:
+        if self._entry_points_loaded:
+            return
+        self._entry_points_loaded = True
+        for ep in entry_points(group=self.group):
+            self._targets.setdefault(ep.name, ep.value)
+
+    def register(self, name: str, obj: Any = None, *, target: str | None = None):
+        """Register ``obj`` (or a lazy ``target`` string) under ``name``; usable as a decorator."""
+        if target is not None:
+            self._targets[name] = target
+            self._objects.pop(name, None)
+            return None
+        if obj is None:
+            def deco(o):
+                self._objects[name] = o
+                return o
+            return deco
+        self._objects[name] = obj
+        return obj
+
+    def unregister(self, name: str) -> None:
+        self._objects.pop(name, None)
+        self._targets.pop(name, None)
+
+    def names(self) -> list[str]:
+        """Every registered name (built-in, registered at run time, entry points), sorted."""
+        self._load_entry_points()
+        return sorted(set(self._targets) | set(self._objects))
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.names()
+
+    def unknown(self, name: str, where: str = "") -> UserError:
+        names = self.names()
+        close = difflib.get_close_matches(str(name), names, n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        return UserError(f"{where}unknown {self.label} '{name}' (registered: {', '.join(names) or 'none'}){hint}")
+
+    def get(self, name: str, *, allow_reference: bool = False, where: str = "") -> Any:
+        """The object registered as ``name``; with ``allow_reference`` also a ``module:attr`` the user typed."""
+        if name in self._objects:
+            return self._objects[name]
+        self._load_entry_points()
+        if name in self._targets:
+            obj = _load_target(self._targets[name], f"{where}{self.label} '{name}'")
+            self._objects[name] = obj
+            return obj
+        if allow_reference and ":" in str(name):
+            return _load_target(str(name), f"{where}{self.label} {name!r}")
+        raise self.unknown(name, where)
+
+    def add_reference(self, reference: str, name: str | None = None) -> str:
+        """Register a user-typed ``module:attr`` (command line only) under ``name`` or the object's ``name``
+        attribute (else ``attr``); returns the name."""
+        obj = _load_target(reference, f"{self.label} {reference!r}")
+        key = name or getattr(obj, "name", None) or reference.partition(":")[2]
+        if not isinstance(key, str) or not key:
+            raise UserError(f"{self.label} {reference!r}: cannot tell its name; give NAME=module:attr")
+        self._objects[key] = obj
+        return key
+
+
+REGISTRIES: dict[str, Registry] = {n: Registry(n, g, b) for n, (g, b) in BUILTIN.items()}
+landmark_methods = REGISTRIES["landmark_methods"]
+filters = REGISTRIES["filters"]
+studies = REGISTRIES["studies"]
+worlds = REGISTRIES["worlds"]
+renderers = REGISTRIES["renderers"]
+scenario_sections = REGISTRIES["scenario_sections"]
+
+#: world kind → the study a campaign runs when ``campaign.study`` is empty
+DEFAULT_STUDY: dict[str, str] = {"analytic": "analytic_pointing", "ev5": "retina_vs_spc", "earth": "coastline_ekf",
+                                 "microsat": "unknown_satellite"}
+
+
+def parse_plugin(text: str) -> tuple[str | None, str]:
+    """``NAME=module:attr`` or ``module:attr`` (the ``--plugin`` option) → (name or None, reference)."""
+    name, sep, ref = text.partition("=")
+    if not sep:
+        return None, text
+    if not name.isidentifier():
+        raise UserError(f"--plugin {text!r}: NAME must be an identifier")
+    return name, ref

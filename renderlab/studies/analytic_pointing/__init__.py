@@ -1,0 +1,8 @@
+"""Study ``analytic_pointing``: the sphere's centre measured by a blob centroid and an ellipse fit on the
+analytic proving scene, scored against its projected truth (a smoke test of the campaign engine).
+See :mod:`.run`."""
+
+from renderlab.contracts.study import Study, lazy
+
+STUDY = Study(name="analytic_pointing", run=lazy("renderlab.studies.analytic_pointing.run:run"), worlds=("analytic",),
+              description="sphere centre by blob centroid vs ellipse fit on the analytic scene")
