@@ -30,4 +30,6 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q -e ".[test]"
+# the worked third-party plug-in (examples/ncc_baseline): installed like any user package, found by entry point
+.venv/bin/python -m pip install -q --no-deps -e examples/ncc_baseline
 echo "setup: done. Run .venv/bin/renderlab --help"
