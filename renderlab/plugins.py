@@ -50,6 +50,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
     "scenario_sections": ("renderlab.scenario_sections", {
         "coastline": "renderlab.studies.coastline_ekf.config:CoastlineStudyConfig",
         "unknown_satellite": "renderlab.studies.unknown_satellite.config:UnknownSatelliteStudyConfig",
+        "retina_vs_spc": "renderlab.studies.retina_vs_spc.config:RetinaVsSpcConfig",
     }),
     "renderers": ("renderlab.renderers", {
         "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",
@@ -160,6 +161,22 @@ scenario_sections = REGISTRIES["scenario_sections"]
 #: world kind → the study a campaign runs when ``campaign.study`` is empty
 DEFAULT_STUDY: dict[str, str] = {"analytic": "analytic_pointing", "ev5": "retina_vs_spc", "earth": "coastline_ekf",
                                  "microsat": "unknown_satellite"}
+
+
+def register_cli_plugins(texts) -> tuple:
+    """Register ``--plugin [NAME=]module:attr`` references typed on the command line: a
+    :class:`~renderlab.contracts.study.Study` goes to :data:`studies`, anything else to :data:`landmark_methods`.
+    Returns ``((registry, name, reference), ...)`` for the campaign's workers."""
+    from renderlab.contracts.study import Study
+
+    out = []
+    for text in texts or ():
+        name, ref = parse_plugin(text)
+        obj = _load_target(ref, f"--plugin {ref!r}")
+        registry = "studies" if isinstance(obj, Study) else "landmark_methods"
+        key = REGISTRIES[registry].add_reference(ref, name)
+        out.append((registry, key, ref))
+    return tuple(out)
 
 
 def parse_plugin(text: str) -> tuple[str | None, str]:

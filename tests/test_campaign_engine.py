@@ -137,10 +137,22 @@ def test_perturbation_draws():
     assert out["model"] == "brown" and out["distortion"] == {"k1": d.ddistortion["k1"]}
 
 
+def _register(name, fn):
+    from renderlab import plugins
+    from renderlab.contracts.study import Study
+
+    plugins.studies.register(name, Study(name=name, run=fn, worlds=("analytic",)))
+
+
 def test_failing_runs_are_recorded_and_the_campaign_goes_on(tmp_path):
-    sys.path.insert(0, str(Path(__file__).parent))
+    from renderlab import plugins
+
     sc, base = load_scenario(SCENE, TINY)
-    plan = make_plan(sc, base, runs=4, seed=0, study="test_campaign_engine:flaky_study")
+    _register("flaky", flaky_study)
+    _register("always_fails", always_fails)
+    with pytest.raises(UserError, match="unknown study 'test_campaign_engine:flaky_study'"):
+        make_plan(sc, base, runs=4, seed=0, study="test_campaign_engine:flaky_study")  # no module names from data
+    plan = make_plan(sc, base, runs=4, seed=0, study="flaky")
     res = run_campaign(plan, tmp_path / "c", progress=False)
     assert [f["run"] for f in res.failed] == [1, 3]
     sts = store.run_statuses(tmp_path / "c")
@@ -149,9 +161,11 @@ def test_failing_runs_are_recorded_and_the_campaign_goes_on(tmp_path):
     assert store.load_tables(tmp_path / "c")["values"].column("run").to_pylist() == [0, 2]
     res2 = run_campaign(plan, tmp_path / "c", resume=True, progress=False)  # failed runs are retried
     assert (res2.skipped, res2.executed, len(res2.failed)) == (2, 2, 2)
-    plan_bad = make_plan(sc, base, runs=2, seed=0, study="test_campaign_engine:always_fails")
+    plan_bad = make_plan(sc, base, runs=2, seed=0, study="always_fails")
     with pytest.raises(UserError, match="all 2 runs failed; run 0: UserError: target not in view"):
         run_campaign(plan_bad, tmp_path / "bad", executor=InProcessExecutor(), progress=False)
+    plugins.studies.unregister("flaky")
+    plugins.studies.unregister("always_fails")
 
 
 MALFORMED = [

@@ -98,6 +98,8 @@ def execute_run(task) -> dict:
     status = {"run": task.index, "status": "ok", "error": "", "seconds": 0.0}
     tables = {}
     try:
+        for registry, name, ref in task.plugins:  # typed by the user on the command line, never read from a file
+            plugins.REGISTRIES[registry].add_reference(ref, name)
         fn = plugins.studies.get(task.study, where="campaign.study: ").run
         scenario = scenario_from_dict(task.scenario, "campaign scenario")
         workdir = Path(task.campaign_dir) / "work"

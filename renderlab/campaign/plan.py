@@ -30,6 +30,7 @@ class RunTask:
     base_dir: str
     index: int
     seed: int
+    plugins: tuple = ()  #: (registry, name, "module:attr") the user typed on the command line (``--plugin``)
 
     def seed_sequence(self) -> np.random.SeedSequence:
         return run_seed_sequence(self.seed, self.index)
@@ -49,6 +50,7 @@ class CampaignPlan:
     runs: int
     seed: int
     study: str
+    plugins: tuple = ()  #: user-typed plug-in references, re-registered on every worker (not part of the digest)
 
     @property
     def name(self) -> str:
@@ -67,11 +69,12 @@ class CampaignPlan:
     def tasks(self, campaign_dir: Path, indices=None) -> list[RunTask]:
         sc = self.scenario.to_dict()
         idx = range(self.runs) if indices is None else indices
-        return [RunTask(str(campaign_dir), self.name, self.study, sc, str(self.base_dir), int(i), self.seed)
-                for i in idx]
+        return [RunTask(str(campaign_dir), self.name, self.study, sc, str(self.base_dir), int(i), self.seed,
+                        tuple(self.plugins)) for i in idx]
 
 
-def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, study: str | None = None) -> CampaignPlan:
+def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, study: str | None = None,
+              plugins: tuple = ()) -> CampaignPlan:
     """Validate a plan: run count, seed and the study (resolved against the registry).
 
     Raises
@@ -92,7 +95,10 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     if kind not in found.worlds:
         raise UserError(f"study '{name}' runs on world kind {' or '.join(repr(w) for w in found.worlds)}, "
                         f"not '{kind}'")
-    return CampaignPlan(scenario=scenario, base_dir=Path(base_dir).resolve(), runs=runs, seed=seed, study=name)
+    if found.check is not None:
+        found.check(scenario)
+    return CampaignPlan(scenario=scenario, base_dir=Path(base_dir).resolve(), runs=runs, seed=seed, study=name,
+                        plugins=tuple(plugins))
 
 
 def study_for(scenario) -> str:

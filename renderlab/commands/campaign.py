@@ -47,6 +47,10 @@ def add_parser(subparsers) -> None:
     p.add_argument("--seed", type=_int(0), metavar="S", help="override campaign.seed")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="override a scenario key (TOML value); repeatable")
+    p.add_argument("--plugin", action="append", default=[], metavar="[NAME=]MODULE:ATTR",
+                   help="register your own landmark method (or Study) under NAME (default: its 'name') for this "
+                        "campaign, e.g. --plugin mypkg.method:MyMethod; repeatable. Scenario files name only "
+                        "registered names, never modules")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -56,8 +60,11 @@ def run(args) -> int:
     from renderlab.campaign.runner import run_campaign
     from renderlab.scenario import load_scenario
 
+    from renderlab.plugins import register_cli_plugins
+
+    refs = register_cli_plugins(args.plugin)
     scenario, base = load_scenario(args.scenario, args.overrides)
-    plan = make_plan(scenario, base, args.runs, seed=args.seed)
+    plan = make_plan(scenario, base, args.runs, seed=args.seed, plugins=refs)
     executor = make_executor(args.workers, args.scheduler, args.connect_timeout)
     res = run_campaign(plan, Path(args.out), executor=executor, resume=args.resume, progress=not args.quiet)
     msg = (f"renderlab: campaign {res.path}: {res.runs - len(res.failed)} of {res.runs} runs finished "

@@ -42,6 +42,11 @@ class Study:
         One line for ``renderlab scenes`` and reports.
     report_sections : callable or None
         ``(tables, out_dir) -> [(title, html)]`` for the study's own report sections.
+    demo : callable or None
+        The study's piece of ``renderlab demo``.
+    check : callable or None
+        ``check(scenario)`` raising :class:`~renderlab.errors.UserError` for what the study cannot run; called
+        when the campaign plan is made, before any output exists.
     """
 
     name: str
@@ -50,3 +55,4 @@ class Study:
     description: str = ""
     report_sections: Callable[..., list] | None = None
     demo: Callable[..., Any] | None = None
+    check: Callable[..., None] | None = None  #: ``check(scenario)``: refuse what the study cannot run, before any output

@@ -243,6 +243,19 @@ def scenario_model() -> type[Scenario]:
 _MODEL_CACHE: dict[str, Any] = {}
 
 
+def truth_dict(sc_dict: dict[str, Any]) -> dict[str, Any]:
+    """A scenario dict without its campaign-only sections (``perturbations``, ``campaign`` and every registered
+    study section): what a truth render depends on (and what the truth cache is keyed by)."""
+    import json
+
+    from renderlab import plugins
+
+    d = json.loads(json.dumps(sc_dict))
+    for key in ("perturbations", "campaign", *plugins.scenario_sections.names()):
+        d.pop(key, None)
+    return d
+
+
 def _format_error(err: pydantic.ValidationError, source: str) -> str:
     e = err.errors()[0]
     loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith(("function-", "kind=")))

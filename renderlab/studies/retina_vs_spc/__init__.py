@@ -5,4 +5,5 @@ from renderlab.contracts.study import Study, lazy
 
 STUDY = Study(name="retina_vs_spc", run=lazy("renderlab.studies.retina_vs_spc.run:run"), worlds=("ev5",),
               description="Retina vs SPC-style landmark measurement on an EV5 descent (Wright et al. Fig. 12)",
-              demo=lazy("renderlab.studies.retina_vs_spc.demo:run_demo_campaign"))
+              demo=lazy("renderlab.studies.retina_vs_spc.demo:run_demo_campaign"),
+              check=lazy("renderlab.studies.retina_vs_spc.run:check"))

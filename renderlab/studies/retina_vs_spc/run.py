@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import math
 from pathlib import Path
 
@@ -41,16 +40,14 @@ import numpy as np
 
 from renderlab.errors import UserError
 
-METHODS = ("retina", "spc")
 TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
 
 
 def truth_scenario_dict(sc_dict: dict) -> dict:
     """The nominal scenario (what is rendered): the campaign-only sections removed."""
-    d = json.loads(json.dumps(sc_dict))
-    d.pop("perturbations", None)
-    d.pop("campaign", None)
-    return d
+    from renderlab.scenario import truth_dict
+
+    return truth_dict(sc_dict)
 
 
 def check_perturbations(p) -> None:
@@ -162,6 +159,24 @@ def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict) -> dic
     return out
 
 
+def section(scenario):
+    """The scenario's ``[retina_vs_spc]`` section (defaults when absent)."""
+    from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+
+    return getattr(scenario, "retina_vs_spc", None) or RetinaVsSpcConfig()
+
+
+def check(scenario) -> None:
+    """Validate before anything runs: world kind, perturbations, every method name registered."""
+    from renderlab import plugins
+
+    if scenario.world.kind != "ev5":
+        raise UserError(f"study retina_vs_spc needs world.kind 'ev5', got '{scenario.world.kind}'")
+    check_perturbations(scenario.perturbations)
+    for name in section(scenario).methods:
+        plugins.landmark_methods.get(name, where="retina_vs_spc.methods: ")
+
+
 def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``."""
     import pyarrow as pa
@@ -174,10 +189,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
-    if scenario.world.kind != "ev5":
-        raise UserError(f"study retina_vs_spc needs world.kind 'ev5', got '{scenario.world.kind}'")
+    check(scenario)
     p = scenario.perturbations
-    check_perturbations(p)
     ss_pert, ss_apriori, ss_noise, ss_map = seed_sequence.spawn(4)
     draw = draw_perturbation(p, ss_pert)
     # the a-priori pose is drawn per frame inside measure_truthset (same seed for both methods)
@@ -192,7 +205,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     sig_p, sig_r = apriori_sigmas(p)
     opts = MeasureOptions(sigma_pos_m=sig_p, sigma_att_rad=sig_r, campaign=scenario.name, run=int(run_index))
     apriori_state = ss_apriori.generate_state(4)
-    tables = [measure_truthset(believed, maplets, m, opts, np.random.default_rng(apriori_state)) for m in METHODS]
+    tables = [measure_truthset(believed, maplets, m, opts, np.random.default_rng(apriori_state))
+              for m in section(scenario).methods]
     meas = pa.concat_tables(tables)
     truth = ts.read_table("landmark_truth").to_pydict()
     extras = landmark_extras(ts, believed, maplets, truth)

@@ -35,7 +35,6 @@ from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 #: generic [perturbations] keys this study uses; any other non-zero one is refused
 USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", "apriori_attitude_sigma_deg",
                       "position_sigma_m", "velocity_sigma_mps")
-CAMPAIGN_SECTIONS = ("perturbations", "campaign", "unknown_satellite", "coastline")
 
 
 def study_config(scenario):
@@ -70,9 +69,9 @@ def truth_scenario_dict(scenario, draw: dict) -> dict:
     (only where its σ is non-zero, so every run of a noise-only campaign has the same cache key)."""
     from scipy.spatial.transform import Rotation
 
-    d = json.loads(json.dumps(scenario.to_dict()))
-    for k in CAMPAIGN_SECTIONS:
-        d.pop(k, None)
+    from renderlab.scenario import truth_dict
+
+    d = truth_dict(scenario.to_dict())
     cfg, p, tr = study_config(scenario), scenario.perturbations, d["trajectory"]
     if cfg.tumble_rate_sigma_frac > 0:
         tr["omega0_body_deg_s"] = [float(v * draw["tumble_scale"]) for v in tr["omega0_body_deg_s"]]

@@ -1,0 +1,47 @@
+"""Scenario section ``[retina_vs_spc]`` of the landmark-method comparison (Wright et al., Fig. 12). Light: pydantic.
+
+``methods`` are registered landmark-method names (:data:`renderlab.plugins.landmark_methods`: the lab's
+``retina`` and ``spc``, the example plug-in ``ncc_baseline``, or any installed package's entry point); a
+scenario never names a Python module. Every method sees the same image, a-priori draw and beliefs.
+
+``well_measured`` is the pre-declared subset the findings are stated for (declared before looking at the
+errors): GSD ratio (image GSD / maplet spacing) in ``[gsd_ratio_min, gsd_ratio_max]``, truth shadow fraction
+≤ ``shadow_fraction_max``, landmark visible and unoccluded in the truth.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field, model_validator
+
+from renderlab.config_types import NonNegative, Positive, Strict
+
+
+class WellMeasuredSubset(Strict):
+    """The pre-declared well-measured subset (module docstring)."""
+
+    gsd_ratio_min: Positive = 0.5
+    gsd_ratio_max: Positive = 2.0
+    shadow_fraction_max: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.05
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.gsd_ratio_max < self.gsd_ratio_min:
+            raise ValueError(f"gsd_ratio_max ({self.gsd_ratio_max}) must be >= gsd_ratio_min ({self.gsd_ratio_min})")
+        return self
+
+
+class RetinaVsSpcConfig(Strict):
+    """Options of study ``retina_vs_spc``."""
+
+    methods: Annotated[list[Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]],
+                       Field(min_length=1, max_length=16)] = ["retina", "spc", "ncc_baseline"]
+    well_measured: WellMeasuredSubset = WellMeasuredSubset()
+    gross_error_px: NonNegative = 1.0   # |err| above this (per axis) counts as a gross error
+
+    @model_validator(mode="after")
+    def _unique(self):
+        if len(set(self.methods)) != len(self.methods):
+            raise ValueError(f"methods must be unique, got {self.methods}")
+        return self
