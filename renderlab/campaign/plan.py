@@ -82,7 +82,7 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     UserError
         ``--runs`` out of range, negative seed, or an unknown study / one that does not fit the world.
     """
-    from renderlab import plugins
+    from renderlab import plugins as registry
 
     if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
         raise UserError(f"--runs must be an integer in 1..{MAX_RUNS}, got {runs!r}")
@@ -90,7 +90,7 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
         raise UserError(f"campaign seed must be a non-negative integer, got {seed!r}")
     name = study or study_for(scenario)
-    found = plugins.studies.get(name, where="campaign.study: ")  # fails early on an unknown study
+    found = registry.studies.get(name, where="campaign.study: ")  # fails early on an unknown study
     kind = scenario.world.kind
     if kind not in found.worlds:
         raise UserError(f"study '{name}' runs on world kind {' or '.join(repr(w) for w in found.worlds)}, "

@@ -61,7 +61,22 @@ def read_manifest(campaign_dir: Path) -> dict:
         raise UserError(f"cannot read {p}: {exc}") from None
     if not isinstance(m, dict) or m.get("format") != FORMAT:
         raise UserError(f"{p}: format must be {FORMAT!r}")
+    from renderlab.campaign.plan import MAX_RUNS
+
+    runs = (m.get("plan") or {}).get("runs") if isinstance(m.get("plan"), dict) else None
+    if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
+        raise UserError(f"{p}: plan.runs must be an integer in 1..{MAX_RUNS}, got {runs!r}")
+    if not isinstance(m["plan"].get("study"), str):
+        raise UserError(f"{p}: plan.study must be a registered study name")
     return m
+
+
+def _table_names(st: dict, where: Path) -> list[str]:
+    """The run's table names: plain identifiers inside the run folder, never paths."""
+    names = st.get("tables", [])
+    if not isinstance(names, list) or not all(isinstance(n, str) and n.isidentifier() for n in names):
+        raise UserError(f"{where}: 'tables' must be a list of plain table names (identifiers), got {names!r}")
+    return names
 
 
 def _first_difference(a, b, where="") -> str:
@@ -104,9 +119,10 @@ def run_status(campaign_dir: Path, index: int) -> dict | None:
     if not p.is_file():
         return None
     try:
-        return json.loads(p.read_text(encoding="utf-8"))
+        st = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
+    return st if isinstance(st, dict) else None
 
 
 def is_finished(campaign_dir: Path, index: int) -> bool:
@@ -156,8 +172,12 @@ def load_tables(campaign_dir: Path) -> dict:
         st = run_status(campaign_dir, i)
         if not st or st.get("status") != "ok":
             continue
-        for name in st.get("tables", []):
-            parts.setdefault(name, []).append(pq.read_table(str(run_dir(campaign_dir, i) / f"{name}.parquet")))
+        d = run_dir(campaign_dir, i)
+        for name in _table_names(st, d / "status.json"):
+            try:
+                parts.setdefault(name, []).append(pq.read_table(str(d / f"{name}.parquet")))
+            except (OSError, ValueError) as exc:  # pyarrow raises ArrowInvalid (a ValueError) on a corrupt file
+                raise UserError(f"cannot read {d / (name + '.parquet')}: {' '.join(str(exc).split())[:200]}") from None
     return {name: pa.concat_tables(ts, promote_options="permissive") for name, ts in parts.items()}
 
 
