@@ -26,7 +26,8 @@ def test_report_from_tables(tmp_path, capsys):
     rep = tmp_path / "rep"
     t = pa.concat_tables([pq.read_table(p) for p in sorted(camp.glob("runs/*/measurements.parquet"))])
     rows = list(csv.DictReader((rep / "summary.csv").open()))
-    assert {(r["method"], r["axis"]) for r in rows} == {(m, a) for m in ("centroid", "ellipse") for a in "sl"}
+    assert {(r["subset"], r["method"], r["axis"]) for r in rows} == {("all", m, a) for m in ("centroid", "ellipse")
+                                                                       for a in "sl"}
     for r in rows:
         sel = np.array(t.column("method").to_pylist()) == r["method"]
         e = np.array(t.column(f"err_{r['axis']}").to_pylist(), float)[sel]
@@ -36,16 +37,19 @@ def test_report_from_tables(tmp_path, capsys):
         assert int(r["n_rows"]) == sel.sum() and int(r["n_result"]) == len(good)
         assert abs(float(r["no_result_rate"]) - (1 - len(good) / sel.sum())) < 1e-5
         if len(good) >= 2:
-            assert abs(float(r["mean"]) - good.mean()) <= 1e-5 * max(1, abs(good.mean()))
-            assert abs(float(r["std"]) - good.std(ddof=1)) <= 1e-5 * max(1, good.std())
-            assert abs(float(r["mad"]) - stats.median_abs_deviation(good, scale="normal")) <= 1e-5
+            assert abs(float(r["bias_px"]) - good.mean()) <= 1e-5 * max(1, abs(good.mean()))
+            assert abs(float(r["std_px"]) - good.std(ddof=1)) <= 1e-5 * max(1, good.std())
+            assert abs(float(r["robust_sigma_px"]) - stats.median_abs_deviation(good, scale="normal")) <= 1e-5
+            assert float(r["bias_px_lo"]) <= float(r["bias_px"]) <= float(r["bias_px_hi"])
     page = (rep / "index.html").read_text()
     imgs = re.findall(r'src="([^"]+\.png)"', page)
-    assert len(imgs) >= 5
+    svgs = re.findall(r'href="([^"]+\.svg)"', page)
+    assert len(svgs) == len(imgs) and all((rep / n).read_text().lstrip().startswith("<?xml") for n in svgs)
+    assert len(imgs) >= 4 and any("fig12" in n for n in imgs)
     for name in imgs:
         img = cv2.imread(str(rep / name))
         assert img is not None and img.shape[0] > 100 and img.std() > 0
-    assert "summary.csv" in page and "renderlab report camp --out rep" in page
-    assert (rep / "measurements_breakdown.csv").is_file()
+    assert "renderlab report camp --out rep" in page and "cluster bootstrap" in page
+    assert (rep / "measurements_breakdown.csv").is_file() and (rep / "summary.csv").is_file()
     assert main(["report", str(tmp_path / "nowhere"), "--out", str(rep)]) == 2
     assert "not a campaign folder" in capsys.readouterr().err

@@ -56,3 +56,6 @@ class Study:
     report_sections: Callable[..., list] | None = None
     demo: Callable[..., Any] | None = None
     check: Callable[..., None] | None = None  #: ``check(scenario)``: refuse what the study cannot run, before any output
+    subsets: Callable[..., list] | None = None  #: ``subsets(table, scenario_dict) -> [(key, mask, label)]``
+    gross_error_px: Callable[..., float] | None = None  #: ``gross_error_px(scenario_dict) -> px``
+    clusters: tuple[str, ...] = ("frame", "item")  #: columns whose rows are correlated (cluster-bootstrap units)

@@ -1,54 +1,31 @@
-"""``renderlab report CAMPAIGN_DIR --out DIR``: tables → summary.csv, figures and an HTML page.
+"""``renderlab report CAMPAIGN_DIR --out DIR``: tables → CSV summaries, figures (PNG + SVG) and one HTML page.
 
-Everything is recomputed from the campaign's Parquet tables (``runs/*/<table>.parquet``) by
-:mod:`renderlab.campaign.scoring`; nothing is read from a previous report. Outputs are staged in a
-hidden sibling folder and moved into ``DIR`` file by file once all are written.
+Everything is recomputed from the campaign's Parquet tables (``runs/*/<table>.parquet``, or ``tables/<table>.parquet``
+of a published study folder) by :mod:`renderlab.report.landmark_stats`, :mod:`renderlab.campaign.scoring` and the
+study's own hooks; nothing is read from a previous report. The page is a jinja2 template
+(``templates/report.html.j2``). Outputs are staged in a hidden sibling folder and moved into ``DIR`` file by file
+once all are written.
 """
 
 from __future__ import annotations
 
-import csv
 import html
-import io
 import os
 import secrets
 import shutil
 from pathlib import Path
 
-import numpy as np
-
 from renderlab.errors import UserError
+from renderlab.report.csvio import write_csv  # noqa: F401  (re-exported for studies)
+from renderlab.report.html_table import table as html_table
+from renderlab.report.style import ci
 
-
-def write_csv(path: Path, rows: list[dict]) -> None:
-    """Rows (dicts) → CSV, columns in order of first appearance, floats to 6 significant digits."""
-    cols: list[str] = []
-    for r in rows:
-        cols += [k for k in r if k not in cols]
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    Path(path).write_text(buf.getvalue(), encoding="utf-8")
-
-
-def _html_table(rows: list[dict], cols: list[str]) -> str:
-    def fmt(v):
-        return f"{v:.4g}" if isinstance(v, float) else html.escape(str(v))
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
-    body = "".join("<tr>" + "".join(f"<td>{fmt(r.get(c, ''))}</td>" for c in cols) + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
-
-
-def _ci(r, key):
-    return f"{r[key]:+.4f} [{r[key + '_lo']:+.4f}, {r[key + '_hi']:+.4f}]"
+TEMPLATE_DIR = Path(__file__).parent / "templates"
 
 
 def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) -> Path:
     """Write the report of ``campaign_dir`` into ``out_dir``; return the HTML page's path."""
-    from renderlab.campaign import scoring, store
-    from renderlab.report import campaign_figures as figs
+    from renderlab.campaign import store
 
     campaign_dir, out_dir = Path(campaign_dir), Path(out_dir)
     manifest = store.read_manifest(campaign_dir)
@@ -58,102 +35,133 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
         raise UserError(f"campaign {campaign_dir} has no finished runs to report")
     if out_dir.exists() and not out_dir.is_dir():
         raise UserError(f"--out {out_dir} exists and is not a directory")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    stage = out_dir.parent / f".{out_dir.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
-    stage.mkdir()
     try:
-        sections = _write_all(tables, stage, confidence, scoring, figs)
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        stage = out_dir.parent / f".{out_dir.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
+        stage.mkdir()
+    except OSError as exc:
+        raise UserError(f"cannot write the report into {out_dir}: {exc.strerror or exc}") from None
+    try:
+        sections, summary, headline = _write_all(tables, stage, manifest, confidence)
         sections += _study_sections(manifest["plan"]["study"], tables, stage)
-        page = _page(manifest, statuses, sections, campaign_dir, out_dir)
+        regen = f"renderlab report {_rel(campaign_dir, out_dir)} --out {out_dir.name}"
+        page = _page(manifest, statuses, sections, headline, regen)
         (stage / "index.html").write_text(page, encoding="utf-8")
+        if summary:
+            write_csv(stage / "summary.csv", summary)
         (stage / "README.md").write_text(
-            f"# Campaign report: {manifest['name']}\n\nMade from the campaign's Parquet tables by\n\n"
-            f"    renderlab report {campaign_dir.name} --out {out_dir.name}\n\n"
-            f"Study `{manifest['plan']['study']}`, {manifest['plan']['runs']} runs, seed "
-            f"{manifest['plan']['seed']['entropy']}. Open `index.html`.\n", encoding="utf-8")
+            f"# Campaign report: {manifest['name']}\n\nMade from the campaign's Parquet tables alone by (from the "
+            f"folder that holds this report)\n\n    {regen}\n\nStudy `{manifest['plan']['study']}`, "
+            f"{manifest['plan']['runs']} runs, seed {manifest['plan']['seed']['entropy']}. Open `index.html`.\n",
+            encoding="utf-8")
         out_dir.mkdir(exist_ok=True)
         for f in sorted(stage.iterdir()):
             os.replace(f, out_dir / f.name)
+    except OSError as exc:
+        raise UserError(f"cannot write the report into {out_dir}: {exc.strerror or exc}") from None
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return out_dir / "index.html"
 
 
-def _study_sections(study: str, tables, stage: Path) -> list[tuple[str, str]]:
-    """Extra sections from the registered study's ``report_sections(tables, out_dir) -> [(title, html)]``
-    (optional; for tables the generic kinds do not cover). A study no longer registered gives none."""
+def _rel(campaign_dir: Path, out_dir: Path) -> str:
+    """The campaign folder as seen from the folder that holds the report."""
+    try:
+        return Path(os.path.relpath(campaign_dir.resolve(), out_dir.resolve().parent)).as_posix()
+    except ValueError:
+        return str(campaign_dir)
+
+
+def _study(name: str):
     from renderlab import plugins
 
-    if study not in plugins.studies:
+    return plugins.studies.get(name) if name in plugins.studies else None
+
+
+def _study_sections(study: str, tables, stage: Path) -> list[dict]:
+    """Extra sections from the registered study's ``report_sections(tables, out_dir) -> [(title, html)]``
+    (optional; for tables the generic kinds do not cover). A study no longer registered gives none."""
+    found = _study(study)
+    hook = getattr(found, "report_sections", None)
+    if not callable(hook):
         return []
-    hook = plugins.studies.get(study).report_sections
-    return list(hook(tables, stage)) if callable(hook) else []
+    out = []
+    for title, body in hook(tables, stage):
+        out.append({"title": title, "anchor": title.lower().replace(" ", "-")[:40],
+                    "blocks": [{"kind": "table", "html": body}]})
+    return out
 
 
-def _write_all(tables, stage: Path, confidence, scoring, figs) -> list[tuple[str, str]]:
-    """Scores, CSVs and figures of every table; returns HTML sections (title, body)."""
-    sections, summary_all = [], []
+def _write_all(tables, stage: Path, manifest: dict, confidence) -> tuple[list[dict], list[dict], str]:
+    """Sections of every landmark and filter table, the summary rows and the headline."""
+    from renderlab.campaign import scoring
+    from renderlab.report.filter_section import filter_section
+    from renderlab.report.landmark_section import landmark_section
+
+    sections, summary_all, headline = [], [], ""
+    found = _study(manifest["plan"]["study"])
+    scenario = manifest["plan"].get("scenario") or {}
     for name, t in sorted(tables.items()):
         kind = scoring.table_kind(t)
         if kind == "landmark":
-            rows = [{"table": name, **r} for r in scoring.score_measurements(t, confidence)]
-            summary_all += rows
-            brk = [r for col in scoring.BREAKDOWNS for r in scoring.breakdown(t, col, confidence=confidence)]
-            write_csv(stage / f"{name}_breakdown.csv", brk)
-            pre = f"{name}_"
-            figs.scatter(t, stage / f"{pre}scatter.png")
-            figs.fractional_shift(t, stage / f"{pre}fractional_shift.png")
-            figs.failures(rows, stage / f"{pre}failures.png")
-            figs.crlb_ratio(rows, stage / f"{pre}crlb_ratio.png")
-            has_brk = figs.breakdowns(brk, stage / f"{pre}breakdowns.png")
-            lines = [f"<li>{html.escape(r['method'])} {r['axis']}: bias {_ci(r, 'mean')} px, noise σ "
-                     f"{r['std']:.4f} [{r['std_lo']:.4f}, {r['std_hi']:.4f}] px, median {_ci(r, 'median')}, "
-                     f"MAD {r['mad']:.4f}, no result {100 * r['no_result_rate']:.1f} % "
-                     f"[{100 * r['no_result_lo']:.1f}, {100 * r['no_result_hi']:.1f}]"
-                     + (f", noise/CRLB {r['std_over_crlb']:.3g}" if np.isfinite(r.get("std_over_crlb", np.nan)) else "")
-                     + "</li>" for r in rows]
-            imgs = ["scatter", "fractional_shift", "failures", "crlb_ratio"] + (["breakdowns"] if has_brk else [])
-            body = (f"<p>{confidence:.0%} confidence intervals in brackets (bias: Student t; noise: χ²; median: "
-                    "order statistics; no-result rate: Wilson).</p><ul>" + "".join(lines) + "</ul>"
-                    + "".join(f'<p><img src="{pre}{i}.png" alt="{i}"></p>' for i in imgs)
-                    + f'<p>Breakdown table: <a href="{name}_breakdown.csv">{name}_breakdown.csv</a></p>')
-            sections.append((f"Measurements: {name}", body))
+            subsets = found.subsets(t, scenario) if getattr(found, "subsets", None) else []
+            gross = found.gross_error_px(scenario) if getattr(found, "gross_error_px", None) else 1.0
+            keys = tuple(getattr(found, "clusters", None) or ("frame", "item"))
+            sec, csvs = landmark_section(name, t, stage, gross_px=gross, subsets=subsets, cluster_keys=keys)
+            sections.append(sec)
+            summary_all += csvs["summary"]
+            headline = headline or _headline(csvs["summary"])
         elif kind == "filter":
-            rows = scoring.score_filter(t, confidence=confidence)
-            write_csv(stage / f"{name}_filter_summary.csv", rows)
-            figs.filter_errors(t, stage / f"{name}_errors.png")
-            cols = sorted({k for r in rows for k in r}, key=lambda k: list(rows[0]).index(k) if k in rows[0] else 99)
-            sections.append((f"Filter: {name}", _html_table(rows, cols) + f'<p><img src="{name}_errors.png"></p>'))
-    if summary_all:
-        write_csv(stage / "summary.csv", summary_all)
-    return sections
+            sec, _ = filter_section(name, t, stage, confidence=confidence)
+            sections.append(sec)
+    return sections, summary_all, headline
 
 
-def _page(manifest, statuses, sections, campaign_dir: Path, out_dir: Path) -> str:
+def _headline(summary: list[dict]) -> str:
+    """One line per method on the last (most specific) subset: bias and robust σ per axis with CIs."""
+    if not summary:
+        return ""
+    subset = summary[-1]["subset"]
+    rows = [r for r in summary if r["subset"] == subset]
+    parts = []
+    for m in sorted({r["method"] for r in rows}):
+        s, l = (next(r for r in rows if r["method"] == m and r["axis"] == a) for a in "sl")
+        parts.append(f"<b>{html.escape(m)}</b>: bias s {ci(s['bias_px'], s['bias_px_lo'], s['bias_px_hi'])}, "
+                     f"l {ci(l['bias_px'], l['bias_px_lo'], l['bias_px_hi'])} px; robust σ "
+                     f"{s['robust_sigma_px']:.3f} / {l['robust_sigma_px']:.3f} px; no result "
+                     f"{100 * s['no_result_rate']:.1f} %")
+    return f"Headline ({html.escape(subset)} rows, 95 % cluster-bootstrap CIs): " + "; ".join(parts) + "."
+
+
+def _header_tables(manifest: dict) -> list[str]:
+    plan = manifest["plan"]
+    pert = [{"key": k, "value": str(v)} for k, v in sorted((plan["scenario"].get("perturbations") or {}).items())
+            if v not in (0, 0.0, [0.0] * 3, [0, 0, 0], {}, None)]
+    ver = [{"key": k, "value": str(v)} for k, v in sorted((manifest.get("versions") or {}).items())]
+    out = []
+    if pert:
+        out.append("<h3>Perturbations (1σ, units in the key name)</h3>"
+                   + html_table(pert, [("key", "scenario key"), ("value", "1σ")], left=("key", "value")))
+    else:
+        out.append("<p class='note'>No perturbations: every run differs only by its sensor noise.</p>")
+    if ver:
+        out.append("<details><summary>Software versions</summary>"
+                   + html_table(ver, [("key", "package"), ("value", "version")], left=("key", "value")) + "</details>")
+    return out
+
+
+def _page(manifest, statuses, sections, headline: str, regen: str) -> str:
+    import jinja2
+
     plan = manifest["plan"]
     counts: dict[str, int] = {}
     for s in statuses:
         counts[s["status"]] = counts.get(s["status"], 0) + 1
-    errors = [s for s in statuses if s["status"] == "error"][:10]
-    pert = {k: v for k, v in plan["scenario"].get("perturbations", {}).items() if v not in (0, 0.0, [0.0] * 3, {}, None)}
-    parts = [
-        "<!doctype html><html><head><meta charset='utf-8'>",
-        f"<title>renderlab campaign {html.escape(manifest['name'])}</title>",
-        "<style>body{font-family:sans-serif;max-width:1200px;margin:2em auto}table{border-collapse:collapse}"
-        "td,th{border:1px solid #ccc;padding:2px 6px;font-size:12px}img{max-width:100%}</style></head><body>",
-        f"<h1>Campaign {html.escape(manifest['name'])}</h1>",
-        f"<p>Study <b>{html.escape(plan['study'])}</b>, {plan['runs']} runs, root seed {plan['seed']['entropy']} "
-        f"(run i: {html.escape(plan['seed']['run_seed'])}). Runs: "
-        + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())) + ".</p>",
-        f"<p>Perturbations (1σ): <code>{html.escape(str(pert) if pert else 'none')}</code></p>",
-        f"<p>Versions: <code>{html.escape(str(manifest.get('versions', {})))}</code></p>",
-        f"<p>Regenerate: <code>renderlab report {html.escape(campaign_dir.name)} --out {html.escape(out_dir.name)}"
-        "</code>. Summary: <a href='summary.csv'>summary.csv</a>.</p>",
-    ]
-    if errors:
-        parts.append("<h2>Failed runs</h2><ul>" + "".join(
-            f"<li>run {s['run']}: {html.escape(s.get('error', ''))}</li>" for s in errors) + "</ul>")
-    for title, body in sections:
-        parts.append(f"<h2>{html.escape(title)}</h2>{body}")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATE_DIR)), autoescape=True)
+    return env.get_template("report.html.j2").render(
+        title=f"Campaign {manifest['name']}",
+        subtitle=(f"Study {plan['study']}, {plan['runs']} runs ("
+                  + ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))
+                  + f"), root seed {plan['seed']['entropy']}; run i is seeded by {plan['seed']['run_seed']}."),
+        headline=headline, header_tables=_header_tables(manifest), regenerate=regen,
+        failed=[s for s in statuses if s["status"] == "error"][:10], sections=sections)

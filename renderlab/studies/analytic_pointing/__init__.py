@@ -5,4 +5,5 @@ See :mod:`.run`."""
 from renderlab.contracts.study import Study, lazy
 
 STUDY = Study(name="analytic_pointing", run=lazy("renderlab.studies.analytic_pointing.run:run"), worlds=("analytic",),
-              description="sphere centre by blob centroid vs ellipse fit on the analytic scene")
+              description="sphere centre by blob centroid vs ellipse fit on the analytic scene",
+              clusters=("run",))  # each run renders its own perturbed truth

@@ -31,13 +31,13 @@ truth image over the landmark's footprint (:func:`renderlab.campaign.scoring.reg
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import math
 from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
 
 TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
@@ -65,40 +65,27 @@ def apriori_sigmas(p) -> tuple[tuple, tuple]:
     return tuple(float(v) for v in pos), (math.radians(p.apriori_attitude_sigma_deg),) * 3
 
 
-class BelievedTruthSet:
-    """A truth set as the onboard system sees it: believed camera and Sun in the frame records, and
-    the DN images re-exposed with this run's noise. Only what :func:`renderlab.measurement.runner.measure_truthset`
-    reads (``path``, ``frames``, ``len``, ``load``, ``read_table``)."""
+def believed_record(rec: dict, draw) -> dict:
+    """A frame record as the onboard system believes it: the run's camera and Sun-direction knowledge errors."""
+    from renderlab.campaign.perturb import perturb_camera, perturb_sun
+
+    r = dict(rec)
+    r["camera"] = perturb_camera(rec["camera"], draw)
+    r["sun"] = {**rec["sun"], "direction_render": [float(v) for v in perturb_sun(rec["sun"]["direction_render"], draw)]}
+    return r
+
+
+class BelievedTruthSet(ReexposedTruthSet):
+    """A truth set as the onboard system sees it: believed camera and Sun in the frame records
+    (:func:`believed_record`), and the DN images re-exposed with this run's noise (one seed per frame,
+    :class:`renderlab.campaign.reexpose.ReexposedTruthSet`, each frame's DN kept). What
+    :func:`renderlab.measurement.runner.measure_truthset` reads (``path``, ``frames``, ``len``, ``load``, ``read_table``)."""
+
+    no_radiance = "truth set {path}: retina_vs_spc needs a mono (radiance) truth set"
 
     def __init__(self, ts, draw, sensor_options, noise_seeds):
-        from renderlab.campaign.perturb import perturb_camera, perturb_sun
-
-        self._ts, self.path, self._opts, self._seeds, self._dn = ts, ts.path, sensor_options, noise_seeds, {}
-        self.frames = []
-        for rec in ts.frames:
-            r = dict(rec)
-            r["camera"] = perturb_camera(rec["camera"], draw)
-            r["sun"] = {**rec["sun"], "direction_render": [float(v) for v in perturb_sun(rec["sun"]["direction_render"], draw)]}
-            self.frames.append(r)
-
-    def __len__(self) -> int:
-        return len(self.frames)
-
-    def read_table(self, name: str):
-        return self._ts.read_table(name)
-
-    def sensor_options(self, i: int):
-        return dataclasses.replace(self._opts, exposure_s=float(self._ts.frames[i]["sensor"]["exposure_s"]))
-
-    def load(self, i: int):
-        from renderlab.sensor import expose
-
-        fr = self._ts.load(i)
-        if i not in self._dn:
-            if fr.radiance is None:
-                raise UserError(f"truth set {self.path}: retina_vs_spc needs a mono (radiance) truth set")
-            self._dn[i] = expose(fr.radiance, self.sensor_options(i), np.random.default_rng(self._seeds[i])).dn
-        return dataclasses.replace(fr, dn=self._dn[i])
+        super().__init__(ts, sensor_options, noise_seeds, cache=True)
+        self.frames = [believed_record(rec, draw) for rec in ts.frames]
 
 
 @functools.lru_cache(maxsize=2)
