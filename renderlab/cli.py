@@ -47,6 +47,7 @@ EXTRA_COMMANDS = {
     "visibility": "renderlab.commands.visibility",
     "campaign": "renderlab.commands.campaign",
     "report": "renderlab.commands.report",
+    "publish": "renderlab.commands.report",
 }
 
 
@@ -77,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
-    for name, module in _extra_commands().items():
+    for module in dict.fromkeys(_extra_commands().values()):  # one add_parser per module (report adds publish)
         module.add_parser(sub)
 
     d = sub.add_parser("demo", help="the main job on built-in defaults: render, check, preview, report")

@@ -166,7 +166,11 @@ def load_tables(campaign_dir: Path) -> dict:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
+    from renderlab.campaign import publish
+
     m = read_manifest(campaign_dir)
+    if publish.is_published(campaign_dir):
+        return publish.load_published_tables(campaign_dir)
     parts: dict[str, list] = {}
     for i in range(int(m["plan"]["runs"])):
         st = run_status(campaign_dir, i)
@@ -183,5 +187,9 @@ def load_tables(campaign_dir: Path) -> dict:
 
 def run_statuses(campaign_dir: Path) -> list[dict]:
     """Status of every planned run (``{"run": i, "status": "missing"}`` where none was written)."""
+    from renderlab.campaign import publish
+
     m = read_manifest(campaign_dir)
+    if publish.is_published(campaign_dir):
+        return publish.published_statuses(campaign_dir)
     return [run_status(campaign_dir, i) or {"run": i, "status": "missing"} for i in range(int(m["plan"]["runs"]))]

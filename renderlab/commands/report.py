@@ -1,4 +1,5 @@
-"""``renderlab report CAMPAIGN_DIR --out DIR``: summary.csv, figures and index.html from a campaign's tables."""
+"""``renderlab report CAMPAIGN_DIR [--out DIR]`` (summary CSVs, figures and index.html from a campaign's tables) and
+``renderlab publish CAMPAIGN_DIR --out RESULTS_DIR`` (the raw tables as a study folder, then its report)."""
 
 from __future__ import annotations
 
@@ -6,14 +7,31 @@ from pathlib import Path
 
 
 def add_parser(subparsers) -> None:
-    p = subparsers.add_parser("report", help="score a campaign and write summary.csv, figures and an HTML page")
-    p.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder made by renderlab campaign")
-    p.add_argument("--out", required=True, metavar="DIR", help="report folder (files in it are replaced)")
+    p = subparsers.add_parser("report", help="score a campaign (or a published study folder) and write summary "
+                                             "CSVs, figures and an HTML page from its tables alone")
+    p.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder made by renderlab campaign or renderlab publish")
+    p.add_argument("--out", metavar="DIR", help="report folder (files in it are replaced; default for a published "
+                                                "study folder: CAMPAIGN_DIR/report)")
+    q = subparsers.add_parser("publish", help="copy a campaign's raw tables into a study folder (tables/*.parquet, "
+                                              "campaign.json, runs.json) and write its report there")
+    q.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder made by renderlab campaign")
+    q.add_argument("--out", required=True, metavar="RESULTS_DIR", help="study folder (e.g. results/my_study)")
+    q.set_defaults(command_module=__name__, publish=True)
 
 
 def run(args) -> int:
+    from renderlab.campaign.publish import is_published, publish_campaign
+    from renderlab.errors import UserError
     from renderlab.report.campaign_report import make_report
 
-    page = make_report(Path(args.campaign), Path(args.out))
+    if getattr(args, "publish", False):
+        out = publish_campaign(Path(args.campaign), Path(args.out))
+        page = make_report(out, out / "report")
+        print(f"renderlab: published {out} (tables/, campaign.json, runs.json); report {page}")
+        return 0
+    src = Path(args.campaign)
+    if args.out is None and not is_published(src):
+        raise UserError("--out DIR is needed for a campaign folder (only a published study folder has a default)")
+    page = make_report(src, Path(args.out) if args.out else src / "report")
     print(f"renderlab: wrote report {page}")
     return 0
