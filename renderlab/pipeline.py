@@ -111,7 +111,7 @@ def render_truthset(
                 "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
                            "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)},
             }
-            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn, meta)
+            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn, meta, dn_bits=opts.bits)
             for name, new_rows in plan.frame_rows(spec, out).items():
                 rows.setdefault(name, []).extend(new_rows)
         for name, table_rows in rows.items():

@@ -2,7 +2,9 @@
 
 A truth set is a folder with ``manifest.json`` (``"format": "renderlab.truthset/1"``) and,
 per frame, ``frames/NNNNNN.exr`` (float32 radiance + AOVs: ``Y`` or ``R G B``, ``P.X P.Y P.Z``,
-``N.X N.Y N.Z``, ``range``, ``id``) and ``frames/NNNNNN.png`` (16-bit DN), plus optional Parquet
+``N.X N.Y N.Z``, ``range``; ``id`` as a UINT channel; camera, pose, units and time in the header, see
+:func:`renderlab.imageio.frame_exr_header`), ``frames/NNNNNN.png`` (16-bit DN, exact, with an ``sBIT``
+chunk) and ``dn_preview/NNNNNN.png`` (8-bit view of the DN, full scale → 255), plus optional Parquet
 tables and files. :class:`TruthSetWriter` stages everything in a hidden sibling folder and renames
 it into place only on success; :class:`TruthSet` reads a set without mitsuba or bpy. The same
 inputs give bit-identical files.
@@ -26,7 +28,8 @@ FORMAT = "renderlab.truthset/1"
 MANIFEST = "manifest.json"
 AOV_CHANNELS = ("P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z", "range", "id")
 RGB_CHANNELS = ("R", "G", "B")
-from renderlab.imageio import _MAX_EXACT_ID, read_dn_png, read_exr, write_dn_png, write_exr  # noqa: F401
+from renderlab.imageio import (_MAX_EXACT_ID, decode_ids, encode_ids, frame_exr_header,  # noqa: F401
+                               read_dn_png, read_exr, write_dn_png, write_dn_preview, write_exr)
 
 # ------------------------------------------------------------------------------------ metadata
 def _jsonable(obj, where: str):
@@ -152,8 +155,8 @@ class TruthSetWriter:
         self._names.add(rel)
 
     def add_frame(self, index: int, time_s: float, channels: dict, dn: np.ndarray,
-                  frame_meta: dict) -> dict:
-        """Write ``frames/NNNNNN.exr`` and ``.png`` and record the frame.
+                  frame_meta: dict, *, dn_bits: int | None = None) -> dict:
+        """Write ``frames/NNNNNN.exr``, ``frames/NNNNNN.png``, ``dn_preview/NNNNNN.png``; record the frame.
 
         Parameters
         ----------
@@ -167,6 +170,9 @@ class TruthSetWriter:
             Sensor image, integer (H, W).
         frame_meta : dict
             More frame record keys (``camera``, ``pose``, ``sun``, ``bodies``, ...).
+        dn_bits : int, optional
+            Significant bits of ``dn`` (the PNG's sBIT and the preview's full scale); default
+            ``frame_meta["sensor"]["bits"]``, else 16.
 
         Returns
         -------
@@ -186,22 +192,29 @@ class TruthSetWriter:
             missing.insert(0, "Y (or R, G, B)")
         if missing:
             raise ValueError(f"frame {index}: missing channels {', '.join(missing)}")
-        ids = np.asarray(channels["id"])
-        if ids.size and np.nanmax(np.abs(ids)) > _MAX_EXACT_ID:
-            raise ValueError(f"frame {index}: ids beyond ±2^24 do not fit a float32 exactly")
+        try:
+            ids = encode_ids(channels["id"])
+        except ValueError as exc:
+            raise ValueError(f"frame {index}: {exc}") from None
+        bits = (frame_meta.get("sensor") or {}).get("bits", 16) if dn_bits is None else dn_bits
         shape = np.shape(channels["P.X"])
         if np.shape(dn) != shape:
             raise ValueError(f"frame {index}: dn shape {np.shape(dn)} differs from EXR {shape}")
-        clash = {"index", "time_s", "exr", "dn"} & set(frame_meta)
+        clash = {"index", "time_s", "exr", "dn", "dn_preview"} & set(frame_meta)
         if clash:
             raise ValueError(f"frame_meta must not set {sorted(clash)}")
-        exr_rel, dn_rel = f"frames/{index:06d}.exr", f"frames/{index:06d}.png"
-        record = _jsonable({"index": index, "time_s": time_s, "exr": exr_rel, "dn": dn_rel,
-                            **frame_meta}, f"frames[{index}]")
-        self._claim(exr_rel)
-        self._claim(dn_rel)
-        write_exr(staging / exr_rel, channels)
-        write_dn_png(staging / dn_rel, dn)
+        rels = {"exr": f"frames/{index:06d}.exr", "dn": f"frames/{index:06d}.png",
+                "dn_preview": f"dn_preview/{index:06d}.png"}
+        record = _jsonable({"index": index, "time_s": time_s, **rels, **frame_meta}, f"frames[{index}]")
+        rf = self._head.get("render_frame")
+        header = frame_exr_header(index, record["time_s"], record, channels,
+                                  render_frame=rf.get("name") if isinstance(rf, dict) else None)
+        for rel in rels.values():
+            self._claim(rel)
+        write_exr(staging / rels["exr"], {**channels, "id": ids}, header)
+        write_dn_png(staging / rels["dn"], dn, bits)
+        (staging / "dn_preview").mkdir(exist_ok=True)
+        write_dn_preview(staging / rels["dn_preview"], dn, bits)
         self._frames[index] = record
         return record
 
@@ -257,8 +270,8 @@ class TruthFrame:
     ``radiance`` is float32 (H, W) ``Y`` in W m⁻² sr⁻¹ (None for RGB sets), ``rgb`` float32
     (H, W, 3) (None for mono sets); ``position`` (render frame, m; NaN where nothing was hit)
     and ``normal`` are float32 (H, W, 3); ``range`` float32 (H, W) in m; ``id`` int32 (H, W)
-    with -1 for no hit; ``dn`` uint16 (H, W); ``meta`` is the manifest's frame record
-    (camera, pose, sun, bodies, ...).
+    with -1 for no hit (from a UINT channel, or a float32 one in older sets); ``dn`` uint16 (H, W);
+    ``meta`` is the manifest's frame record (camera, pose, sun, bodies, ...).
     """
 
     index: int
@@ -306,7 +319,9 @@ class TruthSet:
             for key in ("index", "time_s", "exr", "dn"):
                 if key not in rec:
                     raise UserError(f"{mpath}: frames[{k}] has no {key!r}")
-            for key in ("exr", "dn"):
+            for key in ("exr", "dn", "dn_preview"):
+                if key not in rec:  # dn_preview: optional (sets written before it existed)
+                    continue
                 rel = _safe_relpath(rec[key], f"{mpath}: frames[{k}].{key}")
                 if not (root / rel).is_file():
                     raise UserError(f"truth set {root}: frames[{k}].{key} file {rel} is missing")
@@ -350,13 +365,11 @@ class TruthSet:
         if "width" in cam and "height" in cam and (cam["height"], cam["width"]) != shape:
             raise UserError(f"{exr_path} is {shape[1]}x{shape[0]} but the camera says "
                             f"{cam['width']}x{cam['height']}")
-        ids = ch["id"]
-        if not np.all(np.isfinite(ids)) or not np.all(ids == np.rint(ids)):
-            raise UserError(f"EXR {exr_path}: channel 'id' holds non-integer values")
+        ids = decode_ids(ch["id"], str(exr_path))
         return TruthFrame(
             index=int(rec["index"]), time_s=float(rec["time_s"]),
             radiance=ch.get("Y"),
             rgb=np.stack([ch[c] for c in RGB_CHANNELS], axis=-1) if has_rgb else None,
             position=np.stack([ch["P.X"], ch["P.Y"], ch["P.Z"]], axis=-1),
             normal=np.stack([ch["N.X"], ch["N.Y"], ch["N.Z"]], axis=-1),
-            range=ch["range"], id=ids.astype(np.int32), dn=dn, meta=dict(rec))
+            range=ch["range"], id=ids, dn=dn, meta=dict(rec))

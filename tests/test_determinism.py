@@ -59,7 +59,8 @@ def sets(tmp_path_factory):
 # ----------------------------------------------------------------------------- (a) same seed
 def test_same_seed_byte_identical(sets):
     a, b = _files(sets["A"]), _files(sets["B"])
-    expected = {"manifest.json", "contact_sheet.png"} | {f"frames/{k:06d}.{ext}" for k in range(N_FRAMES) for ext in ("exr", "png")}
+    expected = ({"manifest.json", "contact_sheet.png"} | {f"dn_preview/{k:06d}.png" for k in range(N_FRAMES)}
+                | {f"frames/{k:06d}.{ext}" for k in range(N_FRAMES) for ext in ("exr", "png")})
     assert set(a) == expected
     assert set(b) == expected
     for name in sorted(expected):

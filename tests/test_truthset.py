@@ -94,6 +94,7 @@ def test_same_inputs_give_bit_identical_files(tmp_path):
     a, b = write_set(tmp_path / "s1"), write_set(tmp_path / "s2")
     files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
     assert [f.as_posix() for f in files] == [
+        "dn_preview/000000.png", "dn_preview/000001.png",
         "frames/000000.exr", "frames/000000.png", "frames/000001.exr", "frames/000001.png",
         "landmarks.parquet", "manifest.json", "maplets/000001.bin"]
     for f in files:
