@@ -85,33 +85,6 @@ def truth_scenario_dict(scenario, draw: dict) -> dict:
     return d
 
 
-class NoisyTruthSet:
-    """A truth set whose DN images are re-exposed with this run's sensor noise (what
-    :func:`renderlab.studies.unknown_satellite.sequence.analyse_truthset` reads: ``path, frames, len, load, read_table``)."""
-
-    def __init__(self, ts, sensor_options, noise_seed_sequence: np.random.SeedSequence):
-        self._ts, self.path, self.frames, self._opts = ts, ts.path, ts.frames, sensor_options
-        self._seeds = noise_seed_sequence.spawn(len(ts))
-
-    def __len__(self) -> int:
-        return len(self._ts)
-
-    def read_table(self, name: str):
-        return self._ts.read_table(name)
-
-    def load(self, i: int):
-        import dataclasses
-
-        from renderlab.sensor import expose
-
-        fr = self._ts.load(i)
-        lum = fr.radiance if fr.radiance is not None else (None if fr.rgb is None else fr.rgb.mean(-1))
-        if lum is None:
-            raise UserError(f"truth set {self.path}: frame {i} holds no radiance to re-expose")
-        opts = dataclasses.replace(self._opts, exposure_s=float(self._ts.frames[i]["sensor"]["exposure_s"]))
-        return dataclasses.replace(fr, dn=expose(lum, opts, np.random.default_rng(self._seeds[i])).dn)
-
-
 def score_row(summary: dict, run: int) -> dict:
     """The run's ``scores`` row (pose-table kind, :data:`renderlab.contracts.schemas.POSE_CORE`) from the
     sequence summary (scalars, lists flattened), with one boolean ``flag_<name>`` column per condition of
@@ -161,6 +134,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     import pyarrow as pa
 
     from renderlab.campaign.cache import cached_truthset
+    from renderlab.campaign.reexpose import ReexposedTruthSet
     from renderlab.scenario import scenario_from_dict
     from renderlab.sensor import SensorOptions
     from renderlab.studies.unknown_satellite.sequence import PriorOptions, StudyOptions, analyse_truthset
@@ -174,7 +148,9 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     draw = draw_truth(scenario, ss_truth)
     truth_sc = scenario_from_dict(truth_scenario_dict(scenario, draw), "unknown_satellite truth scenario")
     path, hit = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
-    ts = NoisyTruthSet(TruthSet.open(path), SensorOptions(**scenario.sensor.options_dict()), ss_noise)
+    truth = TruthSet.open(path)   # sensor noise: the run's own, one child of ss_noise per frame
+    ts = ReexposedTruthSet(truth, SensorOptions(**scenario.sensor.options_dict()), ss_noise.spawn(len(truth)),
+                           rgb_fallback=True)
     prior = PriorOptions(sigma_r0_m=tuple(p.apriori_position_sigma_m), sigma_v0_mps=tuple(p.apriori_velocity_sigma_mps),
                          sigma_att_deg=p.apriori_attitude_sigma_deg, sigma_w_deg_s=cfg.apriori_omega_sigma_deg_s,
                          sigma_ratio_frac=cfg.apriori_ratio_sigma_frac, range_sigma_m=cfg.range_prior_sigma_m)
