@@ -28,22 +28,15 @@ The inverse (undistortion) has no closed form; :func:`undistort` solves :math:`D
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from collections.abc import Mapping
 
 import numpy as np
 
 from renderlab.errors import UserError
 
-__all__ = [
-    "DISTORTION_KEYS",
-    "MODELS",
-    "normalize_distortion",
-    "distort",
-    "distortion_jacobian",
-    "undistort",
-    "max_valid_radius",
-    "owen_coefficients_from_mm",
-]
+__all__ = ["DISTORTION_KEYS", "MODELS", "normalize_distortion", "distort", "distortion_jacobian", "undistort",
+           "max_valid_radius", "owen_coefficients_from_mm"]
 
 #: Allowed models and their coefficient names (in manifest order).
 DISTORTION_KEYS: dict[str, tuple[str, ...]] = {
@@ -201,8 +194,7 @@ def max_valid_radius(model: str, coeffs: Mapping[str, float], *, r_max: float = 
     c, s = np.cos(th), np.sin(th)
 
     def bad(rr, cc, ss):
-        j00, j01, j10, j11 = _jacobian_xy(model, coeffs, cc * rr, ss * rr)
-        return ~(j00 * j11 - j01 * j10 > 0.0)  # NaN/inf counts as folded
+        return ~_unfolded(model, coeffs, cc * rr, ss * rr)
 
     b = bad(r[None, :], c[:, None], s[:, None])
     folded = b.any(axis=1)
@@ -262,6 +254,85 @@ def distortion_jacobian(model: str, coeffs: Mapping[str, float], u: np.ndarray) 
     return np.stack([np.stack([j00, j01], axis=-1), np.stack([j10, j11], axis=-1)], axis=-2)
 
 
+def _first_guess(model: str, c: Mapping[str, float], ax: np.ndarray, ay: np.ndarray):
+    """Newton start for the finite targets (ax, ay) (n,): ``u0 = ud - (D(ud) - ud)``, or ``ud`` where that is worse.
+
+    Returns
+    -------
+    bx, by, rx, ry, err : ndarray, shape (n,)
+        Start point, its residual ``D(b) - a`` and the residual's max-norm.
+    """
+    dx, dy = _distort_xy(model, c, ax, ay)
+    bx, by = 2.0 * ax - dx, 2.0 * ay - dy
+    err0 = np.maximum(np.abs(dx - ax), np.abs(dy - ay))
+    dx, dy = _distort_xy(model, c, bx, by)
+    rx, ry = dx - ax, dy - ay
+    err = np.maximum(np.abs(rx), np.abs(ry))
+    worse = ~(err <= err0)
+    if worse.any():
+        bx[worse], by[worse] = ax[worse], ay[worse]
+        dx, dy = _distort_xy(model, c, bx[worse], by[worse])
+        rx[worse], ry[worse] = dx - ax[worse], dy - ay[worse]
+        err[worse] = np.maximum(np.abs(rx[worse]), np.abs(ry[worse]))
+    return bx, by, rx, ry, err
+
+
+def _damped_step(model: str, c: Mapping[str, float], ax, ay, bx, by, err, sx, sy):
+    """Trial points ``b - t s`` of the Newton step (sx, sy) from (bx, by) with residual norm ``err`` toward (ax, ay):
+    t = 1, halved (up to 30 times) where that does not reduce the residual (all arrays shape (n,)).
+
+    Returns
+    -------
+    nx, ny, nrx, nry, nerr : ndarray, shape (n,)
+        Trial points, their residual and its max-norm (the full step's where no halving helped).
+    """
+    nx, ny = bx - sx, by - sy
+    dx, dy = _distort_xy(model, c, nx, ny)
+    nrx, nry = dx - ax, dy - ay
+    nerr = np.maximum(np.abs(nrx), np.abs(nry))
+    back = np.flatnonzero(~(nerr < err) & np.isfinite(sx) & np.isfinite(sy))
+    t = 1.0
+    for _k in range(30):  # backtracking on the (rare) points whose full step did not help
+        if back.size == 0:
+            break
+        t *= 0.5
+        px, py = bx[back] - t * sx[back], by[back] - t * sy[back]
+        qx, qy = _distort_xy(model, c, px, py)
+        qrx, qry = qx - ax[back], qy - ay[back]
+        qerr = np.maximum(np.abs(qrx), np.abs(qry))
+        ok = qerr < err[back]
+        sel = back[ok]
+        nx[sel], ny[sel], nrx[sel], nry[sel], nerr[sel] = px[ok], py[ok], qrx[ok], qry[ok], qerr[ok]
+        back = back[~ok]
+    return nx, ny, nrx, nry, nerr
+
+
+#: points still iterating in :func:`undistort` (each (n,)): output index, target, threshold, point, residual, its norm
+_Active = namedtuple("_Active", "idx ax ay th bx by rx ry err")
+
+
+def _newton_iteration(model: str, c: Mapping[str, float], a: _Active) -> tuple[_Active, np.ndarray]:
+    """One damped Newton iteration (closed-form 2x2 solve, analytic J) of the active points.
+
+    Returns the new state (points moved only where the residual decreased) and that mask, shape (n,).
+    """
+    j00, j01, j10, j11 = _jacobian_xy(model, c, a.bx, a.by)
+    det = j00 * j11 - j01 * j10
+    sx = (j11 * a.rx - j01 * a.ry) / det
+    sy = (j00 * a.ry - j10 * a.rx) / det
+    nx, ny, nrx, nry, nerr = _damped_step(model, c, a.ax, a.ay, a.bx, a.by, a.err, sx, sy)
+    improved = nerr < a.err
+    return (a._replace(bx=np.where(improved, nx, a.bx), by=np.where(improved, ny, a.by),
+                       rx=np.where(improved, nrx, a.rx), ry=np.where(improved, nry, a.ry),
+                       err=np.where(improved, nerr, a.err)), improved)
+
+
+def _unfolded(model: str, c: Mapping[str, float], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``det J > 0`` at (x, y): on the invertible, unfolded branch of the distortion (NaN/inf: folded)."""
+    j00, j01, j10, j11 = _jacobian_xy(model, c, x, y)
+    return j00 * j11 - j01 * j10 > 0.0
+
+
 def undistort(
     model: str,
     coeffs: Mapping[str, float],
@@ -312,67 +383,25 @@ def undistort(
     out_e = np.full(tx.shape, np.inf)
 
     idx = np.flatnonzero(finite)
-    ax, ay, th = tx[idx], ty[idx], thresh[idx]  # targets
-    # first guess: u0 = ud - (D(ud) - ud), the first-order inverse; keep ud where that is worse
-    dx, dy = _distort_xy(model, coeffs, ax, ay)
-    bx, by = 2.0 * ax - dx, 2.0 * ay - dy
-    err0 = np.maximum(np.abs(dx - ax), np.abs(dy - ay))
-    dx, dy = _distort_xy(model, coeffs, bx, by)
-    rx, ry = dx - ax, dy - ay
-    err = np.maximum(np.abs(rx), np.abs(ry))
-    worse = ~(err <= err0)
-    if worse.any():
-        bx[worse], by[worse] = ax[worse], ay[worse]
-        dx, dy = _distort_xy(model, coeffs, bx[worse], by[worse])
-        rx[worse], ry[worse] = dx - ax[worse], dy - ay[worse]
-        err[worse] = np.maximum(np.abs(rx[worse]), np.abs(ry[worse]))
-    stop = err <= th
+    ax, ay = tx[idx], ty[idx]  # targets
+    a = _Active(idx, ax, ay, thresh[idx], *_first_guess(model, coeffs, ax, ay))
+    stop = a.err <= a.th
     with np.errstate(all="ignore"):
         for _ in range(max_iter):
             if stop.any():  # retire finished points, compact the active set
-                sel = idx[stop]
-                out_x[sel], out_y[sel], out_e[sel] = bx[stop], by[stop], err[stop]
-                keep = ~stop
-                idx, ax, ay, bx, by, th = idx[keep], ax[keep], ay[keep], bx[keep], by[keep], th[keep]
-                rx, ry, err = rx[keep], ry[keep], err[keep]
-            if idx.size == 0:
+                sel = a.idx[stop]
+                out_x[sel], out_y[sel], out_e[sel] = a.bx[stop], a.by[stop], a.err[stop]
+                a = _Active(*(v[~stop] for v in a))
+            if a.idx.size == 0:
                 break
-            j00, j01, j10, j11 = _jacobian_xy(model, coeffs, bx, by)
-            det = j00 * j11 - j01 * j10
-            sx = (j11 * rx - j01 * ry) / det
-            sy = (j00 * ry - j10 * rx) / det
-            nx, ny = bx - sx, by - sy
-            dx, dy = _distort_xy(model, coeffs, nx, ny)
-            nrx, nry = dx - ax, dy - ay
-            nerr = np.maximum(np.abs(nrx), np.abs(nry))
-            back = np.flatnonzero(~(nerr < err) & np.isfinite(sx) & np.isfinite(sy))
-            t = 1.0
-            for _k in range(30):  # backtracking on the (rare) points whose full step did not help
-                if back.size == 0:
-                    break
-                t *= 0.5
-                px, py = bx[back] - t * sx[back], by[back] - t * sy[back]
-                qx, qy = _distort_xy(model, coeffs, px, py)
-                qrx, qry = qx - ax[back], qy - ay[back]
-                qerr = np.maximum(np.abs(qrx), np.abs(qry))
-                ok = qerr < err[back]
-                sel = back[ok]
-                nx[sel], ny[sel], nrx[sel], nry[sel], nerr[sel] = px[ok], py[ok], qrx[ok], qry[ok], qerr[ok]
-                back = back[~ok]
-            improved = nerr < err
-            bx = np.where(improved, nx, bx)
-            by = np.where(improved, ny, by)
-            rx = np.where(improved, nrx, rx)
-            ry = np.where(improved, nry, ry)
-            err = np.where(improved, nerr, err)
-            stop = (err <= th) | ~improved  # converged, or stuck (no further decrease possible)
-    out_x[idx], out_y[idx], out_e[idx] = bx, by, err
+            a, improved = _newton_iteration(model, coeffs, a)
+            stop = (a.err <= a.th) | ~improved  # converged, or stuck (no further decrease possible)
+    out_x[a.idx], out_y[a.idx], out_e[a.idx] = a.bx, a.by, a.err
 
     converged = finite & (out_e <= thresh)
     ci = np.flatnonzero(converged)
     if ci.size:
-        j00, j01, j10, j11 = _jacobian_xy(model, coeffs, out_x[ci], out_y[ci])
-        converged[ci[~(j00 * j11 - j01 * j10 > 0.0)]] = False
+        converged[ci[~_unfolded(model, coeffs, out_x[ci], out_y[ci])]] = False
     out_x[~converged] = np.nan
     out_y[~converged] = np.nan
     return np.stack([out_x, out_y], axis=-1).reshape(shape + (2,)), converged.reshape(shape)
