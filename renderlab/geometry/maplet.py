@@ -87,10 +87,6 @@ class Maplet:
         """Maplet-frame points (..., 3) → body frame."""
         return np.asarray(p_maplet, float) @ np.asarray(self.R_body_from_maplet, float).T + np.asarray(self.center_m, float)
 
-    def to_maplet(self, p_body: np.ndarray) -> np.ndarray:
-        """Body-frame points (..., 3) → maplet frame."""
-        return (np.asarray(p_body, float) - np.asarray(self.center_m, float)) @ np.asarray(self.R_body_from_maplet, float)
-
     def points_body(self) -> np.ndarray:
         """(n, n, 3) grid points in the body frame, m."""
         return self.to_body(self.points_maplet())

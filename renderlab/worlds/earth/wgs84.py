@@ -111,11 +111,3 @@ def R_ecef_from_eci(jd_ut1) -> np.ndarray:
     c, s = np.cos(g), np.sin(g)
     z, o = np.zeros_like(g), np.ones_like(g)
     return np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
-def eci_to_ecef_state(r_eci, v_eci, jd_ut1) -> tuple[np.ndarray, np.ndarray]:
-    """ECEF position and velocity from ECI ones (v_ecef = R v − ω × r_ecef)."""
-    R = R_ecef_from_eci(jd_ut1)
-    r = np.einsum("...ij,...j->...i", R, r_eci)
-    v = np.einsum("...ij,...j->...i", R, v_eci) - np.cross(np.array([0.0, 0.0, OMEGA_EARTH]), r)
-    return r, v
