@@ -173,7 +173,7 @@ def truth_geometry(options: CoastlineGeometricOptions) -> Geometry:
 def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
     from renderlab.dynamics.orbits import nadir_attitude, propagate, state_from_elements
 
-    from .coastline_database import coastline_points
+    from .database import coastline_points
 
     duration = o.period_s if o.duration_s is None else o.duration_s
     K = int(math.floor(duration / o.cadence_s + 1e-9)) + 1
@@ -254,6 +254,67 @@ def measurements(geo: Geometry, k: int, z_los_k: np.ndarray, z_att_k: np.ndarray
     return y, pts, T_hat
 
 
+def _make_filter(o: CoastlineGeometricOptions, x0_hat: np.ndarray, P0: np.ndarray):
+    """The batch filter of ``o.filter_form`` started at x̂0 (N, 6), P0 (6, 6), and its NEES of errors (N, 6)."""
+    from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
+    from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
+
+    filt = SqrtBatchCoastlineEKF if o.filter_form == "sqrt" else BatchCoastlineEKF
+    ekf = filt(x0_hat, P0, EKFOptions(sigma_theta_rad=o.sigma_theta_rad, sigma_attitude_rad=o.sigma_star_tracker_rad,
+                                      q_acc_m2_s3=o.q_acc_m2_s3, max_step_s=o.filter_step_s))
+    nees_of = ekf.nees if o.filter_form == "sqrt" else (lambda e: nees(e, ekf.P))   # sqrt: ‖S⁻¹e‖²
+    return ekf, nees_of
+
+
+def _filter_images(geo: Geometry, ekf, nees_of, z_los, z_att, sig_los: float, sig_att: float, progress: bool):
+    """Propagate and update the N filters through every time of ``geo`` → x̂ (N, K, 6), P (N, K, 6, 6), NIS and
+    NEES (N, K); NIS is NaN at times without a matched point."""
+    N, K = len(ekf.x), len(geo.t_s)
+    xs, Ps = np.empty((N, K, 6)), np.empty((N, K, 6, 6))
+    nis, nees_v = np.full((N, K), np.nan), np.empty((N, K))
+    xs[:, 0], Ps[:, 0] = ekf.x, ekf.P
+    nees_v[:, 0] = nees_of(ekf.x - geo.x_true[0])
+    steps = range(1, K)
+    if progress:
+        from tqdm import tqdm
+
+        steps = tqdm(steps, desc=f"coastline EKF x{N}", unit="image")
+    for k in steps:
+        ekf.propagate(geo.t_s[k] - geo.t_s[k - 1])
+        if geo.n_meas[k]:
+            y, pts, T_hat = measurements(geo, k, z_los[:, k], z_att[:, k], sig_los, sig_att)
+            nis[:, k] = ekf.update(y, pts, T_hat).nis
+        xs[:, k], Ps[:, k] = ekf.x, ekf.P
+        nees_v[:, k] = nees_of(ekf.x - geo.x_true[k])
+    return xs, Ps, nis, nees_v
+
+
+def _filter_table(geo: Geometry, runs: np.ndarray, xs, Ps, nis, nees_v):
+    """The :data:`FILTER_COLUMNS` table (then ``has_result``, ``reason``) of N runs: RIC errors and 1σ, NEES, NIS."""
+    import pyarrow as pa
+
+    N, K = xs.shape[:2]
+    err = xs - geo.x_true[None]
+    C = ric_axes(geo.x_true)                                                  # (K, 3, 3)
+    e_r = np.einsum("kij,nkj->nki", C, err[..., :3])
+    e_v = np.einsum("kij,nkj->nki", C, err[..., 3:])
+    C6 = np.zeros((K, 6, 6))
+    C6[:, :3, :3] = C
+    C6[:, 3:, 3:] = C
+    sig = np.sqrt(np.sum(np.matmul(C6[None], Ps) * C6[None], axis=-1))      # sqrt diag(C P Cᵀ)
+    cols = {"run": np.repeat(runs, K), "t_s": np.tile(geo.t_s, N)}
+    vals = np.concatenate([e_r, e_v], axis=-1)
+    for j, name in enumerate(FILTER_COLUMNS[2:8]):                            # err_r_m ... err_vc_mps
+        cols[name] = vals[..., j].ravel()
+    for j, name in enumerate(FILTER_COLUMNS[8:14]):                           # sig_r_m ... sig_vc_mps
+        cols[name] = sig[..., j].ravel()
+    cols["nees"] = nees_v.ravel()
+    cols["nis"] = nis.ravel()
+    cols["n_meas"] = np.tile(geo.n_meas.astype(np.int32), N)
+    cols.update(filter_status(cols["n_meas"], np.tile(np.arange(K) == 0, N)))
+    return pa.table(cols)
+
+
 def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=None, *, noise_free: bool = False,
               progress: bool = False, keep_history: bool = False) -> dict:
     """Run N filters (one per seed sequence) through the same truth, vectorised across runs.
@@ -277,10 +338,6 @@ def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=No
     dict with ``table`` (pyarrow.Table, :data:`FILTER_COLUMNS`), ``geometry`` (:class:`Geometry`) and, when asked,
     the histories.
     """
-    import pyarrow as pa
-
-    from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
-
     o = options.validate()
     geo = truth_geometry(o)
     seeds = list(seed_sequences)
@@ -290,54 +347,11 @@ def run_batch(options: CoastlineGeometricOptions, seed_sequences, run_indices=No
     runs = np.arange(N) if run_indices is None else np.asarray(list(run_indices), dtype=np.int64)
     z_x0, z_los, z_att = draws_for_runs(seeds, K, o.points_per_image)
     sd0 = o.initial_sigmas()
-    P0 = np.diag(sd0**2)
-    from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
-
-    filt = SqrtBatchCoastlineEKF if o.filter_form == "sqrt" else BatchCoastlineEKF
-    ekf = filt(geo.x_true[0] + z_x0 * sd0, P0,
-                            EKFOptions(sigma_theta_rad=o.sigma_theta_rad, sigma_attitude_rad=o.sigma_star_tracker_rad,
-                                       q_acc_m2_s3=o.q_acc_m2_s3, max_step_s=o.filter_step_s))
-    xs = np.empty((N, K, 6))
-    Ps = np.empty((N, K, 6, 6))
-    nis = np.full((N, K), np.nan)
-    xs[:, 0], Ps[:, 0] = ekf.x, ekf.P
-    nees_v = np.empty((N, K))
-    nees_of = ekf.nees if o.filter_form == "sqrt" else (lambda e: nees(e, ekf.P))   # sqrt: ‖S⁻¹e‖²
-    nees_v[:, 0] = nees_of(ekf.x - geo.x_true[0])
-    steps = range(1, K)
-    if progress:
-        from tqdm import tqdm
-
-        steps = tqdm(steps, desc=f"coastline EKF x{N}", unit="image")
+    ekf, nees_of = _make_filter(o, geo.x_true[0] + z_x0 * sd0, np.diag(sd0**2))
     sig_los = 0.0 if noise_free else o.sigma_theta_rad
     sig_att = 0.0 if noise_free else o.sigma_star_tracker_rad
-    for k in steps:
-        ekf.propagate(geo.t_s[k] - geo.t_s[k - 1])
-        if geo.n_meas[k]:
-            y, pts, T_hat = measurements(geo, k, z_los[:, k], z_att[:, k], sig_los, sig_att)
-            nis[:, k] = ekf.update(y, pts, T_hat).nis
-        xs[:, k], Ps[:, k] = ekf.x, ekf.P
-        nees_v[:, k] = nees_of(ekf.x - geo.x_true[k])
-    err = xs - geo.x_true[None]
-    C = ric_axes(geo.x_true)                                                  # (K, 3, 3)
-    e_r = np.einsum("kij,nkj->nki", C, err[..., :3])
-    e_v = np.einsum("kij,nkj->nki", C, err[..., 3:])
-    C6 = np.zeros((K, 6, 6))
-    C6[:, :3, :3] = C
-    C6[:, 3:, 3:] = C
-    sig = np.sqrt(np.sum(np.matmul(C6[None], Ps) * C6[None], axis=-1))      # sqrt diag(C P Cᵀ)
-    cols = {"run": np.repeat(runs, K), "t_s": np.tile(geo.t_s, N)}
-    names = ["err_r_m", "err_i_m", "err_c_m", "err_vr_mps", "err_vi_mps", "err_vc_mps"]
-    vals = np.concatenate([e_r, e_v], axis=-1)
-    for j, name in enumerate(names):
-        cols[name] = vals[..., j].ravel()
-    for j, name in enumerate(["sig_r_m", "sig_i_m", "sig_c_m", "sig_vr_mps", "sig_vi_mps", "sig_vc_mps"]):
-        cols[name] = sig[..., j].ravel()
-    cols["nees"] = nees_v.ravel()
-    cols["nis"] = nis.ravel()
-    cols["n_meas"] = np.tile(geo.n_meas.astype(np.int32), N)
-    cols.update(filter_status(cols["n_meas"], np.tile(np.arange(K) == 0, N)))
-    out = {"table": pa.table(cols), "geometry": geo}
+    xs, Ps, nis, nees_v = _filter_images(geo, ekf, nees_of, z_los, z_att, sig_los, sig_att, progress)
+    out = {"table": _filter_table(geo, runs, xs, Ps, nis, nees_v), "geometry": geo}
     if keep_history:
         out.update(x_hat=xs, P=Ps)
     return out
