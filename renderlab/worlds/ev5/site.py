@@ -126,16 +126,37 @@ def site_frame(shape: GlobalShape, lat_deg: float, lon_deg: float, extent_m: flo
     return o, np.column_stack([x, np.cross(z, x), z])
 
 
-def build_site(shape: GlobalShape, cfg, facet_m: float, rng_terrain: np.random.Generator,
-               rng_boulders: np.random.Generator) -> tuple[Site, GlobalShape]:
-    """The landing site of ``cfg`` (:class:`EV5Site`) on ``shape`` and the global shape with the
-    facets under the patch cut and lowered (module docstring)."""
+@dataclass(frozen=True)
+class _Grid:
+    """The patch's n × n grid: site x (column i) = y (row j) = x0 + i·cell, x0 = −half."""
+
+    n: int
+    cell: float
+    x0: float
+
+    @property
+    def half(self) -> float:
+        return -self.x0
+
+
+def _patch_grid(cfg) -> _Grid:
     n = int(round(cfg.extent_m / cfg.cell_m)) + 1
-    cell = cfg.cell_m
-    x0 = -(n - 1) * cell / 2
-    half = -x0
-    o, R = site_frame(shape, cfg.lat_deg, cfg.lon_deg, cfg.extent_m)
-    # global mesh in site coordinates, facets near the patch
+    return _Grid(n, cfg.cell_m, -(n - 1) * cfg.cell_m / 2)
+
+
+def _base_surface(shape: GlobalShape, o: np.ndarray, R: np.ndarray, g: _Grid, facet_m: float, cfg):
+    """The global mesh rasterised along −z onto the grid.
+
+    Returns
+    -------
+    vs : ndarray (V, 3)
+        Global vertices in site coordinates.
+    near_v : ndarray of bool (V,)
+        Vertices near the patch (within 3 facets laterally, 50 facets in height).
+    base, base_alb : ndarray (n, n)
+        Height and albedo of the global surface at the grid points.
+    """
+    half, n = g.half, g.n
     vs = (shape.vertices - o) @ R
     near_v = (np.abs(vs[:, 0]) < half + 3 * facet_m) & (np.abs(vs[:, 1]) < half + 3 * facet_m) \
         & (np.abs(vs[:, 2]) < half + 50 * facet_m)
@@ -143,62 +164,76 @@ def build_site(shape: GlobalShape, cfg, facet_m: float, rng_terrain: np.random.G
     tri = vs[shape.faces[fsel]]
     base = np.full((n, n), np.nan)
     base_alb = np.zeros((n, n))
-    terrain.rasterize_facets(tri, shape.vertex_albedo[shape.faces[fsel]].astype(float), x0, cell, n, base, base_alb)
+    terrain.rasterize_facets(tri, shape.vertex_albedo[shape.faces[fsel]].astype(float), g.x0, g.cell, n, base,
+                             base_alb)
     if np.isnan(base).any():
         raise UserError(f"world.site: the global surface does not cover the {cfg.extent_m:g} m site at "
                         f"({cfg.lat_deg:g}, {cfg.lon_deg:g}) seen along its normal (overhang or hole)")
+    return vs, near_v, base, base_alb
 
-    # taper: 0 in the outer strip (1.5 facets), smoothstep to 1 over taper_m
-    t = x0 + np.arange(n) * cell
-    w0 = 1.5 * facet_m
-    d_edge = half - np.maximum(np.abs(t)[None, :], np.abs(t)[:, None])
-    s = np.clip((d_edge - w0) / cfg.taper_m, 0, 1)
-    taper = (s * s * (3 - 2 * s)).astype(np.float32)
-    inner = half - w0 - cfg.taper_m  # features live inside |x|, |y| < inner
-    if inner < cfg.target_boulder_m:
-        raise UserError(f"world.site.extent_m {cfg.extent_m:g} m is too small: less than the target boulder is left "
-                        f"inside the border strip (1.5 global facets = {w0:g} m) and taper_m ({cfg.taper_m:g} m)")
 
-    detail = np.zeros((n, n), np.float64)
-    # craters
-    area = (2 * inner) ** 2
-    dc = terrain.power_law_diameters(rng_terrain, cfg.crater_density_per_m2, area, 2.0, cfg.crater_min_m, cfg.crater_max_m)
+def _taper(g: _Grid, w0: float, taper_m: float) -> np.ndarray:
+    """(n, n) float32: 0 in the outer strip of width ``w0``, smoothstep to 1 over ``taper_m``."""
+    t = g.x0 + np.arange(g.n) * g.cell
+    d_edge = g.half - np.maximum(np.abs(t)[None, :], np.abs(t)[:, None])
+    s = np.clip((d_edge - w0) / taper_m, 0, 1)
+    return (s * s * (3 - 2 * s)).astype(np.float32)
+
+
+def _stamp_craters(detail: np.ndarray, g: _Grid, cfg, inner: float, rng: np.random.Generator) -> int:
+    """Stamp the power-law crater population inside ``|x|, |y| < inner`` into ``detail`` (in place) → count."""
+    dc = terrain.power_law_diameters(rng, cfg.crater_density_per_m2, (2 * inner) ** 2, 2.0, cfg.crater_min_m,
+                                     cfg.crater_max_m)
     lim = np.maximum(inner - 0.75 * dc, 0)
-    cxy = rng_terrain.uniform(-1, 1, (len(dc), 2)) * lim[:, None]
-    terrain.stamp_craters(detail, x0, cell, cxy[:, 0].copy(), cxy[:, 1].copy(), dc)
-    # boulders (target first, at the centre)
-    alb = np.ones((n, n), np.float32)
-    db = terrain.power_law_diameters(rng_boulders, cfg.boulder_density_per_m2, area, cfg.boulder_sfd_slope,
+    cxy = rng.uniform(-1, 1, (len(dc), 2)) * lim[:, None]
+    terrain.stamp_craters(detail, g.x0, g.cell, cxy[:, 0].copy(), cxy[:, 1].copy(), dc)
+    return len(dc)
+
+
+def _stamp_boulders(detail: np.ndarray, alb: np.ndarray, g: _Grid, cfg, inner: float,
+                    rng: np.random.Generator) -> int:
+    """Stamp the target boulder (at the centre) and the power-law boulders into ``detail`` and their albedo
+    factors into ``alb`` (in place, biggest first) → number of boulders besides the target."""
+    db = terrain.power_law_diameters(rng, cfg.boulder_density_per_m2, (2 * inner) ** 2, cfg.boulder_sfd_slope,
                                      cfg.boulder_min_m, cfg.boulder_max_m)
-    bxy = rng_boulders.uniform(-1, 1, (len(db), 2)) * np.maximum(inner - db / 2, 0)[:, None]
+    bxy = rng.uniform(-1, 1, (len(db), 2)) * np.maximum(inner - db / 2, 0)[:, None]
     keep = np.hypot(bxy[:, 0], bxy[:, 1]) > cfg.target_boulder_m / 2 + db / 2 + 0.1
     db, bxy = db[keep], bxy[keep]
     nb = len(db)
-    aspect_b = rng_boulders.uniform(0.6, 1.0, nb)
-    aspect_c = rng_boulders.uniform(0.4, 0.8, nb)
-    theta = rng_boulders.uniform(0, math.pi, nb)
-    bury = rng_boulders.uniform(0.05, 0.35, nb)
-    factor = np.exp(rng_boulders.normal(0.0, 0.15, nb)).astype(np.float32)
+    aspect_b = rng.uniform(0.6, 1.0, nb)
+    aspect_c = rng.uniform(0.4, 0.8, nb)
+    theta = rng.uniform(0, math.pi, nb)
+    bury = rng.uniform(0.05, 0.35, nb)
+    factor = np.exp(rng.normal(0.0, 0.15, nb)).astype(np.float32)
     a_t = cfg.target_boulder_m / 2
     order = np.argsort(-db)  # big first: small boulders sit on the ground, not inside big ones
-    terrain.stamp_boulders(detail, alb, x0, cell,
+    terrain.stamp_boulders(detail, alb, g.x0, g.cell,
                            np.r_[0.0, bxy[order, 0]], np.r_[0.0, bxy[order, 1]],
                            np.r_[a_t, db[order] / 2], np.r_[0.8 * a_t, db[order] / 2 * aspect_b[order]],
                            np.r_[0.6 * a_t, db[order] / 2 * aspect_c[order]], np.r_[0.3, theta[order]],
                            np.r_[0.15, bury[order]], np.r_[np.float32(1.1), factor[order]])
-    detail += terrain.fractal_field(n, cell, cfg.roughness_hurst, cfg.roughness_rms_m, rng_terrain)
-    var = terrain.smooth_field(n, cell, cfg.albedo_corr_m, rng_terrain)
+    return nb
+
+
+def _surface_detail(g: _Grid, cfg, inner: float, rng_terrain: np.random.Generator,
+                    rng_boulders: np.random.Generator):
+    """Detail heights (craters, boulders, fractal roughness; (n, n) float64), relative albedo ((n, n) float32:
+    boulder factors × correlated field), number of boulders and of craters."""
+    detail = np.zeros((g.n, g.n), np.float64)
+    n_craters = _stamp_craters(detail, g, cfg, inner, rng_terrain)
+    alb = np.ones((g.n, g.n), np.float32)
+    nb = _stamp_boulders(detail, alb, g, cfg, inner, rng_boulders)
+    detail += terrain.fractal_field(g.n, g.cell, cfg.roughness_hurst, cfg.roughness_rms_m, rng_terrain)
+    var = terrain.smooth_field(g.n, g.cell, cfg.albedo_corr_m, rng_terrain)
     var *= np.float32(cfg.albedo_rms)
     var += np.float32(1.0)
     np.clip(var, 0.2, None, out=var)
     alb *= var
-    del var
-    heights = base + taper * detail
-    albedo = (base_alb * (1 - taper) + base_alb * alb * taper).astype(np.float32)
-    drop = max(0.0, -float((taper * detail).min())) + 0.05
-    del detail, alb, taper, base_alb
+    return detail, alb, nb, n_craters
 
-    # cut / lower the global facets under the patch
+
+def _cut_global(shape: GlobalShape, vs, near_v, half: float, w0: float, drop: float, R: np.ndarray) -> GlobalShape:
+    """The global shape with the facets under the patch cut and the vertices under it lowered (module docstring)."""
     inside = (np.abs(vs[:, 0]) < half - w0) & (np.abs(vs[:, 1]) < half - w0) & near_v
     faces = shape.faces[~inside[shape.faces].all(1)]
     verts = shape.vertices.copy()
@@ -209,6 +244,28 @@ def build_site(shape: GlobalShape, cfg, facet_m: float, rng_terrain: np.random.G
     used = np.zeros(len(verts), bool)
     used[faces] = True
     remap = np.cumsum(used) - 1
-    cut = GlobalShape(verts[used], remap[faces].astype(np.int32), shape.vertex_albedo[used], shape.radius_fn)
-    site = Site(o, R, float(x0), float(cell), heights, albedo, np.zeros(2), float(cfg.target_boulder_m), nb, len(dc))
+    return GlobalShape(verts[used], remap[faces].astype(np.int32), shape.vertex_albedo[used], shape.radius_fn)
+
+
+def build_site(shape: GlobalShape, cfg, facet_m: float, rng_terrain: np.random.Generator,
+               rng_boulders: np.random.Generator) -> tuple[Site, GlobalShape]:
+    """The landing site of ``cfg`` (:class:`EV5Site`) on ``shape`` and the global shape with the
+    facets under the patch cut and lowered (module docstring)."""
+    g = _patch_grid(cfg)
+    o, R = site_frame(shape, cfg.lat_deg, cfg.lon_deg, cfg.extent_m)
+    vs, near_v, base, base_alb = _base_surface(shape, o, R, g, facet_m, cfg)
+    w0 = 1.5 * facet_m  # the outer strip: 1.5 global facets
+    taper = _taper(g, w0, cfg.taper_m)
+    inner = g.half - w0 - cfg.taper_m  # features live inside |x|, |y| < inner
+    if inner < cfg.target_boulder_m:
+        raise UserError(f"world.site.extent_m {cfg.extent_m:g} m is too small: less than the target boulder is left "
+                        f"inside the border strip (1.5 global facets = {w0:g} m) and taper_m ({cfg.taper_m:g} m)")
+    detail, alb, nb, n_craters = _surface_detail(g, cfg, inner, rng_terrain, rng_boulders)
+    heights = base + taper * detail
+    albedo = (base_alb * (1 - taper) + base_alb * alb * taper).astype(np.float32)
+    drop = max(0.0, -float((taper * detail).min())) + 0.05
+    del detail, alb, taper, base_alb
+    cut = _cut_global(shape, vs, near_v, g.half, w0, drop, R)
+    site = Site(o, R, float(g.x0), float(g.cell), heights, albedo, np.zeros(2), float(cfg.target_boulder_m), nb,
+                n_craters)
     return site, cut
