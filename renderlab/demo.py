@@ -21,15 +21,10 @@ from pathlib import Path
 
 from renderlab.errors import UserError
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "scenes"
+from renderlab.builtin import SCENES_DIR  # noqa: F401
+from renderlab.builtin import scene_path as builtin_scene
+
 DEMO_SCENE = "analytic_sphere_box.toml"
-
-
-def builtin_scene(name: str) -> Path:
-    path = SCENES_DIR / name
-    if not path.is_file():
-        raise UserError(f"built-in scenario {name} not found in {SCENES_DIR} (install with ./setup.sh from a checkout)")
-    return path
 
 
 def _stage(progress: bool, text: str) -> None:
@@ -108,53 +103,24 @@ def _unknown_satellite_section(out: Path, us: dict, seconds: float) -> list[str]
     return lines + [""]
 
 
-def run_demo(out: Path, progress: bool = True, runs: tuple[int, int, int] | None = None) -> tuple[Path, Path]:
-    """Run the demo into ``out``; return the Markdown report's and the Retina-vs-SPC HTML report's paths.
-
-    ``runs``: runs of the (Retina-vs-SPC, coastline-EKF, unknown-satellite) campaigns; ``None`` = the
-    demo's defaults (40, 16, 4). Smaller counts are for tests.
-    """
-    from renderlab.studies.retina_vs_spc.demo import DEMO_RUNS, run_demo_campaign
+def _render_section(out: Path, progress: bool) -> tuple[list[str], object]:
+    """Stage 1: the analytic truth set, its closed-form checks and the preview; the report lines."""
     from renderlab.pipeline import render_truthset
     from renderlab.report.preview import truthset_preview
     from renderlab.report.truth_checks import check_frame, lambert_residual_image
     from renderlab.scenario import load_scenario
-    from renderlab.studies.coastline_ekf.study import run_demo_coastline
-    from renderlab.studies.unknown_satellite.demo import DEMO_RUNS as US_DEMO_RUNS
-    from renderlab.studies.unknown_satellite.demo import run_demo_unknown_satellite
     from renderlab.truthset import TruthSet
 
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
     scenario, base = load_scenario(builtin_scene(DEMO_SCENE))
     _stage(progress, f"1/4 rendering the analytic scene {DEMO_SCENE}")
     t0 = time.perf_counter()
     ts_dir = render_truthset(scenario, base, out / "truthset", progress=progress, overwrite=True)
     seconds = time.perf_counter() - t0
     ts = TruthSet.open(ts_dir)
-
     lambert = {k: b.albedo for k, b in enumerate(scenario.world.bodies) if b.law == "lambert" and not b.albedo_map}
     checks = [check_frame(ts.load(k), lambert) for k in range(len(ts))]
-
-    residual = lambert_residual_image(ts.load(0), lambert)
-    truthset_preview(ts, out / "preview.png", residual=residual,
-                               title=f"renderlab demo — {scenario.name} (Mitsuba {ts.manifest['renderer']['variant']})")
-
-    _stage(progress, "2/4 Retina-vs-SPC campaign on a tiny EV5 descent")
-    t1 = time.perf_counter()
-    n_rs, n_co, n_us = runs or (DEMO_RUNS, 16, US_DEMO_RUNS)
-    html = run_demo_campaign(out / "campaign", progress=progress, runs=n_rs)
-    campaign_s = time.perf_counter() - t1
-    _stage(progress, "3/4 coastline-EKF campaign")
-    t2 = time.perf_counter()
-    coast = run_demo_coastline(out / "coastline", progress=progress, runs=n_co)
-    coast_s = time.perf_counter() - t2
-    _stage(progress, "4/4 unknown-satellite campaign")
-    t3 = time.perf_counter()
-    us = run_demo_unknown_satellite(out / "unknown_satellite", progress=progress, runs=n_us)
-    us_s = time.perf_counter() - t3
-
+    truthset_preview(ts, out / "preview.png", residual=lambert_residual_image(ts.load(0), lambert),
+                     title=f"renderlab demo — {scenario.name} (Mitsuba {ts.manifest['renderer']['variant']})")
     cam = scenario.camera
     lines = [
         "# renderlab demo report",
@@ -184,28 +150,72 @@ def run_demo(out: Path, progress: bool = True, runs: tuple[int, int, int] | None
         "filtering, not a rendering error",
         "(with `--set render.pixel_filter=\"center\"` it drops to float32 rounding, as the tests check).",
         "",
-        "## Campaign: Retina vs SPC on a tiny EV5 descent",
+    ]
+    return lines, ts
+
+
+def _retina_section(out: Path, html: Path, seconds: float) -> list[str]:
+    """The Retina-vs-SPC campaign's headline table (from its report's summary.csv) and link."""
+    from renderlab.studies.retina_vs_spc.demo import headline_table
+
+    rel = html.relative_to(out).as_posix()
+    return [
+        "## Campaign: Retina vs SPC (and the NCC baseline plug-in) on a tiny EV5 descent",
         "",
-        f"A small seeded Monte Carlo campaign ({campaign_s:.0f} s): one truth render of a small procedural EV5 "
+        f"A small seeded Monte Carlo campaign ({seconds:.0f} s): one truth render of a small procedural EV5 "
         "landing site, then runs that perturb what the onboard system believes (a-priori pose, camera, distortion, "
-        "maplet spacing, sun) and measure every landmark with both methods. "
-        f"Open the HTML report: [{html.relative_to(out)}]({html.relative_to(out).as_posix()}) "
-        "(bias/noise ellipses, error vs fractional shift, failure rates, ratio to the Cramér–Rao bound, summary table).",
+        "maplet spacing, sun) and measure every landmark with every method. "
+        f"Open the HTML report: [{rel}]({rel}) (Fig. 12 with robust ellipses, the bias/noise table with "
+        "cluster-bootstrap intervals, no-result reasons, paired comparison, pixel locking, breakdowns).",
         "",
-        *_coastline_section(out, coast, coast_s),
-        *_unknown_satellite_section(out, us, us_s),
-        "## Files",
-        "",
-        "- `truthset/manifest.json`, `truthset/frames/NNNNNN.exr` (Y, P.XYZ, N.XYZ, range, id), `truthset/frames/NNNNNN.png` (DN)",
-        "- `preview.png`",
-        "- `campaign/scenario.toml`, `campaign/campaign/` (one Parquet per run, resumable), `campaign/report/` (HTML, figures, summary.csv)",
-        "- `coastline/coastline_campaign/` (runs), `coastline/coastline_report/` (HTML, figures, steady-state and filter CSVs)",
-        "- `unknown_satellite/unknown_satellite_demo.toml`, `unknown_satellite/campaign/` (runs, truth cache), "
-        "`unknown_satellite/report/` (HTML, figures, unknown_satellite_summary.csv)",
-        "",
-        "![preview](preview.png)",
+        *headline_table(html.parent / "summary.csv"),
         "",
     ]
+
+
+FILES = [
+    "## Files",
+    "",
+    "- `truthset/manifest.json`, `truthset/frames/NNNNNN.exr` (Y, P.XYZ, N.XYZ, range, id), `truthset/frames/NNNNNN.png` (DN)",
+    "- `preview.png`",
+    "- `campaign/scenario.toml`, `campaign/campaign/` (one Parquet per run, resumable), `campaign/report/` (HTML, figures, summary.csv)",
+    "- `coastline/coastline_campaign/` (runs), `coastline/coastline_report/` (HTML, figures, steady-state and filter CSVs)",
+    "- `unknown_satellite/unknown_satellite_demo.toml`, `unknown_satellite/campaign/` (runs, truth cache), "
+    "`unknown_satellite/report/` (HTML, figures, unknown_satellite_summary.csv)",
+    "",
+    "![preview](preview.png)",
+    "",
+]
+
+
+def run_demo(out: Path, progress: bool = True, runs: tuple[int, int, int] | None = None) -> tuple[Path, Path]:
+    """Run the demo into ``out``; return the Markdown report's and the Retina-vs-SPC HTML report's paths.
+
+    ``runs``: runs of the (Retina-vs-SPC, coastline-EKF, unknown-satellite) campaigns; ``None`` = the
+    demo's defaults (40, 16, 4). Smaller counts are for tests.
+    """
+    from renderlab.studies.coastline_ekf.study import run_demo_coastline
+    from renderlab.studies.retina_vs_spc.demo import DEMO_RUNS, run_demo_campaign
+    from renderlab.studies.unknown_satellite.demo import DEMO_RUNS as US_DEMO_RUNS
+    from renderlab.studies.unknown_satellite.demo import run_demo_unknown_satellite
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out} exists and is not a directory")
+    lines, _ = _render_section(out, progress)
+    n_rs, n_co, n_us = runs or (DEMO_RUNS, 16, US_DEMO_RUNS)
+    _stage(progress, "2/4 Retina-vs-SPC campaign on a tiny EV5 descent")
+    t1 = time.perf_counter()
+    html = run_demo_campaign(out / "campaign", progress=progress, runs=n_rs)
+    lines += _retina_section(out, html, time.perf_counter() - t1)
+    _stage(progress, "3/4 coastline-EKF campaign")
+    t2 = time.perf_counter()
+    coast = run_demo_coastline(out / "coastline", progress=progress, runs=n_co)
+    lines += _coastline_section(out, coast, time.perf_counter() - t2)
+    _stage(progress, "4/4 unknown-satellite campaign")
+    t3 = time.perf_counter()
+    us = run_demo_unknown_satellite(out / "unknown_satellite", progress=progress, runs=n_us)
+    lines += _unknown_satellite_section(out, us, time.perf_counter() - t3)
     report = out / "report.md"
-    report.write_text("\n".join(lines), encoding="utf-8")
+    report.write_text("\n".join(lines + FILES), encoding="utf-8")
     return report, html

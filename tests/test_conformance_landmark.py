@@ -19,9 +19,9 @@ from renderlab.measurement.conformance import check_landmark_method, check_landm
 NCC_TARGET = "renderlab_ncc_baseline.method:NccBaseline"
 
 #: failures a method is known to have today, by a fragment of the failure line; each must still occur
-#: (so a fix is noticed and the entry removed). SPC has no check of the landmark's size in the image: in the
-#: harness's too_small case (each landmark ~2 × 2 px) it returns shifts, with 'ok'.
-KNOWN_GAPS = {"spc": ("[too_small] rule (b) no result where none is possible",)}
+#: (so a fix is noticed and the entry removed). None today: SPC gained its image-size check (SpcOptions.min_image_px)
+#: after this harness found it returning shifts for 2 × 2 px landmarks.
+KNOWN_GAPS: dict[str, tuple[str, ...]] = {}
 
 
 def test_ncc_baseline_is_found_through_its_entry_point():

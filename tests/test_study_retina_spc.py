@@ -100,14 +100,15 @@ def test_both_methods_same_frames_same_apriori_and_truth_from_truth_table(campai
         rows = {}
         for k, meth in enumerate(m["method"]):
             rows.setdefault(meth, {})[(m["frame"][k], m["item"][k])] = k
-        assert set(rows) == {"retina", "spc"}
-        assert rows["retina"].keys() == rows["spc"].keys() and len(rows["retina"]) > 10
+        assert set(rows) == {"retina", "spc", "ncc_baseline"}  # the baseline plug-in is in every comparison
+        assert rows["retina"].keys() == rows["spc"].keys() == rows["ncc_baseline"].keys() and len(rows["retina"]) > 10
         for key, kr in rows["retina"].items():
-            ks = rows["spc"][key]
-            for c in ("apriori_dpos_x_m", "apriori_dpos_z_m", "apriori_drot_y_rad", "pred_s", "pred_l"):
-                assert m[c][kr] == pytest.approx(m[c][ks], abs=1e-9), c
+            for other in ("spc", "ncc_baseline"):
+                ks = rows[other][key]
+                for c in ("apriori_dpos_x_m", "apriori_dpos_z_m", "apriori_drot_y_rad", "pred_s", "pred_l"):
+                    assert m[c][kr] == pytest.approx(m[c][ks], abs=1e-9), c
+                assert m["photometry"][kr] == m["photometry"][ks]  # the same ground photometric knowledge
             assert (m["truth_s"][kr], m["truth_l"][kr]) == pytest.approx(tmap[key][:2], abs=1e-9)
-            assert m["photometry"][kr] == m["photometry"][ks]  # the same ground photometric knowledge
         for c in ("range_m", "albedo_contrast", "phase_deg", "gsd_ratio", "crlb_s", "crlb_l"):
             assert np.all(np.isfinite(m[c])), c
         assert 40 < min(m["range_m"]) and max(m["range_m"]) < 80  # frames at 65 and 45 m altitude
@@ -168,15 +169,29 @@ def test_spacing_knowledge_scales_gsd_ratio_and_noise_is_redrawn(campaign):
     assert np.mean(np.abs(dn_a - ts.load(0).dn)) > 0.5  # a new noise realisation, not the cached one
 
 
-def test_report_has_both_methods_with_confidence_intervals(campaign):
-    d, _, _ = campaign
+def test_report_has_every_method_with_cluster_intervals_and_the_declared_subset(campaign):
+    from renderlab.report.landmark_stats import cluster_ids
+    from renderlab.stats.bootstrap import cluster_bootstrap
+
+    d, meas, _ = campaign
     rows = list(csv.DictReader((d / "report" / "summary.csv").open()))
-    got = {(r["method"], r["axis"]) for r in rows}
-    assert {("retina", "s"), ("retina", "l"), ("spc", "s"), ("spc", "l")} <= got
+    got = {(r["subset"], r["method"], r["axis"]) for r in rows}
+    assert {(sub, m, a) for sub in ("all", "well_measured") for m in ("retina", "spc", "ncc_baseline")
+            for a in "sl"} <= got
     for r in rows:
-        assert float(r["mean_lo"]) <= float(r["mean"]) <= float(r["mean_hi"])
+        if int(r["n_result"]) >= 2 and int(r["n_clusters"]) >= 2:
+            assert float(r["bias_px_lo"]) <= float(r["bias_px"]) <= float(r["bias_px_hi"])
+    # the 'all' retina line bias interval is the cluster bootstrap over landmark-frames of the raw rows
+    import pyarrow as pa
+
+    t = pa.concat_tables([pa.table(m) for m in meas], promote_options="permissive")
+    sel = (np.array(t.column("method").to_pylist()) == "retina") & np.array(t.column("has_result").to_pylist(), bool)
+    e = np.array(t.column("err_l").to_pylist(), float)
+    iv = cluster_bootstrap(e[sel], cluster_ids(t)[sel], "mean", n_boot=2000, rng=0)
+    r = next(r for r in rows if (r["subset"], r["method"], r["axis"]) == ("all", "retina", "l"))
+    assert float(r["bias_px_lo"]) == pytest.approx(iv.lo, rel=1e-5) and float(r["bias_px_hi"]) == pytest.approx(iv.hi, rel=1e-5)
     html = (d / "report" / "index.html").read_text()
-    assert "retina" in html and "spc" in html
+    assert all(m in html for m in ("retina", "spc", "ncc_baseline")) and "Well-measured subset" in html
 
 
 def test_truth_perturbation_is_refused_with_one_line(tmp_path, capsys):

@@ -1,6 +1,10 @@
 r"""SPC-style landmark measurement: correlate in the maplet frame (Gaskell et al. 2008; Retina paper §
 "Implementation motivation", Figs. 3, 10, 12).
 
+Description
+-----------
+The method the Retina paper compares against, with the approximations it blames for SPC's bias (Fig. 12):
+
 1. **Image into the maplet frame.** Every maplet grid point (x_i, y_j, h_ij), on a grid extended by the
    search distance, is projected with the a-priori pose (eqs. 1–4) and the image is sampled there
    (bilinear). When a maplet cell covers more than ~1.5 px the image is first averaged with a Gaussian of
@@ -17,7 +21,47 @@ r"""SPC-style landmark measurement: correlate in the maplet frame (Gaskell et al
    pose projects the maplet point (δx s, δy s, 0): Δs, Δl = that pixel − the predicted pixel.
 
 The maplet grid gives a cell-quantised view of the image: with GSD ≠ spacing, oblique views and heights
-this is where SPC's approximations bite.
+this is where SPC's approximations bite. No-result flags and the final output phase are Retina's
+(:mod:`estimators.retina.landmarks`); the onboard photometry (``L_table``) is the same for both methods.
+
+Tuning
+------
+:class:`SpcOptions`:
+
+====================  ==========  ==============================================================================
+knob                  default     turn it when
+====================  ==========  ==============================================================================
+``peak``              quadric_2d  SPC's quadric; any :data:`estimators.retina.peaks.FINDERS` name to compare
+``min_correlation``   0.3         raise to refuse weak matches; lower on low-contrast terrain
+``min_points``        64          lit grid points that must overlap the extracted image; lower for small maplets
+``min_image_px``      9.0 px²     smallest image area of the maplet's footprint (``TOO_FEW_PIXELS`` below)
+``drop_shadowed``     True        False keeps grid points predicted in shadow (their zeros) in the correlation
+``alpha0``            π/3 rad     McEwen β = exp(−α/α0), used when ``L_table`` is empty
+``ls_weight``         2           Lommel–Seeliger weight c (1: Retina eq. 5 as printed)
+``L_table``           ()          L(α) fitted to the body's law; give both methods the same table
+``outlier_k``         5.0         final output phase threshold in robust σ, as Retina's
+``outlier_floor_px``  1.0 px      smallest flagged distance from the frame's median shift
+====================  ==========  ==============================================================================
+
+Use
+---
+::
+
+    from estimators.retina import CameraPoseEstimate
+    from estimators.spc import SpcOptions, measure_frame
+    pose = CameraPoseEstimate(R_body_from_cam, position_m)          # a-priori, body frame
+    res = measure_frame(dn_image, maplets, camera, pose, sun_body, search_px, SpcOptions())
+    shifts = [(r.ds, r.dl) for r in res if r.has_result]            # px, image frame, as Retina's
+
+References
+----------
+R. W. Gaskell, O. Barnouin-Jha, D. J. Scheeres, A. S. Konopliv, T. Mukai, S. Abe, J. Saito, M. Ishiguro,
+T. Kubota, T. Hashimoto, et al., "Characterizing and navigating small bodies with imaging data", Meteoritics
+& Planetary Science, Vol. 43, No. 6, 2008, pp. 1049–1061.
+
+C. A. Wright, J. Van Eepoel, A. Liounis, M. Shoemaker, K. DeWeese, K. Getzandanner, "Relative Terrain Imaging
+Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission (ARRM)", NASA Goddard Space Flight Center,
+2016 (equation numbers above).
 """
 
 from __future__ import annotations
@@ -61,6 +105,9 @@ class SpcOptions:
         Throw away grid points predicted in shadow (SPC's practice).
     outlier_k, outlier_floor_px : float
         Final output phase, as Retina's.
+    min_image_px : float
+        Smallest image area (px²) the maplet's footprint may cover; a smaller landmark (too far away) gives no
+        result (``TOO_FEW_PIXELS``): a few pixels cannot locate a correlation peak.
     """
 
     alpha0: float = DEFAULT_ALPHA0
@@ -72,6 +119,7 @@ class SpcOptions:
     drop_shadowed: bool = True
     outlier_k: float = 5.0
     outlier_floor_px: float = 1.0
+    min_image_px: float = 9.0
 
 
 def _grid_normals(h: np.ndarray, s: float) -> np.ndarray:
@@ -172,6 +220,9 @@ def measure_landmark(image: np.ndarray, maplet: Maplet, camera: CameraModel, pos
         if out.flags:
             return out
         ppc = _px_per_cell(camera, pose, maplet)
+        if (maplet.heights_m.shape[0] * ppc) ** 2 < options.min_image_px:
+            out.flags |= F.TOO_FEW_PIXELS
+            return out
         r = int(max(2, math.ceil(search_px / max(ppc, 1e-9))))
         out.search_px = int(search_px)
         R_mb = np.asarray(maplet.R_body_from_maplet, float).T

@@ -13,8 +13,10 @@ Rules every method obeys (checked by ``tests/test_conformance_landmark.py`` for 
 
 1. ``has_result`` is true exactly when ``ds`` and ``dl`` are finite; otherwise ``reason`` is one of
    :class:`~renderlab.contracts.reasons.LandmarkReason` other than ``ok`` (never a silent NaN).
-2. The inputs are not modified (image, masks, maplets, pose).
-3. Same inputs → bit-identical results (a method that draws random numbers seeds from ``frame.seed``).
+2. The inputs are not modified (image, masks, maplets, pose); the runner hands the image and mask read-only.
+3. Same inputs → bit-identical results, timings (``t_ms``) excepted (a method that draws random numbers seeds
+   from ``frame.seed``).
+5. A landmark too small in the image to locate (a few pixels), off the image, or unlit gives no result.
 4. Units: pixels in the lab's convention (sample = column, line = row, (0, 0) is the *centre* of the top-left
    pixel); body frame metres; ``p_body = R_body_from_cam @ p_cam + position_m``.
 """

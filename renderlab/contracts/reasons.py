@@ -1,8 +1,8 @@
 """Why a row has no result: one documented enum per kind of observable (the ``reason`` column).
 
 The values are plain strings (``str`` enums), stored as a Parquet dictionary column. ``ok`` is the only value
-allowed when ``has_result`` is true. A producer picks the *first* applicable reason in the enum's order
-(the order below); its own detailed flags go to the free-text ``diagnostics`` column.
+allowed when ``has_result`` is true. A producer gives the reason that stopped it; when it knows several at once, the
+first in the enum's order (the order below). Its own detailed flags go to the free-text ``diagnostics`` column.
 """
 
 from __future__ import annotations

@@ -214,6 +214,9 @@ def make_method(method, options: MeasureOptions, L_table: tuple = (), *, allow_r
     if not isinstance(obj, LandmarkMethod) or not isinstance(getattr(obj, "name", None), str):
         raise UserError(f"landmark method {method!r} does not follow the contract (needs a 'name' string and "
                         "measure_frame(frame); see renderlab.contracts.landmark)")
+    if isinstance(method, str) and ":" not in method and obj.name != method:
+        raise UserError(f"landmark method registered as '{method}' names itself '{obj.name}'; the two must agree "
+                        "(the name fills the table's 'method' column)")
     return obj
 
 
@@ -299,6 +302,9 @@ def measure_truthset(ts, maplets: list, method, options: MeasureOptions = Measur
             continue
         image = ts.load(i).dn.astype(np.float64)
         a_valid = image < fr.adc_max if fr.adc_max is not None else None
+        image.flags.writeable = False  # contract rule 2: methods never modify their inputs
+        if a_valid is not None:
+            a_valid.flags.writeable = False
         radii = np.array([search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
                                            options.min_search_px, options.max_search_px) for k in attempt], int)
         frame = LandmarkFrame(image=image, valid=a_valid, camera=cam, pose=apriori, sun_body=fr.sun,

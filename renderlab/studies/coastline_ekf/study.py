@@ -116,7 +116,9 @@ def run_demo_coastline(out, progress: bool = True, runs: int = 16) -> dict:
     from renderlab.report.campaign_report import make_report
 
     out = Path(out)
-    scene = Path(__file__).resolve().parents[2] / "scenes" / "coastline_ekf.toml"
+    from renderlab.builtin import scene_path
+
+    scene = scene_path("coastline_ekf.toml")
     camp = out / "coastline_campaign"
     res = run_campaign_file(scene, camp, runs, overrides=["coastline.duration_s=3000"], workers=0,
                             resume=(camp / "campaign.json").is_file(), progress=progress)

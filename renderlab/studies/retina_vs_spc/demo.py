@@ -105,3 +105,29 @@ def run_demo_campaign(out_dir, progress: bool = True, runs: int = DEMO_RUNS) -> 
         first = result.failed[0]
         raise UserError(f"demo campaign: {len(result.failed)} of {runs} runs failed; run {first['run']}: {first['error']}")
     return make_report(campaign, out / "report")
+
+
+def headline_table(summary_csv: Path) -> list[str]:
+    """Markdown table of the report's headline: per method, on the well-measured subset (else all rows), bias and
+    robust σ per axis and the no-result rate, with 95 % cluster-bootstrap intervals over landmark-frames."""
+    import csv
+
+    if not Path(summary_csv).is_file():
+        return ["(no summary.csv: the campaign report was not written)"]
+    rows = list(csv.DictReader(Path(summary_csv).open(encoding="utf-8")))
+    subset = "well_measured" if any(r["subset"] == "well_measured" for r in rows) else "all"
+    rows = [r for r in rows if r["subset"] == subset]
+
+    def iv(r, key, scale=1.0, signed=True):
+        f = "{:+.3f}" if signed else "{:.3f}"
+        v = [float(r[k]) * scale for k in (key, key + "_lo", key + "_hi")]
+        return f"{f.format(v[0])} [{f.format(v[1])}, {f.format(v[2])}]"
+
+    out = [f"Headline, {subset.replace('_', '-')} rows (95 % cluster-bootstrap intervals over landmark-frames):", "",
+           "| method | bias Δs (px) | bias Δl (px) | robust σ Δs (px) | robust σ Δl (px) | no result (%) |",
+           "|---|---:|---:|---:|---:|---:|"]
+    for m in sorted({r["method"] for r in rows}):
+        s_, l_ = (next(r for r in rows if r["method"] == m and r["axis"] == a) for a in "sl")
+        out.append(f"| {m} | {iv(s_, 'bias_px')} | {iv(l_, 'bias_px')} | {iv(s_, 'robust_sigma_px', signed=False)} | "
+                   f"{iv(l_, 'robust_sigma_px', signed=False)} | {iv(s_, 'no_result_rate', 100, signed=False)} |")
+    return out
