@@ -21,7 +21,9 @@ from typing import Annotated, Any, Literal
 import pydantic
 from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 
+from renderlab.scenario.camera import CameraConfig
 from renderlab.scenario.campaign import CampaignConfig, PerturbationConfig
+from renderlab.scenario.trajectory import TrajectoryConfig
 from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
@@ -80,45 +82,6 @@ class SunConfig(_Strict):
     def _nonzero(self):
         if math.hypot(*self.direction) < 1e-12:
             raise ValueError("sun direction must be a non-zero vector")
-        return self
-
-
-class CameraConfig(_Strict):
-    """Intrinsics in pixels (pixel centres are integers, (0, 0) is the top-left pixel's centre)."""
-
-    width: Annotated[int, Field(gt=0, le=16384)] = 256
-    height: Annotated[int, Field(gt=0, le=16384)] = 192
-    fx: Positive = 300.0
-    fy: Positive = 300.0
-    cx: Finite = 127.5
-    cy: Finite = 95.5
-    skew: Finite = 0.0
-    skew_yx: Finite = 0.0
-    model: Literal["pinhole", "brown", "owen"] = "pinhole"
-    distortion: dict[str, Finite] = {}
-
-
-class TrajectoryConfig(_Strict):
-    """Camera path. ``line``: from ``start_m`` to ``end_m``; ``orbit``: around ``target_m`` at
-    ``range_m`` and ``elevation_deg`` from ``azimuth_start_deg`` to ``azimuth_end_deg``.
-    The camera always looks at ``target_m`` with ``up`` toward the top of the image."""
-
-    kind: Literal["line", "orbit"] = "orbit"
-    frames: Annotated[int, Field(gt=0, le=100000)] = 1
-    dt_s: Positive = 1.0
-    target_m: Vec3 = [0.0, 0.0, 0.0]
-    up: Vec3 = [0.0, 0.0, 1.0]
-    start_m: Vec3 | None = None
-    end_m: Vec3 | None = None
-    range_m: Positive = 10.0
-    elevation_deg: Annotated[float, Field(gt=-90, lt=90, allow_inf_nan=False)] = 30.0
-    azimuth_start_deg: Finite = -90.0
-    azimuth_end_deg: Finite = -90.0
-
-    @model_validator(mode="after")
-    def _line_fields(self):
-        if self.kind == "line" and self.start_m is None:
-            raise ValueError("trajectory kind 'line' needs 'start_m'")
         return self
 
 
