@@ -257,10 +257,7 @@ def distortion_jacobian(model: str, coeffs: Mapping[str, float], u: np.ndarray) 
 def _first_guess(model: str, c: Mapping[str, float], ax: np.ndarray, ay: np.ndarray):
     """Newton start for the finite targets (ax, ay) (n,): ``u0 = ud - (D(ud) - ud)``, or ``ud`` where that is worse.
 
-    Returns
-    -------
-    bx, by, rx, ry, err : ndarray, shape (n,)
-        Start point, its residual ``D(b) - a`` and the residual's max-norm.
+    Returns the start point (bx, by), its residual ``D(b) - a`` (rx, ry) and the residual's max-norm ``err``.
     """
     dx, dy = _distort_xy(model, c, ax, ay)
     bx, by = 2.0 * ax - dx, 2.0 * ay - dy
@@ -281,10 +278,8 @@ def _damped_step(model: str, c: Mapping[str, float], ax, ay, bx, by, err, sx, sy
     """Trial points ``b - t s`` of the Newton step (sx, sy) from (bx, by) with residual norm ``err`` toward (ax, ay):
     t = 1, halved (up to 30 times) where that does not reduce the residual (all arrays shape (n,)).
 
-    Returns
-    -------
-    nx, ny, nrx, nry, nerr : ndarray, shape (n,)
-        Trial points, their residual and its max-norm (the full step's where no halving helped).
+    Returns the trial points (nx, ny), their residual (nrx, nry) and its max-norm ``nerr`` (the full step's where
+    no halving helped).
     """
     nx, ny = bx - sx, by - sy
     dx, dy = _distort_xy(model, c, nx, ny)
@@ -378,9 +373,7 @@ def undistort(
         return u.reshape(shape + (2,)), finite.reshape(shape)
 
     thresh = tol * np.maximum(1.0, np.maximum(np.abs(tx), np.abs(ty)))
-    out_x = np.full(tx.shape, np.nan)
-    out_y = np.full(tx.shape, np.nan)
-    out_e = np.full(tx.shape, np.inf)
+    out_x, out_y, out_e = np.full(tx.shape, np.nan), np.full(tx.shape, np.nan), np.full(tx.shape, np.inf)
 
     idx = np.flatnonzero(finite)
     ax, ay = tx[idx], ty[idx]  # targets
