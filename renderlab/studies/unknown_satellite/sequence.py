@@ -17,6 +17,7 @@ weakly observable principal axes are labelled or oriented.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -122,73 +123,54 @@ def _match_tracks(tracks_db, db, ft, max_px):
     return np.array(out)
 
 
-def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = StudyOptions(),
-                     progress: bool = False, run: int = 0) -> SequenceResult:
-    """Run both stages on a microsat truth set (a folder, or an object with ``frames``, ``load``,
-    ``read_table`` and ``len`` like :class:`renderlab.truthset.TruthSet`) and score them against its truth."""
-    import pyarrow as pa
-    from tqdm import tqdm
+#: what the truth set fixes for the estimators: camera, R_lvlh_from_cam, camera offset (LVLH), mean motion, times
+_Sequence = namedtuple("_Sequence", "camera R_lc d n times")
+#: per-frame truth ``tr`` (r, v, q, ω), inertia, ratios I1/I3, I2/I3, attitude at the epoch (R0) and per frame (R)
+_Truth = namedtuple("_Truth", "tr inertia ratios R0 R")
 
-    from estimators.pose import (DetectOptions, EstimationError, Stage1Options, Stage1Problem, Stage2Options,
-                                 TrackOptions, build_database, detect_points, observability, run_stage2,
-                                 track_points, with_full_inertia)
-    from estimators.pose.gauge import gauge_free
-    from estimators.pose.rigidity import solve_rigid
-    from estimators.pose.onboard_model import exp_so3, log_so3
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.truthset import TruthSet
 
-    ts = ts_path if hasattr(ts_path, "load") else TruthSet.open(ts_path)
-    ts_path = getattr(ts, "path", ts_path)
-    recs = ts.frames
-    if "microsat" not in recs[0]:
-        raise UserError(f"truth set {ts_path} is not a microsat truth set (no 'microsat' frame metadata)")
-    camera = CameraModel.from_dict(recs[0]["camera"])
-    m0 = recs[0]["microsat"]
-    R_lc = _rot(m0["quat_lvlh_from_cam_xyzw"])
-    d = np.asarray(m0["camera_offset_lvlh_m"])
-    n = float(m0["mean_motion_rad_s"])
-    times = np.array([r["time_s"] for r in recs])
-    det = [detect_points(ts.load(i).dn, DetectOptions()) for i in tqdm(range(len(ts)), desc="detect",
-                                                                         disable=not progress)]
-    topts = TrackOptions(opts.epsilon_px, opts.min_track_frames)
-    n1 = len(ts) if opts.stage1_frames is None else min(opts.stage1_frames, len(ts))
-    tracks = track_points(det[:n1], topts)
-    db = build_database(tracks, topts)
-    # truth at the first frame and the seeded a-priori guess
+def _truth(recs: list) -> _Truth:
     tr = {k: np.array([r["microsat"][k] for r in recs]) for k in
           ("r_lvlh_m", "v_lvlh_mps", "quat_lvlh_from_body_xyzw", "omega_body_rad_s")}
-    I_true = np.asarray(m0["inertia_kg_m2"])
-    ratios_true = I_true[:2] / I_true[2]
-    p = opts.prior
-    R_true0 = _rot(tr["quat_lvlh_from_body_xyzw"][0])
-    R_ref = R_true0 @ exp_so3(rng.normal(0, np.radians(p.sigma_att_deg), 3))
-    r0g = tr["r_lvlh_m"][0] + rng.normal(0, p.sigma_r0_m, 3)
-    v0g = tr["v_lvlh_mps"][0] + rng.normal(0, p.sigma_v0_mps, 3)
-    w0g = tr["omega_body_rad_s"][0] + rng.normal(0, np.radians(p.sigma_w_deg_s), 3)
-    ratios_g = ratios_true * (1 + rng.normal(0, p.sigma_ratio_frac, 2))
-    range_prior = float(np.linalg.norm(tr["r_lvlh_m"][0] - d) + rng.normal(0, p.range_sigma_m))
-    s1opts = Stage1Options(sigma_px=opts.sigma_px, range_prior_sigma_m=p.range_sigma_m, max_nfev=opts.max_nfev)
+    I_true = np.asarray(recs[0]["microsat"]["inertia_kg_m2"])
+    return _Truth(tr, I_true, I_true[:2] / I_true[2], _rot(tr["quat_lvlh_from_body_xyzw"][0]),
+                  np.array([_rot(q) for q in tr["quat_lvlh_from_body_xyzw"]]))
+
+
+def _apriori(t: _Truth, d: np.ndarray, p: PriorOptions, rng: np.random.Generator) -> tuple:
+    """The seeded a-priori guess (R_ref, r0, v0, ω0, ratios, range prior), drawn in this order."""
+    from estimators.pose.onboard_model import exp_so3
+
+    R_ref = t.R0 @ exp_so3(rng.normal(0, np.radians(p.sigma_att_deg), 3))
+    r0g = t.tr["r_lvlh_m"][0] + rng.normal(0, p.sigma_r0_m, 3)
+    v0g = t.tr["v_lvlh_mps"][0] + rng.normal(0, p.sigma_v0_mps, 3)
+    w0g = t.tr["omega_body_rad_s"][0] + rng.normal(0, np.radians(p.sigma_w_deg_s), 3)
+    ratios_g = t.ratios * (1 + rng.normal(0, p.sigma_ratio_frac, 2))
+    range_prior = float(np.linalg.norm(t.tr["r_lvlh_m"][0] - d) + rng.normal(0, p.range_sigma_m))
+    return R_ref, r0g, v0g, w0g, ratios_g, range_prior
+
+
+def _solve_stage1(sq: _Sequence, db, apriori: tuple, opts: StudyOptions, ts_path):
+    """Stage 1 (range prior, rigidity test, solve) from the a-priori guess → (solution, problem, rigidity result)."""
+    from estimators.pose import EstimationError, Stage1Options, Stage1Problem
+    from estimators.pose.rigidity import solve_rigid
+
+    R_ref, r0g, v0g, w0g, ratios_g, range_prior = apriori
+    s1opts = Stage1Options(sigma_px=opts.sigma_px, range_prior_sigma_m=opts.prior.range_sigma_m, max_nfev=opts.max_nfev)
     try:
-        problem = Stage1Problem(camera, R_lc, d, n, times, db, R_ref, range_prior, s1opts)
+        problem = Stage1Problem(sq.camera, sq.R_lc, sq.d, sq.n, sq.times, db, R_ref, range_prior, s1opts)
     except EstimationError as exc:
         raise UserError(f"{ts_path}: {exc}") from None
     if db.frame.min() != 0:
         raise UserError(f"{ts_path}: no reference point tracked from the first frame")
-    db_all = db
     try:
-        s1, problem, rigid = solve_rigid(problem, r0g, v0g, w0g, ratios_g)
+        return solve_rigid(problem, r0g, v0g, w0g, ratios_g)
     except EstimationError as exc:   # fewer than 4 rigid tracks, or none at the epoch
         raise UserError(f"{ts_path}: {exc}") from None
-    db = problem.db
-    obs = observability(problem, with_full_inertia(s1.theta), "full", prior=True)
-    obs_noprior = observability(problem, with_full_inertia(s1.theta), "full", prior=False)
-    gf = gauge_free(problem, s1.theta)
-    # ---- scores, stage 1
-    feat = ts.read_table("features").to_pydict()
-    truth_pts = np.column_stack([feat["x_body_m"], feat["y_body_m"], feat["z_body_m"]])
-    ft = ts.read_table("feature_truth").to_pydict()
-    fid = _match_tracks(tracks, db, ft, opts.match_px)
+
+
+def _point_rows(s1, db, fid, truth_pts, gf, t: _Truth, run: int):
+    """Stage-1 ``points`` columns, the body-frame errors (M, 3), shape errors and whether ≥ 3 points matched."""
     npts = db.n_points
     sig_p = s1.sigma_theta[14:].reshape(-1, 3)
     pt_rows = {"run": [run] * npts, "method": ["stage1"] * npts, "item": db.track_ids.tolist(),
@@ -208,9 +190,15 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         shape_err[m] = np.linalg.norm(A @ C.T - B, axis=1)
     pt_rows["shape_err_m"] = shape_err.tolist()
     # gauge-free: the point in LVLH at the epoch, error and CRLB σ (estimators.pose.gauge)
-    q_true = np.array([tr["r_lvlh_m"][0] + R_true0 @ truth_pts[j] if j >= 0 else np.full(3, np.nan) for j in fid])
+    q_true = np.array([t.tr["r_lvlh_m"][0] + t.R0 @ truth_pts[j] if j >= 0 else np.full(3, np.nan) for j in fid])
     pt_rows["lvlh_err_m"] = np.linalg.norm(gf.points_lvlh - q_true, axis=1).tolist()
     pt_rows["lvlh_sig_m"] = np.linalg.norm(gf.points_sigma, axis=1).tolist()
+    return pt_rows, err, shape_err, ok_any
+
+
+def _history_rows(s1, problem, fid, truth_pts, t: _Truth, run: int):
+    """``stage1_history`` rows: the errors of every stage-1 iterate (Figs 5-7)."""
+    tr, I_true, ratios_true = t.tr, t.inertia, t.ratios
     hist_rows = []
     for it, th in enumerate(s1.history):
         r0, v0, dphi, w0, inertia, pts = problem.unpack(th)
@@ -225,16 +213,16 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
                           "err_points_rms_m": float(np.sqrt(np.mean(np.square(e_p)))) if e_p else np.nan,
                           **{f"err_p{k}_m": float(np.linalg.norm(pts[k] - truth_pts[j]))
                              for k, j in enumerate(fid) if j >= 0}})
-    # ---- stage 2 over all frames, from the stage-1 solution at the epoch
-    frames = np.arange(len(ts))
-    s2 = run_stage2(det, frames, times, camera, R_lc, d, n, s1.points_body, s1.inertia_ratios,
-                    s1.r0_lvlh, s1.v0_lvlh, s1.R0_lvlh_from_body, s1.omega0_body,
-                    Stage2Options(epsilon_px=opts.epsilon_px, sigma_px=opts.sigma_px))
-    R_true = np.array([_rot(q) for q in tr["quat_lvlh_from_body_xyzw"]])
-    e_att = np.array([np.degrees(np.linalg.norm(log_so3(a @ b.T))) for a, b in zip(s2.R, R_true)])
-    e_r = s2.r - tr["r_lvlh_m"]
-    e_v = s2.v - tr["v_lvlh_mps"]
-    e_w = np.degrees(s2.w - tr["omega_body_rad_s"])
+    return hist_rows
+
+
+def _stage2_rows(s2, t: _Truth, times, P, run: int):
+    """Stage-2 table columns and errors: attitude (deg), r, v, ω (deg/s), attitude and ω also with relabelled axes."""
+    from estimators.pose.onboard_model import log_so3
+
+    tr, frames = t.tr, np.arange(len(times))
+    e_att = np.array([np.degrees(np.linalg.norm(log_so3(a @ b.T))) for a, b in zip(s2.R, t.R)])
+    e_r, e_v, e_w = s2.r - tr["r_lvlh_m"], s2.v - tr["v_lvlh_mps"], np.degrees(s2.w - tr["omega_body_rad_s"])
     s2_rows = {"run": [run] * len(frames), "method": ["stage2_cgkf"] * len(frames), "frame": frames.tolist(),
                "t_s": times.tolist(), "n_points": s2.n_points.tolist(), "has_result": (s2.flags == 0).tolist(),
                "reason": ["ok" if f == 0 else "no_measurement" for f in s2.flags],
@@ -248,30 +236,21 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         s2_rows[f"est_w{ax}_deg_s"] = np.degrees(s2.w[:, a]).tolist()
         s2_rows[f"true_w{ax}_deg_s"] = np.degrees(tr["omega_body_rad_s"][:, a]).tolist()
         s2_rows[f"err_w{ax}_deg_s"] = e_w[:, a].tolist()
-    w_true0 = np.degrees(np.linalg.norm(tr["omega_body_rad_s"][0]))
     # body-frame scores again with the principal axes relabelled to the truth's (discrete gauge)
-    P = axis_relabelling(s1.R0_lvlh_from_body, R_true0)
-    mom = np.abs(P) @ np.r_[s1.inertia_ratios, 1.0]
-    err_al = np.array([P @ s1.points_body[k] - truth_pts[j] for k, j in enumerate(fid) if j >= 0]).reshape(-1, 3)
-    e_att_al = np.array([np.degrees(np.linalg.norm(log_so3(a @ P.T @ b.T))) for a, b in zip(s2.R, R_true)])
+    e_att_al = np.array([np.degrees(np.linalg.norm(log_so3(a @ P.T @ b.T))) for a, b in zip(s2.R, t.R)])
     e_w_al = np.degrees(s2.w @ P.T - tr["omega_body_rad_s"])
     s2_rows["err_att_aligned_deg"] = e_att_al.tolist()
     for a, ax in enumerate("xyz"):
         s2_rows[f"err_w{ax}_aligned_deg_s"] = e_w_al[:, a].tolist()
-    ok = fid >= 0
-    summary = {
-        "run": run, "frames": len(ts), "tracks": len(tracks), "database_points": npts,
-        "dropped_short_tracks": db.dropped_tracks, "matched_points": int(ok.sum()),
-        "database_tracks_before_rigidity": db_all.n_points,
-        "rigidity_rejected_tracks": rigid.rejected.tolist(),
-        "rigidity_rejected_matched_knob": [int(v) for v in _match_tracks(tracks, db_all, ft, opts.match_px)[
-            np.isin(db_all.track_ids, rigid.rejected)]],
-        "rigidity_sigma_eff_px": rigid.sigma_eff_px, "rigidity_rounds": rigid.rounds,
-        "stage1_inertia_fallback": s1.inertia_fallback,
-        "stage1_rms_px": s1.rms_px, "stage1_nfev": s1.nfev, "stage1_njev": s1.njev,
-        "stage1_status": s1.status, "stage1_converged": s1.converged, "stage1_message": s1.message,
-        "stage1_cost0": s1.cost0, "stage1_cost": s1.cost, "stage1_gradient_inf_norm": s1.optimality,
-        "stage1_seconds": s1.seconds, "stage1_measurements": int(len(db.frame)),
+    return s2_rows, (e_att, e_r, e_v, e_w, e_att_al, e_w_al)
+
+
+def _stage1_scores(s1, gf, obs, t: _Truth, truth_pts, fid, err, shape_err, ok_any) -> dict:
+    """Summary scores of stage 1 against the truth (body frame and gauge-free), its CRLB σ and the FIM rank."""
+    from estimators.pose.onboard_model import log_so3
+
+    tr, R_true0, ratios_true, ok = t.tr, t.R0, t.ratios, fid >= 0
+    return {
         "point_err_rms_m": float(np.sqrt(np.mean(err[ok] ** 2) * 3)) if ok.any() else np.nan,
         "point_err_max_m": float(np.max(np.linalg.norm(err[ok], axis=1))) if ok.any() else np.nan,
         "point_shape_err_rms_m": float(np.sqrt(np.nanmean(shape_err**2))) if ok_any else np.nan,
@@ -284,7 +263,8 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         "v0_err_mps": float(np.linalg.norm(s1.v0_lvlh - tr["v_lvlh_mps"][0])),
         "att0_err_deg": float(np.degrees(np.linalg.norm(log_so3(s1.R0_lvlh_from_body @ R_true0.T)))),
         "w0_err_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body - tr["omega_body_rad_s"][0]))),
-        "w0_norm_est_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body))), "w0_norm_true_deg_s": w_true0,
+        "w0_norm_est_deg_s": float(np.degrees(np.linalg.norm(s1.omega0_body))),
+        "w0_norm_true_deg_s": np.degrees(np.linalg.norm(tr["omega_body_rad_s"][0])),
         "w0_norm_sigma_deg_s": float(np.degrees(np.linalg.norm(s1.sigma_theta[9:12]))),  # per-axis body σ combined
         "w0_norm_crlb_deg_s": float(np.degrees(gf.omega_norm_sigma)),                     # CRLB of ‖ω0‖ itself
         "w0_lvlh_crlb_deg_s": float(np.degrees(np.linalg.norm(gf.omega_sigma))),
@@ -297,8 +277,18 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         "ratio_sigma_2": float(s1.sigma_theta[13] * s1.inertia_ratios[1]),
         "inertia_tensor_lvlh_err_max": float(np.max(np.abs(_inertia_lvlh(s1.R0_lvlh_from_body,
                                                                         np.r_[s1.inertia_ratios, 1.0])
-                                                          - _inertia_lvlh(R_true0, I_true)))),
-        "fim_rank": obs.rank, "fim_params": obs.n_params,
+                                                          - _inertia_lvlh(R_true0, t.inertia)))),
+        "fim_rank": obs.rank, "fim_params": obs.n_params}
+
+
+def _stage2_scores(s2, e2: tuple, s1, P, truth_pts, fid, R_true0) -> dict:
+    """Summary scores of stage 2, then of both stages with the principal axes relabelled to the truth's (P)."""
+    from estimators.pose.onboard_model import log_so3
+
+    e_att, e_r, e_v, e_w, e_att_al, e_w_al = e2
+    mom = np.abs(P) @ np.r_[s1.inertia_ratios, 1.0]
+    err_al = np.array([P @ s1.points_body[k] - truth_pts[j] for k, j in enumerate(fid) if j >= 0]).reshape(-1, 3)
+    return {
         "stage2_pos_rms_m": float(np.sqrt(np.mean(np.sum(e_r**2, 1)))),
         "stage2_vel_rms_mps": float(np.sqrt(np.mean(np.sum(e_v**2, 1)))),
         "stage2_w_rms_deg_s": [float(v) for v in np.sqrt(np.mean(e_w**2, 0))],
@@ -310,8 +300,67 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
         "att0_err_aligned_deg": float(np.degrees(np.linalg.norm(log_so3(s1.R0_lvlh_from_body @ P.T @ R_true0.T)))),
         "ratio_I1_I3_aligned": float(mom[0] / mom[2]), "ratio_I2_I3_aligned": float(mom[1] / mom[2]),
         "stage2_att_rms_aligned_deg": float(np.sqrt(np.mean(e_att_al**2))),
-        "stage2_w_rms_aligned_deg_s": [float(v) for v in np.sqrt(np.mean(e_w_al**2, 0))],
-    }
+        "stage2_w_rms_aligned_deg_s": [float(v) for v in np.sqrt(np.mean(e_w_al**2, 0))]}
+
+
+def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = StudyOptions(),
+                     progress: bool = False, run: int = 0) -> SequenceResult:
+    """Run both stages on a microsat truth set (a folder, or an object with ``frames``, ``load``,
+    ``read_table`` and ``len`` like :class:`renderlab.truthset.TruthSet`) and score them against its truth."""
+    import pyarrow as pa
+    from tqdm import tqdm
+
+    from estimators.pose import (DetectOptions, Stage2Options, TrackOptions, build_database, detect_points,
+                                 observability, run_stage2, track_points, with_full_inertia)
+    from estimators.pose.gauge import gauge_free
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.truthset import TruthSet
+
+    ts = ts_path if hasattr(ts_path, "load") else TruthSet.open(ts_path)
+    ts_path = getattr(ts, "path", ts_path)
+    if "microsat" not in ts.frames[0]:
+        raise UserError(f"truth set {ts_path} is not a microsat truth set (no 'microsat' frame metadata)")
+    m0 = ts.frames[0]["microsat"]
+    sq = _Sequence(CameraModel.from_dict(ts.frames[0]["camera"]), _rot(m0["quat_lvlh_from_cam_xyzw"]),
+                   np.asarray(m0["camera_offset_lvlh_m"]), float(m0["mean_motion_rad_s"]),
+                   np.array([r["time_s"] for r in ts.frames]))
+    det = [detect_points(ts.load(i).dn, DetectOptions()) for i in tqdm(range(len(ts)), desc="detect",
+                                                                         disable=not progress)]
+    topts = TrackOptions(opts.epsilon_px, opts.min_track_frames)
+    n1 = len(ts) if opts.stage1_frames is None else min(opts.stage1_frames, len(ts))
+    tracks = track_points(det[:n1], topts)
+    db_all = build_database(tracks, topts)
+    t = _truth(ts.frames)   # the seeded a-priori guess starts from the truth at the first frame
+    s1, problem, rigid = _solve_stage1(sq, db_all, _apriori(t, sq.d, opts.prior, rng), opts, ts_path)
+    db = problem.db
+    obs = observability(problem, with_full_inertia(s1.theta), "full", prior=True)
+    obs_noprior = observability(problem, with_full_inertia(s1.theta), "full", prior=False)
+    gf = gauge_free(problem, s1.theta)
+    feat = ts.read_table("features").to_pydict()
+    truth_pts = np.column_stack([feat["x_body_m"], feat["y_body_m"], feat["z_body_m"]])
+    ft = ts.read_table("feature_truth").to_pydict()
+    fid = _match_tracks(tracks, db, ft, opts.match_px)
+    pt_rows, err, shape_err, ok_any = _point_rows(s1, db, fid, truth_pts, gf, t, run)
+    hist_rows = _history_rows(s1, problem, fid, truth_pts, t, run)
+    s2 = run_stage2(det, np.arange(len(ts)), sq.times, sq.camera, sq.R_lc, sq.d, sq.n, s1.points_body,
+                    s1.inertia_ratios, s1.r0_lvlh, s1.v0_lvlh, s1.R0_lvlh_from_body, s1.omega0_body,
+                    Stage2Options(epsilon_px=opts.epsilon_px, sigma_px=opts.sigma_px))
+    P = axis_relabelling(s1.R0_lvlh_from_body, t.R0)
+    s2_rows, e2 = _stage2_rows(s2, t, sq.times, P, run)
+    knobs = _match_tracks(tracks, db_all, ft, opts.match_px)[np.isin(db_all.track_ids, rigid.rejected)]
+    summary = {
+        "run": run, "frames": len(ts), "tracks": len(tracks), "database_points": db.n_points,
+        "dropped_short_tracks": db.dropped_tracks, "matched_points": int((fid >= 0).sum()),
+        "database_tracks_before_rigidity": db_all.n_points, "rigidity_rejected_tracks": rigid.rejected.tolist(),
+        "rigidity_rejected_matched_knob": [int(v) for v in knobs],
+        "rigidity_sigma_eff_px": rigid.sigma_eff_px, "rigidity_rounds": rigid.rounds,
+        "stage1_inertia_fallback": s1.inertia_fallback,
+        "stage1_rms_px": s1.rms_px, "stage1_nfev": s1.nfev, "stage1_njev": s1.njev,
+        "stage1_status": s1.status, "stage1_converged": s1.converged, "stage1_message": s1.message,
+        "stage1_cost0": s1.cost0, "stage1_cost": s1.cost, "stage1_gradient_inf_norm": s1.optimality,
+        "stage1_seconds": s1.seconds, "stage1_measurements": int(len(db.frame)),
+        **_stage1_scores(s1, gf, obs, t, truth_pts, fid, err, shape_err, ok_any),
+        **_stage2_scores(s2, e2, s1, P, truth_pts, fid, t.R0)}
     tables = {"points": pa.table(pt_rows), "stage1_history": pa.table({k: [r.get(k, np.nan) for r in hist_rows]
                                                                       for k in hist_rows[0]}),
               "stage2": pa.table(s2_rows)}
