@@ -144,7 +144,7 @@ class _History:
 
 
 def _image_attitudes(sc_meta: dict, sig_att: float, z_att_k: np.ndarray):
-    """R_ecef_from_eci, R_ecef_from_cam and the star tracker's cam_from_eci (true one rotated by σ_att z) of a frame."""
+    """R_ecef_from_eci, R_ecef_from_cam and the star tracker's cam_from_eci (the true one rotated by σ_att z)."""
     from scipy.spatial.transform import Rotation
 
     from estimators.coastline.los import small_rotation_matrices
@@ -252,9 +252,9 @@ def run_image_study(scenario, base_dir, run_index: int, seed_sequence, workdir) 
                                        q_acc_m2_s3=c.process_noise_m2_s3, max_step_s=c.filter_step_s))
     sensor_opts = SensorOptions(**scenario.sensor.options_dict())
     frames = ReexposedTruthSet(ts, sensor_opts, draws.noise_seeds) if c.sensor_noise else ts
-    ctx = _ImageContext(db_ecef, db_true, sig_att, draws.z_att, ExtractOptions(),
-                        MatchOptions(search_px=c.search_px, gate_px=c.match_gate_px, points_per_image=c.points_per_image),
-                        sensor_opts.bias_dn, c.cloud_rejection)
+    mo = MatchOptions(search_px=c.search_px, gate_px=c.match_gate_px, points_per_image=c.points_per_image)
+    ctx = _ImageContext(db_ecef, db_true, sig_att, draws.z_att, ExtractOptions(), mo, sensor_opts.bias_dn,
+                        c.cloud_rejection)
     t_prev = float(tr.start_s)
     h = _History([t_prev], [ekf.x[0].copy()], [ekf.P[0].copy()], [x_true0])
     for k in range(K):

@@ -79,7 +79,8 @@ class BelievedTruthSet(ReexposedTruthSet):
     """A truth set as the onboard system sees it: believed camera and Sun in the frame records
     (:func:`believed_record`), and the DN images re-exposed with this run's noise (one seed per frame,
     :class:`renderlab.campaign.reexpose.ReexposedTruthSet`, each frame's DN kept). What
-    :func:`renderlab.measurement.runner.measure_truthset` reads (``path``, ``frames``, ``len``, ``load``, ``read_table``)."""
+    :func:`renderlab.measurement.runner.measure_truthset` reads (``path``, ``frames``, ``len``, ``load``,
+    ``read_table``)."""
 
     no_radiance = "truth set {path}: retina_vs_spc needs a mono (radiance) truth set"
 
