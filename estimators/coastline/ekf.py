@@ -1,9 +1,11 @@
 r"""The coastline-navigation EKF of Straub & Christian, vectorised across Monte Carlo runs.
 
+Description
+-----------
 Every array carries a leading run axis N: states (N, 6), covariances (N, 6, 6). One filter object
 runs N independent filters in lock-step (same measurement times, same matched database points, each
 run with its own estimate, measurements and star-tracker attitude), so a 1000-run Monte Carlo is a
-handful of batched numpy operations per image.
+handful of batched numpy operations per image. State x = [r (m), v (m/s)] in the lab's ECI (eq. 11).
 
 Theory (paper equation numbers):
 
@@ -20,7 +22,47 @@ Theory (paper equation numbers):
   is the orthogonal projector on S's null space), χ² with 2 degrees of freedom per LOS (2m per image).
 - NEES (filter-study scoring): :math:`\tilde{\mathbf x}^TP^{-1}\tilde{\mathbf x}`, 6 degrees of freedom.
 
-This module imports numpy only (estimators never import the lab's truth side).
+This module imports numpy only (estimators never import the lab's truth side). The square-root form is
+:mod:`.sqrt_ekf`; the lab's one-run adapter behind the navigation-filter contract is
+``renderlab.measurement.builtin_filters.CoastlineEKF``.
+
+Tuning
+------
+:class:`EKFOptions`:
+
+======================  ========  ==============================================================================
+knob                    default   turn it when
+======================  ========  ==============================================================================
+``sigma_theta_rad``     5e-4      per-axis angular noise σθ of one matched LOS (R of eq. 18): the matching error
+                                  in rad, ≈ px error / f_px
+``sigma_attitude_rad``  0         star-tracker attitude noise shared by all LOS of an image; > 0 adds the
+                                  correlated σ_att² GGᵀ term
+``q_acc_m2_s3``         0         white-acceleration PSD of the process noise; > 0 when the truth has forces the
+                                  two-body model lacks (J2, drag)
+``mu_m3_s2``            MU_EARTH  the onboard model's gravitational parameter
+``max_step_s``          10        RK4 step of the state/STM propagation; smaller for long gaps or low orbits
+``gain_method``         woodbury  ``direct`` solves the 3m × 3m system of eq. 19 (the check; slower for many
+                                  LOS)
+======================  ========  ==============================================================================
+
+Use
+---
+::
+
+    from estimators.coastline import BatchCoastlineEKF, EKFOptions
+    ekf = BatchCoastlineEKF(x0, P0, EKFOptions(sigma_theta_rad=5e-4))   # x0 (N, 6) ECI; P0 (6, 6) or (N, 6, 6)
+    ekf.propagate(dt_s)                                                # eqs. 3, 10-13
+    upd = ekf.update(y_cam, o_eci, T_cam_from_eci)   # LOS (N, m, 3); points (m, 3); star tracker (3, 3)
+    upd.nis, upd.dof                                 # (N,) NIS, χ² with 2m dof; ekf.x, ekf.P the estimates
+
+References
+----------
+M. N. Straub and J. A. Christian, "Autonomous Optical Navigation for Earth-Observing Satellites Using
+Coastline Matching", West Virginia University, AIAA paper, c. 2015. Equation numbers above are
+this paper's.
+
+M. D. Shuster and S. D. Oh, "Three-axis Attitude Determination from Vector Observations", Journal of Guidance,
+Control, and Dynamics, Vol. 4, No. 1, 1981, pp. 70–77 (the unit-vector noise model of eq. 18).
 """
 
 from __future__ import annotations

@@ -7,12 +7,16 @@ r"""Matching extracted coastline pixels to the onboard coastline database (Strau
 2. **Register.** A 2-D translation δ aligns the predicted curve with the extracted edge points: a coarse
    search over integer shifts within ``search_px`` minimising the truncated chamfer cost
    :math:`\sum_i \min(D(\hat{\mathbf p}_i + \delta), \tau)` on the OpenCV distance transform D of the edge
-   raster, then trimmed ICP (nearest extracted point, inliers within ``gate_px``, δ ← median residual).
+   raster, then trimmed point-to-line ICP (nearest extracted point, inliers within ``gate_px``, Huber weights
+   at 0.5 px; where the coast is nearly straight and the 2-D step is ill-conditioned, δ ← δ + the median
+   point-to-point residual).
    With a star-tracker attitude the a-priori error is mostly a translation of the image; rotation about the
    boresight is not estimated (a star tracker bounds it to arcseconds).
-3. **Associate.** Each registered database point takes the nearest extracted point within ``gate_px`` as its
-   observed pixel; δ is used only for association, the measurement is the observed pixel itself, so the EKF
-   innovation (eq. 6) carries the whole a-priori error. Up to ``points_per_image`` pairs are kept, the one
+3. **Associate.** Each registered database point p̂_i + δ takes the nearest extracted point within ``gate_px``;
+   its observed pixel is the foot of the perpendicular from p̂_i + δ onto the local edge line through that
+   point (the across-curve part comes from the image, the along-curve part from the registration, which a
+   curve cannot give point by point), so the EKF innovation (eq. 6) carries the a-priori error: across the
+   curve as measured, along it as registered. Up to ``points_per_image`` pairs are kept, the one
    nearest each cell centre of a g x g grid (g² ≤ points_per_image) so they spread over the image and their
    errors are nearly independent, as eq. 18 assumes.
 

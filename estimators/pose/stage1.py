@@ -1,38 +1,62 @@
 r"""Stage 1 (Ivanov et al. 2018, §4): reference points, initial conditions and inertia by batch least squares.
 
-Parameter vector (eq. 5, with the attitude as a rotation-vector correction of a reference attitude and
-the inertia as log-ratios)::
+Description
+-----------
+Parameter vector (eq. 5, the attitude as a rotation-vector correction of a reference attitude, the inertia as
+log-ratios): ``θ = [r0 (3), v0 (3), δφ0 (3), ω0 (3), ln(I1/I3), ln(I2/I3), p_1 … p_M (3 each)]``. r0, v0: target
+centre of mass relative to the chaser, LVLH, at the first database frame; ``R_lvlh_from_body(0) = R_ref ·
+exp([δφ0]×)``; ω0 the absolute body rate; p_j the body coordinates of the database's points. Given θ, eqs. 1-2 are
+integrated (:mod:`.onboard_model`, :mod:`.variational`) and eqs. 3-4 predict every database measurement; the error
+function (eq. 6) Φ(θ) = Σ_k Σ_j ‖z_jk − ẑ_jk(θ)‖² / σ² (+ a range prior, below) is minimised with
+``scipy.optimize.least_squares`` (LM by default) and the analytic Jacobian: CW (eq. 1) is linear in (r0, v0), the
+points enter through R_k p_j, and ∂R_k/∂(δφ0, ω0, ln I) comes from the variational equations integrated alongside
+eq. 2 (:mod:`.variational`). The old finite-difference Jacobian (``jacobian = "fd"``) is kept as the benchmark
+baseline and as the tests' independent check of the analytic one.
 
-    θ = [r0 (3), v0 (3), δφ0 (3), ω0 (3), ln(I1/I3), ln(I2/I3), p_1 … p_M (3 each)]
+Monocular scale — what the paper does and what is done here. The paper's §5 starts from chosen initial values of θ
+(listed in an equation lost in our text copy) with random initial point coordinates, and does not discuss scale.
+With images alone, scaling (r0 − d, v0, p_j) by a common factor changes the predictions only through O(n·t) CW
+(Coriolis) terms — over seconds a null direction of the Fisher matrix (eq. 7; :mod:`.observability` reports it,
+relative singular value ~1e-11). LM does not move along such a direction, so in the paper the scale is that of the
+initial r0: the separation geometry (the target leaves a known place on the chaser with the separation mechanism's
+known speed; ref. [28]). Here that assumption is explicit and weighted: a prior on the initial range ‖r0 − d‖
+(``range_prior_m``, σ = ``range_prior_sigma_m``, the a-priori uncertainty of the separation geometry). Points start,
+unlike the paper's random values, from back-projection of their first measurement to the a-priori range (same
+minimum, fewer iterations). Inertia: the free log-ratios can leave the set of physical bodies (I_i + I_j < I_k)
+where the arc is short; ``inertia_param = "fallback"`` re-solves such a result in the parametrisation of
+:mod:`.inertia`, where every value is physical.
 
-r0, v0: target centre of mass relative to the chaser, LVLH, at the first database frame; the initial
-attitude is ``R_lvlh_from_body(0) = R_ref · exp([δφ0]×)``; ω0 the absolute body rate; p_j the body
-coordinates of the database's points. Given θ, eqs. 1-2 are integrated (:mod:`.onboard_model`,
-:mod:`.variational`) and eqs. 3-4 predict every database measurement; the error function (eq. 6)
+Tuning
+------
+=======================  =========  ========================================================================
+Stage1Options            default    turn it when
+=======================  =========  ========================================================================
+``sigma_px``             0.3        whitening σ of eq. 6: the centroid noise, px (it also scales the CRLB σ)
+``range_prior_sigma_m``  0.05       σ of the range prior, m; None or 0 drops it (scale then barely observed)
+``inertia_param``        fallback   ``physical``: always solve in u; ``log_ratio``: free, may end unphysical
+``loss``, ``f_scale``    linear, 3  a robust loss (``cauchy``, …; implies ``trf``) against bad tracks
+``method``               lm         ``trf``: bounded (attitude ±π/2, rate ±1 rad/s, ratios 0.2–5)
+``max_nfev``             300        evaluation budget; when spent, status 0 (``converged`` is False)
+``ftol``, ``xtol``       1e-12      least_squares stopping tolerances (``gtol`` = 1e-10)
+``substeps``             2          RK4 steps per frame interval: raise for fast tumbles or sparse frames
+``min_points``           4          fewer database points raise :class:`EstimationError`
+``jacobian``             analytic   ``fd``: finite differences (the benchmark baseline, the tests' check)
+``integrator``           numba      ``python``: the baseline onboard propagation
+=======================  =========  ========================================================================
 
-    Φ(θ) = Σ_k Σ_j ‖z_jk − ẑ_jk(θ)‖² / σ²  (+ a range prior, below)
+Use
+---
+::
 
-is minimised with ``scipy.optimize.least_squares`` (LM by default) with the analytic
-Jacobian: CW (eq. 1) is linear in (r0, v0), the points enter through R_k p_j, and ∂R_k/∂(δφ0, ω0, ln I)
-comes from the variational equations integrated alongside eq. 2 (:mod:`.variational`). The old
-finite-difference Jacobian is kept (``Stage1Options.jacobian = "fd"``) as the benchmark baseline and
-as the tests' independent check of the analytic one.
+    db = build_database(track_points(detections, TrackOptions()), TrackOptions())     # detections: detect_points
+    prob = Stage1Problem(camera, R_lvlh_from_cam, d_lvlh, n_rad_s, times_s, db, R_ref, range_prior_m, Stage1Options())
+    res = solve_stage1(prob, r0_guess, v0_guess, w0_guess, ratios_guess)       # from an a-priori guess
+    res.converged, res.inertia_ratios, res.points_body, res.sigma_theta       # 1σ from (JᵀJ)⁻¹
 
-Monocular scale — what the paper does and what is done here. The paper's §5 starts the minimisation
-from chosen initial values of θ (listed in an equation lost in our text copy) with random initial
-point coordinates, and does not discuss scale. With images alone, scaling (r0 − d, v0, p_j) by a common
-factor changes the predictions only through O(n·t) CW (Coriolis) terms — over seconds a null direction
-of the Fisher matrix (eq. 7; :mod:`.observability` reports it, relative singular value ~1e-11). A
-Gauss-Newton/LM iteration does not move along such a direction, so in the paper the scale is the one of
-the initial value r0: the separation geometry (the target leaves a known place on the chaser with the
-separation mechanism's known speed; ref. [28]). Here that assumption is made explicit and weighted: a
-prior on the initial range ‖r0 − d‖ (``range_prior_m``, σ = ``range_prior_sigma_m``, the a-priori
-uncertainty of the separation geometry). Points start, unlike the paper's random values, from
-back-projection of their first measurement to the a-priori range (same minimum, fewer iterations).
-
-Inertia: the free log-ratios can leave the set of physical bodies (I_i + I_j < I_k) where the arc is
-short and the ratios barely seen; ``Stage1Options.inertia_param`` = "fallback" (default) re-solves such
-a result in the parametrisation of :mod:`.inertia`, where every value is physical.
+References
+----------
+D. Ivanov et al., "Relative Pose and Inertia Determination of Unknown Satellite Using Monocular Vision",
+International Journal of Aerospace Engineering, vol. 2018, Article ID 9731512, 9 pages, 2018.
 """
 
 from __future__ import annotations

@@ -1,17 +1,56 @@
 r"""Stage 2 (Ivanov et al. 2018, §6): per-frame least-squares pose and a constant-gain Kalman filter.
 
+Description
+-----------
 Per frame: the points of the stage-1 catalogue are projected with the filter's predicted pose; the
 detected centre nearest to each projection within ε is its measurement. With ≥ 4 non-coplanar points
 the pose (r, R_lvlh_from_body) minimising eq. 8, Σ_j ‖z_j − ẑ_j‖², is found by Gauss-Newton
 (``scipy.optimize.least_squares``) from the prediction — eq. 9 gives ẑ as a function of the centre of
 mass and the attitude. Fewer points or (nearly) coplanar points leave the frame without a measurement
-(flagged, prediction only); :func:`solve_pose` itself raises :class:`EstimationError` for them.
+(flagged ``TOO_FEW_POINTS`` / ``COPLANAR``, prediction only; a failed solve is ``PNP_FAILED``);
+:func:`solve_pose` itself raises :class:`EstimationError` for them.
 
 Filter (eq. 10): x̂_k = x̃_k + K (z_k − H x̃_k) with constant K. The prediction x̃ integrates the onboard
 model (CW, Euler + gravity gradient with the stage-1 inertia ratios). K is the steady-state Kalman
 gain of a per-axis constant-velocity model (position/angle measured, white acceleration σ_a), from the
-discrete algebraic Riccati equation; the attitude innovation is the rotation vector
+discrete algebraic Riccati equation (:func:`steady_gains`, computed once from the first measurement's
+covariance and the median frame interval); the attitude innovation is the rotation vector
 log(R_meas R̃ᵀ) in LVLH, applied as R ← exp(α δ) R̃, ω ← ω + (β/dt) R̃ᵀ δ.
+
+Tuning
+------
+:class:`Stage2Options`:
+
+==========================  =======  =========================================================================
+knob                        default  turn it when
+==========================  =======  =========================================================================
+``epsilon_px``              10.0     ε-neighbourhood of the association: the detected centre nearest each
+                                     projected catalogue point within ε is its measurement; raise for fast
+                                     motion or poor prediction, lower in clutter
+``sigma_px``                0.3      centroid noise, px: the measurement covariance σ²(JᵀJ)⁻¹ of the first PnP
+                                     fix, hence the gains
+``sigma_accel_mps2``        2e-3     unmodelled translational acceleration of the constant-velocity model:
+                                     larger → larger α, β (follows the measurements)
+``sigma_ang_accel_rad_s2``  5e-3     unmodelled angular acceleration, the same for the attitude gains
+``min_planarity``           0.05     smallest/largest singular value of the centred points under which they
+                                     count as coplanar (``COPLANAR``, no measurement)
+``substeps``                2        RK4 steps per frame interval of the prediction
+==========================  =======  =========================================================================
+
+Use
+---
+::
+
+    from estimators.pose import Stage2Options, run_stage2
+    out = run_stage2(detections, frames, times_s, camera, R_lvlh_from_cam, d_lvlh, n_rad_s, s1.points_body,
+                     s1.inertia_ratios, s1.r0_lvlh, s1.v0_lvlh, s1.R0_lvlh_from_body, s1.omega0_body,
+                     Stage2Options(epsilon_px=10.0))                     # s1: the stage-1 result
+    out.r, out.R, out.w, out.flags, out.gains                           # per frame: LVLH position, attitude, rate
+
+References
+----------
+D. Ivanov et al., "Relative Pose and Inertia Determination of Unknown Satellite Using Monocular Vision",
+International Journal of Aerospace Engineering, vol. 2018, Article ID 9731512, 9 pages, 2018.
 """
 
 from __future__ import annotations

@@ -1,16 +1,57 @@
 r"""Retina per landmark and per frame: predict → correlate (eq. 9) → peak → final output phase.
 
+Description
+-----------
 For each landmark: the maplet is projected with the a-priori pose (eqs. 1–4); its synthetic image is
 ray-traced and lit with McEwen's law (eqs. 5–8, :mod:`.predict`); the correlation coefficient (eq. 9) is
 computed at every integer shift within the search distance (:mod:`.correlation`); the peak is located to
 sub-pixel precision (:mod:`.peaks`, the paper's 3×3 interpolation by default). The measured shift
 (Δs, Δl) moves the predicted landmark pixel onto the observed one: ``meas = pred + (Δs, Δl)``.
 
+No result (NaN shift, a flag of :mod:`estimators.flags`), checked in this order: prediction behind the
+camera (``OFF_IMAGE``); maplet up axis facing away from the sun or the camera (``FACING_AWAY``); no template
+(off the image or larger than ``max_size_px``: ``OFF_IMAGE``); fewer than ``min_pixels`` valid template
+pixels (``TOO_FEW_PIXELS``) or no contrast (``FLAT_TEMPLATE``); no shift with ``min_pixels`` of overlap
+(``OFF_IMAGE`` / ``TOO_FEW_PIXELS``); integer peak on the border of the search area (``SEARCH_BORDER``)
+and/or peak correlation under ``min_correlation`` (``LOW_CORRELATION``).
+
 Final output phase (paper, "Final Output Phase"): all shifts of a frame should agree, since they come
 from one pose error. Each shift is compared with the frame's median shift; those farther than
 ``max(outlier_floor_px, outlier_k · 1.4826 · MAD)`` are flagged :data:`~estimators.flags.OUTLIER` for
 the filter, not dropped. (The paper compares with the mean; the median is not dragged by the outliers
-it is looking for.)
+it is looking for.) With fewer than three results nothing is flagged.
+
+Tuning
+------
+:class:`RetinaOptions` (the synthetic-image knobs of ``template`` are listed in :mod:`estimators.retina`):
+
+====================  ============  ========================================================================
+knob                  default       turn it when
+====================  ============  ========================================================================
+``peak``              retina_3x3    compare finders (``parabola_1d``, ``quadric_2d``, ``gaussian``,
+                                    ``upsampled``): :func:`~.peaks.pixel_locking_curve` shows each one's bias
+``min_correlation``   0.3           raise to refuse weak matches (fewer results, fewer gross errors); lower
+                                    on low-contrast terrain
+``min_pixels``        64            overlapping valid pixels required; lower for small or distant maplets
+``outlier_k``         5.0           final output phase threshold in robust σ; lower to flag more
+``outlier_floor_px``  1.0 px        smallest flagged distance from the median shift (keeps tight frames clean)
+====================  ============  ========================================================================
+
+Use
+---
+::
+
+    from estimators.retina import CameraPoseEstimate, RetinaOptions, build_mesh, measure_landmark
+    mesh = build_mesh(maplet)                                   # once per maplet
+    pose = CameraPoseEstimate(R_body_from_cam, position_m)      # a-priori, body frame
+    m = measure_landmark(dn_image, mesh, camera, pose, sun_body, 8, RetinaOptions(peak="quadric_2d"))
+    m.has_result, (m.meas_s, m.meas_l), m.score, m.flags       # flags: estimators.flags bits
+
+References
+----------
+C. A. Wright, J. Van Eepoel, A. Liounis, M. Shoemaker, K. DeWeese, K. Getzandanner, "Relative Terrain Imaging
+Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission (ARRM)", NASA Goddard Space Flight Center,
+2016 (sections "Correlation Method", "Peak Finding", "Final Output Phase").
 """
 
 from __future__ import annotations
