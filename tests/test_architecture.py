@@ -55,3 +55,12 @@ def test_no_reference_to_a_design_file_outside_the_project():
     hits = [str(p.relative_to(REPO)) for p in _sources() + sorted((REPO / "tests").glob("*.py"))
             if "design.md" in p.read_text() and p.name != "test_architecture.py"]
     assert hits == []
+
+
+def test_truth_cache_fingerprint_covers_files_that_exist():
+    """Every truth-side module the cache key hashes exists (a renamed module would silently drop out of the key)."""
+    from renderlab.campaign import cache
+
+    root = REPO / "renderlab"
+    assert [m for m in cache._TRUTH_MODULES if not (root / m).is_file()] == []
+    assert [p for p in cache._TRUTH_PACKAGES if not (root / p).is_dir()] == []

@@ -21,8 +21,8 @@ from pathlib import Path
 from renderlab.errors import UserError
 
 
-_TRUTH_PACKAGES = ("render", "worlds", "geometry", "dynamics")
-_TRUTH_MODULES = ("sensor.py", "photometry.py", "truthset.py", "imageio.py", "scenario.py", "config_types.py")
+_TRUTH_PACKAGES = ("render", "worlds", "geometry", "dynamics", "scenario")
+_TRUTH_MODULES = ("sensor.py", "photometry.py", "truthset.py", "imageio.py", "pipeline.py", "config_types.py")
 _RENDERER_DISTS = ("mitsuba", "drjit", "bpy")
 
 

@@ -16,8 +16,9 @@ Rules every method obeys (checked by ``tests/test_conformance_landmark.py`` for 
 2. The inputs are not modified (image, masks, maplets, pose); the runner hands the image and mask read-only.
 3. Same inputs → bit-identical results, timings (``t_ms``) excepted (a method that draws random numbers seeds
    from ``frame.seed``).
-5. A landmark too small in the image to locate (a few pixels), off the image, or unlit gives no result.
-4. Units: pixels in the lab's convention (sample = column, line = row, (0, 0) is the *centre* of the top-left
+4. A landmark too small in the image to locate (a few pixels), off the image, or unlit gives no result.
+5. One result per landmark, in the order of ``frame.landmarks``, with its ``landmark_id``.
+6. Units: pixels in the lab's convention (sample = column, line = row, (0, 0) is the *centre* of the top-left
    pixel); body frame metres; ``p_body = R_body_from_cam @ p_cam + position_m``.
 """
 

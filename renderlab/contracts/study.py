@@ -39,7 +39,7 @@ class Study:
     worlds : tuple of str
         World kinds the study can run on; the first study listing a kind is its default.
     description : str
-        One line for ``renderlab scenes`` and reports.
+        One line for listings and reports.
     report_sections : callable or None
         ``(tables, out_dir) -> [(title, html)]`` for the study's own report sections.
     demo : callable or None
@@ -59,3 +59,4 @@ class Study:
     subsets: Callable[..., list] | None = None  #: ``subsets(table, scenario_dict) -> [(key, mask, label)]``
     gross_error_px: Callable[..., float] | None = None  #: ``gross_error_px(scenario_dict) -> px``
     clusters: tuple[str, ...] = ("frame", "item")  #: columns whose rows are correlated (cluster-bootstrap units)
+    own_tables: tuple[str, ...] = ()  #: tables ``report_sections`` reports itself (the generic sections skip them)

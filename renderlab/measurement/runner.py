@@ -245,6 +245,60 @@ def _row(fr, lid, res, method_name, photometry, peak, tp, trow, cam, draw, sigma
     return row
 
 
+@dataclass
+class _RunContext:
+    """What every frame of one :func:`measure_truthset` call shares."""
+
+    impl: object
+    options: MeasureOptions
+    truth: dict
+    photometry: str
+    peak: str
+    sigma_cols: dict
+    centres: np.ndarray
+
+
+def _measure_one_frame(ts, i: int, maplets: list, ctx: _RunContext, rng: np.random.Generator) -> list[dict]:
+    """Rows of frame ``i``: one a-priori draw, the landmarks predicted inside the image, the method, the truth."""
+    from estimators.retina import search_radius_px
+    from renderlab.contracts.landmark import CameraPose, LandmarkFrame
+
+    options, impl, centres = ctx.options, ctx.impl, ctx.centres
+    fr = _frame_record(ts, i)
+    R_ap, p_ap, dpos, drot = draw_apriori(fr.R, fr.position, options, rng)
+    apriori, true_pose = CameraPose(R_ap, p_ap), CameraPose(fr.R, fr.position)
+    cam = fr.camera
+    attempt = np.flatnonzero(cam.in_image(cam.project(apriori.to_camera(centres))))
+    if attempt.size == 0:
+        return []
+    image = ts.load(i).dn.astype(np.float64)
+    a_valid = image < fr.adc_max if fr.adc_max is not None else None
+    image.flags.writeable = False  # contract rule 2: methods never modify their inputs
+    if a_valid is not None:
+        a_valid.flags.writeable = False
+    cov_p, cov_r = np.diag(np.square(options.sigma_pos_m)), np.diag(np.square(options.sigma_att_rad))
+    radii = np.array([search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
+                                       options.min_search_px, options.max_search_px) for k in attempt], int)
+    frame = LandmarkFrame(image=image, valid=a_valid, camera=cam, pose=apriori, sun_body=fr.sun,
+                          landmarks=[maplets[k] for k in attempt], search_px=radii, index=fr.index,
+                          seed=int(options.run) * 1_000_003 + fr.index)
+    results = impl.measure_frame(frame)
+    if len(results) != attempt.size:
+        raise UserError(f"landmark method '{impl.name}' returned {len(results)} results for "
+                        f"{attempt.size} landmarks in frame {fr.index}")
+    truth_px = cam.project(true_pose.to_camera(centres[attempt]))
+    rows = []
+    for k, res, tp in zip(attempt, results, truth_px):
+        try:
+            res.check(f"landmark method '{impl.name}', frame {fr.index}: ")
+        except ValueError as err:
+            raise UserError(str(err)) from None
+        lid = int(maplets[k].landmark_id)
+        rows.append(_row(fr, lid, res, impl.name, ctx.photometry, ctx.peak, tp, ctx.truth.get((fr.index, lid)), cam,
+                         (dpos, drot), ctx.sigma_cols, options))
+    return rows
+
+
 def measure_truthset(ts, maplets: list, method, options: MeasureOptions = MeasureOptions(),
                      rng: np.random.Generator | None = None, progress: bool = False, *,
                      allow_reference: bool = False):
@@ -273,8 +327,6 @@ def measure_truthset(ts, maplets: list, method, options: MeasureOptions = Measur
     """
     from tqdm import tqdm
 
-    from estimators.retina import search_radius_px
-    from renderlab.contracts.landmark import CameraPose, LandmarkFrame
     from renderlab.contracts.schemas import LANDMARK_RUNNER, table_from_rows
 
     if not maplets:
@@ -287,42 +339,10 @@ def measure_truthset(ts, maplets: list, method, options: MeasureOptions = Measur
     sigma_cols = {**{f"apriori_sigma_pos_{a}_m": v for a, v in zip("xyz", options.sigma_pos_m)},
                   **{f"apriori_sigma_att_{a}_rad": v for a, v in zip("xyz", options.sigma_att_rad)},
                   "n_sigma": float(options.n_sigma)}
-    cov_p = np.diag(np.square(options.sigma_pos_m))
-    cov_r = np.diag(np.square(options.sigma_att_rad))
-    centres = np.array([m.center_m for m in maplets], float)
+    ctx = _RunContext(impl, options, truth, photometry, peak, sigma_cols, np.array([m.center_m for m in maplets], float))
     rows: list[dict] = []
     for i in tqdm(range(len(ts)), desc=f"measure {impl.name}", unit="frame", disable=not progress):
-        fr = _frame_record(ts, i)
-        R_ap, p_ap, dpos, drot = draw_apriori(fr.R, fr.position, options, rng)
-        apriori, true_pose = CameraPose(R_ap, p_ap), CameraPose(fr.R, fr.position)
-        cam = fr.camera
-        pred = cam.project(apriori.to_camera(centres))
-        attempt = np.flatnonzero(cam.in_image(pred))
-        if attempt.size == 0:
-            continue
-        image = ts.load(i).dn.astype(np.float64)
-        a_valid = image < fr.adc_max if fr.adc_max is not None else None
-        image.flags.writeable = False  # contract rule 2: methods never modify their inputs
-        if a_valid is not None:
-            a_valid.flags.writeable = False
-        radii = np.array([search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
-                                           options.min_search_px, options.max_search_px) for k in attempt], int)
-        frame = LandmarkFrame(image=image, valid=a_valid, camera=cam, pose=apriori, sun_body=fr.sun,
-                              landmarks=[maplets[k] for k in attempt], search_px=radii, index=fr.index,
-                              seed=int(options.run) * 1_000_003 + fr.index)
-        results = impl.measure_frame(frame)
-        if len(results) != attempt.size:
-            raise UserError(f"landmark method '{impl.name}' returned {len(results)} results for "
-                            f"{attempt.size} landmarks in frame {fr.index}")
-        truth_px = cam.project(true_pose.to_camera(centres[attempt]))
-        for k, res, tp in zip(attempt, results, truth_px):
-            try:
-                res.check(f"landmark method '{impl.name}', frame {fr.index}: ")
-            except ValueError as err:
-                raise UserError(str(err)) from None
-            lid = int(maplets[k].landmark_id)
-            rows.append(_row(fr, lid, res, impl.name, photometry, peak, tp, truth.get((fr.index, lid)), cam,
-                             (dpos, drot), sigma_cols, options))
+        rows += _measure_one_frame(ts, i, maplets, ctx, rng)
     if not rows:
         return LANDMARK_RUNNER.empty_table()
     return table_from_rows(rows, LANDMARK_RUNNER, "landmark")

@@ -62,7 +62,8 @@ class PerturbationConfig(Strict):
 
 
 class CampaignConfig(Strict):
-    """What a campaign runs: the study (registry name or ``module:function``) and the root seed.
+    """What a campaign runs: the study (a registered name, :data:`renderlab.plugins.studies`; a scenario never
+    names a Python module) and the root seed.
 
     ``study = ""`` picks the default study of the world kind (:data:`renderlab.plugins.DEFAULT_STUDY`).
     ``target`` names the body a study measures where it needs one (``analytic_pointing``: a sphere).
