@@ -7,6 +7,7 @@ FIM rank deficient by the inertia scale only)."""
 from __future__ import annotations
 
 import csv
+from pathlib import Path
 import re
 
 import numpy as np
@@ -84,3 +85,28 @@ def test_demo_runs_coastline_and_unknown_satellite_campaigns(demo):
                                                    "fig13_stage2_position", "fig14_stage2_attitude")} <= figs
     page = (out / "unknown_satellite" / "report" / "index.html").read_text(encoding="utf-8")
     assert "Unknown satellite: scores and figures" in page
+
+
+@pytest.mark.parametrize("page", ["campaign/report/index.html", "coastline/coastline_report/index.html",
+                                  "unknown_satellite/report/index.html"])
+def test_demo_reports_open_in_a_real_browser(demo, page):
+    """Every study's report of the demo opens in headless Chromium with every image loaded and no broken link;
+    a full-page screenshot goes to tests/artifacts/ (what a reader sees first)."""
+    import os
+
+    from browser import check_report, find_chromium, screenshot
+
+    if find_chromium() is None:
+        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
+            pytest.fail("chromium is required in CI (.ci/run installs Debian's chromium)")
+        pytest.skip("chromium not installed (apt-get install chromium)")
+    out, _, _ = demo
+    html = out / page
+    assert html.is_file(), page
+    problems = check_report(html)
+    assert problems == [], problems
+    art = Path(__file__).parent / "artifacts"
+    art.mkdir(exist_ok=True)
+    shot = art / f"demo_{page.split('/')[0]}_report.png"
+    screenshot(html, shot, width=1280, height=3000)
+    assert shot.is_file() and shot.stat().st_size > 10_000

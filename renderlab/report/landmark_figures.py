@@ -44,8 +44,8 @@ def fig12(table, stem: Path, mask=None, title: str = "") -> list[str]:
         s = ok & (meth == m)
         if s.sum() >= 3:
             lim = max(lim, *(abs(float(np.median(v[s]))) + 5 * robust_sigma(v[s]) for v in (es, el)))
-    fig, axes = plt.subplots(1, len(methods), figsize=(3.6 * len(methods) + 0.4, 3.9), squeeze=False,
-                             sharex=True, sharey=True, constrained_layout=True)
+    fig, axes = plt.subplots(1, len(methods), figsize=(3.7 * len(methods) + 0.5, 4.4), squeeze=False,
+                             sharex=True, sharey=True, layout="compressed")
     for ax, m in zip(axes[0], methods):
         s = ok & (meth == m)
         x, y = es[s], el[s]
@@ -53,21 +53,24 @@ def fig12(table, stem: Path, mask=None, title: str = "") -> list[str]:
         out = int(np.sum((np.abs(x) > lim) | (np.abs(y) > lim)))
         n = int(s.sum())
         ax.scatter(np.clip(x, -lim, lim), np.clip(y, -lim, lim), s=4 if n > 500 else 14,
-                   alpha=float(np.clip(60.0 / max(n, 1), 0.12, 0.9)), color=c, lw=0, label=f"{n} results")
-        if s.sum() >= 3:
+                   alpha=float(np.clip(60.0 / max(n, 1), 0.12, 0.9)), color=c, lw=0)
+        head = f"{m}: {n} results"
+        if n >= 3:
             centre, cov = robust_cov(x, y)
             for k, ls in ((1, "-"), (3, "--")):
                 e = ellipse(cov, k) + centre
-                ax.plot(e[:, 0], e[:, 1], ls, color="k", lw=1.1, label=f"robust {k}σ")
+                ax.plot(e[:, 0], e[:, 1], ls, color="k", lw=1.1, label=f"robust {k}σ ellipse")
             mu = (float(x.mean()), float(y.mean()))
-            ax.plot(*mu, "X", color="k", mec="w", ms=9, label=f"bias ({mu[0]:+.3f}, {mu[1]:+.3f}) px")
+            ax.plot(*mu, "X", color="k", mec="w", ms=9, label="bias (mean)")
+            head += f"\nbias ({mu[0]:+.3f}, {mu[1]:+.3f}) px"
         ax.axhline(0, color="0.5", lw=0.5)
         ax.axvline(0, color="0.5", lw=0.5)
         ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", xlabel=style.label("err_s"))
-        ax.set_title(m, color=c, fontweight="bold")
-        ax.text(0.02, 0.02, f"{out} outside the axes (drawn on the edge)", transform=ax.transAxes, fontsize=8,
+        ax.set_title(head, color=c, fontweight="bold")
+        ax.text(0.02, 0.02, f"{out} outside the axes\n(drawn on the edge)", transform=ax.transAxes, fontsize=8,
                 va="bottom")
-        ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
+    if axes[0, -1].get_legend_handles_labels()[0]:
+        axes[0, -1].legend(loc="upper right", fontsize=8, framealpha=0.85)
     axes[0, 0].set_ylabel(style.label("err_l"))
     if title:
         fig.suptitle(title)
@@ -105,7 +108,7 @@ def reasons(rows: list[dict], stem: Path) -> list[str]:
     why = sorted({r["reason"] for r in rows if r["reason"] != "ok"})
     fig, ax = plt.subplots(figsize=(2.2 + 1.3 * len(methods), 3.4), constrained_layout=True)
     bottom = np.zeros(len(methods))
-    palette = style.OKABE_ITO[::-1]
+    palette = style.OKABE_ITO[4:7] + style.OKABE_ITO[:4]  # no black: reasons are not methods
     for j, r in enumerate(why):
         share = np.array([sum(x["share"] for x in rows if x["method"] == m and x["reason"] == r) for m in methods])
         ax.bar(methods, 100 * share, bottom=100 * bottom, color=palette[j % len(palette)], label=r.replace("_", " "))
