@@ -4,11 +4,14 @@
 ``orbit``: the camera moves on a circle of radius ``range_m·cos(elevation)`` at height
 ``range_m·sin(elevation)`` above ``target_m`` (azimuth measured from +x toward +y).
 In both cases it looks at ``target_m`` with ``up`` toward the top of the image.
+``table``, ``ccsds``, ``spice``: the user's own trajectory, read from files by :mod:`renderlab.trajectory_io`
+(relative paths against the scenario folder ``base_dir``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -24,14 +27,36 @@ class CameraPose:
     time_s: float
     position_m: np.ndarray
     rotation: Rotation  # R_render_from_cam
+    epoch_utc: str | None = None  # ISO UTC of the frame, when the trajectory has epochs
 
 
 def _fractions(n: int) -> np.ndarray:
     return np.zeros(1) if n == 1 else np.linspace(0.0, 1.0, n)
 
 
-def camera_path(traj) -> list[CameraPose]:
-    """Camera poses for every frame of a :class:`renderlab.scenario.TrajectoryConfig`."""
+def camera_path(traj, base_dir: str | Path | None = None) -> list[CameraPose]:
+    """Camera poses for every frame of a camera-path trajectory.
+
+    Parameters
+    ----------
+    traj : TrajectoryConfig or SourceTrajectoryConfig
+        The scenario's ``[trajectory]``: ``line``/``orbit``, or a file kind (``table``, ``ccsds``, ``spice``).
+    base_dir : path, optional
+        The scenario folder, against which a file trajectory's relative paths resolve (default: the working
+        directory).
+
+    Returns
+    -------
+    list of CameraPose
+        One pose per frame (``epoch_utc`` set for file trajectories with epochs).
+    """
+    if traj.kind in ("table", "ccsds", "spice"):
+        from renderlab.trajectory_io.sources import frame_poses
+
+        fp = frame_poses(traj, base_dir)
+        return [CameraPose(time_s=float(t), position_m=p, rotation=fp.rotations[k],
+                           epoch_utc=None if fp.epochs_utc is None else fp.epochs_utc[k])
+                for k, (t, p) in enumerate(zip(fp.times_s, fp.positions_m))]
     target = np.asarray(traj.target_m, float)
     up = np.asarray(traj.up, float)
     fr = _fractions(traj.frames)

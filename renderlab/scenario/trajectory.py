@@ -1,11 +1,12 @@
-"""Scenario section ``[trajectory]`` for camera-path trajectories (``line``, ``orbit``); the world-specific kinds
-live with their worlds (``ev5_descent``, ``leo``, ``separation``). Light: pydantic only."""
+"""Scenario section ``[trajectory]`` for camera-path trajectories: generated (``line``, ``orbit``) or read from the
+user's files (``table``, ``ccsds``, ``spice``); the world-specific kinds live with their worlds (``ev5_descent``,
+``leo``, ``separation``). Light: pydantic only (and the pure-Python epoch parser)."""
 
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from renderlab.config_types import Finite, Positive, Vec3
 from renderlab.config_types import Strict as _Strict
@@ -32,3 +33,91 @@ class TrajectoryConfig(_Strict):
         if self.kind == "line" and self.start_m is None:
             raise ValueError("trajectory kind 'line' needs 'start_m'")
         return self
+
+
+#: trajectory kinds read from the user's files (the analytic world)
+SOURCE_KINDS = ("table", "ccsds", "spice")
+_COMMON = {"kind", "frames", "dt_s", "start_s", "times_s", "epoch_utc", "frame", "attitude", "target_m", "up",
+           "camera_mount_quat_xyzw", "interpolation"}
+_OWN = {"table": {"file", "quaternion_order", "quaternion_direction"},
+        "ccsds": {"oem", "aem", "observer", "center", "camera_frame"},
+        "spice": {"kernels", "observer", "center", "camera_frame"}}
+_NEEDS = {"table": ("file",), "ccsds": ("oem",), "spice": ("kernels", "observer", "center", "frame", "epoch_utc")}
+_NEEDS_ATTITUDE = {"table": ("quaternion_order", "quaternion_direction"), "ccsds": ("aem",), "spice": ("camera_frame",)}
+
+
+class SourceTrajectoryConfig(_Strict):
+    """Camera path read from the user's files (:mod:`renderlab.trajectory_io`); paths relative to the scenario.
+
+    ``table``: ``file`` (CSV or Parquet: ``time_s`` or ``epoch``, ``x_m y_m z_m``, ``qx qy qz qw``) with the
+    declared ``quaternion_order`` (``xyzw``/``wxyz``) and ``quaternion_direction``
+    (``cam_to_frame``/``frame_to_cam``); ``ccsds``: ``oem`` (positions) and ``aem`` (attitude), KVN;
+    ``spice``: ``kernels`` with ``observer``, ``center``, ``frame`` and ``camera_frame`` as SPICE spells them.
+
+    Frame k is taken at ``start_s + k·dt_s`` (or ``times_s[k]``): seconds after ``epoch_utc`` (default: the
+    source's first epoch; required for ``spice``), or on the table's own ``time_s`` axis. ``attitude =
+    "look_at"`` ignores the file's attitude and points the camera at ``target_m`` with ``up`` up;
+    ``camera_mount_quat_xyzw`` (``R_att_from_cam``) mounts the camera in the attitude file's frame.
+    Positions interpolate by ``interpolation`` (cubic/linear), attitude by SLERP.
+    """
+
+    kind: Literal["table", "ccsds", "spice"]
+    frames: Annotated[int, Field(gt=0, le=100000)] = 1
+    dt_s: Positive = 1.0
+    start_s: Finite = 0.0
+    times_s: Annotated[list[Finite], Field(min_length=1, max_length=100000)] | None = None
+    epoch_utc: str | None = None
+    frame: Annotated[str, Field(min_length=1)] | None = None
+    file: str | None = None
+    quaternion_order: Literal["xyzw", "wxyz"] | None = None
+    quaternion_direction: Literal["cam_to_frame", "frame_to_cam"] | None = None
+    oem: str | None = None
+    aem: str | None = None
+    kernels: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)] | None = None
+    observer: str | None = None
+    center: str | None = None
+    camera_frame: str | None = None
+    attitude: Literal["file", "look_at"] = "file"
+    target_m: Vec3 = [0.0, 0.0, 0.0]
+    up: Vec3 = [0.0, 0.0, 1.0]
+    camera_mount_quat_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] | None = None
+    interpolation: Literal["cubic", "linear"] = "cubic"
+
+    @field_validator("epoch_utc", mode="before")
+    @classmethod
+    def _epoch(cls, v):
+        """ISO UTC text (or an unquoted TOML date-time) → checked ISO text."""
+        from renderlab.trajectory_io.timescales import utc_text
+
+        return utc_text(v)
+
+    @model_validator(mode="after")
+    def _kind_fields(self):
+        k, given = self.kind, self.model_fields_set
+        extra = sorted(given - _COMMON - _OWN[k])
+        if extra:
+            raise ValueError(f"kind '{k}' does not use '{extra[0]}'")
+        needs = _NEEDS[k] + (_NEEDS_ATTITUDE[k] if self.attitude == "file" else ())
+        missing = [n for n in needs if getattr(self, n) is None]
+        if missing:
+            raise ValueError(f"kind '{k}' needs '{missing[0]}'"
+                             + (" (or attitude = \"look_at\")" if missing[0] in _NEEDS_ATTITUDE[k] else ""))
+        if self.attitude == "file" and given & {"target_m", "up"}:
+            raise ValueError("target_m and up are for attitude = \"look_at\"")
+        if k == "spice" and "interpolation" in given:
+            raise ValueError("kind 'spice' does not use 'interpolation' (SPICE interpolates its kernels)")
+        if self.times_s is not None:
+            if given & {"frames", "dt_s", "start_s"}:
+                raise ValueError("give either times_s or frames/dt_s/start_s")
+            if any(b <= a for a, b in zip(self.times_s, self.times_s[1:])):
+                raise ValueError("times_s must increase strictly")
+        q = self.camera_mount_quat_xyzw
+        if q is not None and abs(sum(v * v for v in q) ** 0.5 - 1.0) > 1e-6:
+            raise ValueError("camera_mount_quat_xyzw must be a unit quaternion")
+        return self
+
+    def frame_times(self) -> list[float]:
+        """Time of every frame on the trajectory's axis (``times_s``, else ``start_s + k·dt_s``)."""
+        if self.times_s is not None:
+            return [float(t) for t in self.times_s]
+        return [self.start_s + k * self.dt_s for k in range(self.frames)]

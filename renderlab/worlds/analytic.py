@@ -70,8 +70,8 @@ def build_scene(world, base_dir: Path) -> SceneDescription:
 
 
 def make_plan(scenario, base_dir: Path):
-    """World plan of an analytic scenario: one static scene, frames from ``trajectory`` (line/orbit)."""
+    """World plan of an analytic scenario: one static scene, frames from ``trajectory`` (line/orbit/files)."""
     from renderlab.worlds.base import WorldPlan, frame_specs
 
-    return WorldPlan(frames=frame_specs(scenario), render_frame={"name": "SCENE"},
+    return WorldPlan(frames=frame_specs(scenario, base_dir), render_frame={"name": "SCENE"},
                      static_scene=build_scene(scenario.world, base_dir))

@@ -64,12 +64,14 @@ class WorldPlan:
         return {}
 
 
-def frame_specs(scenario) -> list[FrameSpec]:
-    """Camera, pose and sun of every frame of a scenario whose trajectory is a camera path (line/orbit)."""
+def frame_specs(scenario, base_dir: Path | None = None) -> list[FrameSpec]:
+    """Camera, pose and sun of every frame of a scenario whose trajectory is a camera path (line/orbit, or a
+    file trajectory: table/ccsds/spice, whose relative paths resolve against ``base_dir``, the scenario folder)."""
     camera = CameraModel.from_dict(scenario.camera.model_dump())
     s = np.asarray(scenario.sun.direction, float)
     sun = SunSpec(direction_render=s / np.linalg.norm(s), irradiance_w_m2=scenario.sun.irradiance_w_m2)
-    return [FrameSpec(index=k, pose=p, camera=camera, sun=sun) for k, p in enumerate(camera_path(scenario.trajectory))]
+    poses = camera_path(scenario.trajectory, base_dir)
+    return [FrameSpec(index=k, pose=p, camera=camera, sun=sun) for k, p in enumerate(poses)]
 
 
 def make_plan(scenario, base_dir: Path) -> WorldPlan:

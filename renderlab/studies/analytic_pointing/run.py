@@ -179,7 +179,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     body_id, center, radius = _target(scenario)
     ss_pert, ss_render = seed_sequence.spawn(2)
     draw = draw_perturbation(scenario.perturbations, ss_pert)
-    specs = frame_specs(scenario)
+    specs = frame_specs(scenario, Path(base_dir))
     render_seeds = [int(s.generate_state(1)[0]) for s in ss_render.spawn(len(specs))]
     truth_base = perturb_scenario_dict(scenario.to_dict(), draw)
     cam_nom = CameraModel.from_dict(scenario.camera.model_dump())

@@ -102,11 +102,18 @@ def make_plan(scenario, base_dir: Path):
     frames = [FrameSpec(index=k, pose=s.pose, camera=camera,
                         sun=SunSpec(direction_render=s.sun_dir_body, irradiance_w_m2=irr)) for k, s in enumerate(states)]
 
+    epoch0 = None
+    if scenario.trajectory.epoch_utc:
+        from renderlab.trajectory_io.timescales import parse_epoch
+
+        epoch0 = parse_epoch(scenario.trajectory.epoch_utc, "UTC", "trajectory.epoch_utc")
+
     class EV5Plan(WorldPlan):
         def frame_meta(self, spec, scene):
             st = states[spec.index]
             T = model.spin.T_eclip_from_body(st.time_s)
-            return {"bodies": {b.name: b.state() for b in scene.bodies},
+            epoch = {} if epoch0 is None else {"epoch_utc": epoch0.plus(st.time_s).iso("UTC", 6)}
+            return {"bodies": {b.name: b.state() for b in scene.bodies}, **epoch,
                     "ev5": {"altitude_m": st.altitude_m, "spin_matched": st.spin_matched,
                             "spin": model.spin.to_dict(st.time_s),
                             "sun_direction_eclip": [float(v) for v in T.apply(st.sun_dir_body)]}}

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from renderlab.config_types import Finite, NonNegative, Positive, Seed, Strict, Vec3
 
@@ -133,7 +133,8 @@ class EV5DescentTrajectory(Strict):
     inertial space; ``phase_deg`` and ``sun_azimuth_deg`` (from site east toward north) set it at
     the spin-match time. Frames: ``sampling = "altitude"`` spreads ``frames`` geometrically in
     altitude (or takes ``altitudes_m``); ``"rate"`` takes ``frames`` at ``frame_rate_hz`` from
-    ``start_time_s``.
+    ``start_time_s``. ``epoch_utc`` (optional, ISO UTC) is the epoch of time 0: each manifest frame then
+    carries its ``epoch_utc``.
     """
 
     kind: Literal["ev5_descent"] = "ev5_descent"
@@ -151,6 +152,14 @@ class EV5DescentTrajectory(Strict):
     altitudes_m: list[Positive] | None = None
     frame_rate_hz: Positive = 3.0
     start_time_s: NonNegative = 0.0
+    epoch_utc: str | None = None
+
+    @field_validator("epoch_utc", mode="before")
+    @classmethod
+    def _epoch(cls, v):
+        from renderlab.trajectory_io.timescales import utc_text
+
+        return utc_text(v)
 
     @model_validator(mode="after")
     def _order(self):

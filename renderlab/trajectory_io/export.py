@@ -1,0 +1,85 @@
+"""A truth set's camera poses back to the user's tools: a :class:`PoseSeries`, an OEM and an AEM.
+
+Reads ``manifest.json`` directly (frame ``time_s``, ``pose.position_m``, ``pose.quat_render_from_cam_xyzw``,
+``render_frame.name``), so it needs neither the renderer nor the truth-set reader. Epochs: the first frame's
+``epoch_utc`` when the manifest has one, else ``epoch_utc`` given here (the epoch of ``time_s = 0``), else the
+scenario's ``trajectory.epoch_utc``; later frames follow by their ``time_s`` (TDB seconds, as everywhere in
+:mod:`renderlab.trajectory_io`). Without an epoch the series keeps relative times (CCSDS needs one).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.errors import UserError
+from renderlab.trajectory_io.series import PoseSeries
+from renderlab.trajectory_io.timescales import parse_epoch
+
+
+def _manifest(folder: Path) -> dict:
+    p = Path(folder) / "manifest.json"
+    if not p.is_file():
+        raise UserError(f"not a truth set (no manifest.json): {folder}")
+    try:
+        return json.loads(p.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise UserError(f"{p}: not valid JSON ({err})") from None
+
+
+def truthset_pose_series(folder, epoch_utc: str | None = None) -> PoseSeries:
+    """The camera poses of a truth set's frames (module docstring), frames in time order.
+
+    Parameters
+    ----------
+    folder : path
+        The truth set folder.
+    epoch_utc : str, optional
+        UTC epoch of ``time_s = 0`` when the frames carry no ``epoch_utc``.
+    """
+    m = _manifest(Path(folder))
+    frames = sorted(m.get("frames") or [], key=lambda f: float(f["time_s"]))
+    if not frames:
+        raise UserError(f"{folder}: the truth set has no frames")
+    try:
+        times = np.array([float(f["time_s"]) for f in frames])
+        pos = np.array([f["pose"]["position_m"] for f in frames], float)
+        quat = np.array([f["pose"]["quat_render_from_cam_xyzw"] for f in frames], float)
+    except (KeyError, TypeError, ValueError) as err:
+        raise UserError(f"{folder}: a frame has no usable pose ({err})") from None
+    epoch0 = None
+    if frames[0].get("epoch_utc"):  # the first frame's epoch; the others by their (exact) time_s
+        epoch0 = parse_epoch(frames[0]["epoch_utc"], "UTC", "manifest epoch_utc")
+    else:
+        given = epoch_utc or ((m.get("scenario") or {}).get("trajectory") or {}).get("epoch_utc")
+        if given:
+            epoch0 = parse_epoch(given, "UTC", "epoch_utc").plus(times[0])
+    if epoch0 is not None:
+        times = times - times[0]
+    frame = (m.get("render_frame") or {}).get("name") or "SCENE"
+    return PoseSeries(times_s=times, positions_m=pos, quat_xyzw=quat, frame=frame, epoch0=epoch0,
+                      source=Path(folder).name, attitude_frame="CAMERA",
+                      labels=tuple(f"frame {f.get('index', i)}" for i, f in enumerate(frames)))
+
+
+def export_truthset(folder, *, oem=None, aem=None, epoch_utc: str | None = None, object_name: str = "CAMERA",
+                    center_name: str = "ORIGIN", **kwargs) -> PoseSeries:
+    """Write a truth set's camera poses as a KVN OEM and/or AEM (paths ``oem``, ``aem``); returns the series.
+
+    ``kwargs`` go to :func:`~renderlab.trajectory_io.ccsds.write_oem` / ``write_aem`` (``time_system``,
+    ``creation_date``, ``originator``, …; AEM-only ``attitude_dir``/``quaternion_type``).
+    """
+    from renderlab.trajectory_io.ccsds import write_aem, write_oem
+
+    series = truthset_pose_series(folder, epoch_utc)
+    if series.epoch0 is None and (oem or aem):
+        raise UserError(f"{folder}: frames have relative times only; give epoch_utc to write CCSDS messages")
+    aem_only = {"attitude_dir", "quaternion_type", "camera_frame"}
+    if oem:
+        write_oem(oem, series, object_name=object_name, center_name=center_name,
+                  **{k: v for k, v in kwargs.items() if k not in aem_only})
+    if aem:
+        write_aem(aem, series, object_name=object_name, **kwargs)
+    return series
