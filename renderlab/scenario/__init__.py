@@ -23,7 +23,7 @@ from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 
 from renderlab.scenario.camera import CameraConfig
 from renderlab.scenario.campaign import CampaignConfig, PerturbationConfig
-from renderlab.scenario.trajectory import TrajectoryConfig
+from renderlab.scenario.trajectory import SourceTrajectoryConfig, TrajectoryConfig
 from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
@@ -139,7 +139,7 @@ def _kind_of(default: str):
 
 #: world kind → the trajectory kinds that make sense for it
 WORLD_TRAJECTORIES = {
-    "analytic": ("line", "orbit"),
+    "analytic": ("line", "orbit", "table", "ccsds", "spice"),
     "ev5": ("ev5_descent",),
     "earth": ("leo",),
     "microsat": ("separation",),
@@ -154,6 +154,8 @@ World = Annotated[
 _TRAJ_TAGS = {"line": "kind=line", "orbit": "kind=orbit"}
 Trajectory = Annotated[
     Annotated[TrajectoryConfig, Tag("kind=line")] | Annotated[TrajectoryConfig, Tag("kind=orbit")]
+    | Annotated[SourceTrajectoryConfig, Tag("kind=table")] | Annotated[SourceTrajectoryConfig, Tag("kind=ccsds")]
+    | Annotated[SourceTrajectoryConfig, Tag("kind=spice")]
     | Annotated[EV5DescentTrajectory, Tag("kind=ev5_descent")] | Annotated[LEOTrajectory, Tag("kind=leo")]
     | Annotated[SeparationTrajectory, Tag("kind=separation")],
     Discriminator(_kind_of("orbit"), custom_error_type="trajectory_kind",
