@@ -9,7 +9,12 @@ import math
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("measure", help="measure the landmarks of an EV5 truth set (Retina, SPC-style, yours)")
-    p.add_argument("truthset", metavar="TRUTHSET", help="truth set folder with a landmark catalog")
+    p.add_argument("truthset", metavar="TRUTHSET", nargs="?", help="truth set folder with a landmark catalog")
+    p.add_argument("--images", metavar="APRIORI.json",
+                   help="measure your own images instead of a truth set: a JSON file listing the images with their "
+                        "a-priori pose, covariance and sun direction, and the camera (renderlab.measurement.images); "
+                        "needs --catalog and --out")
+    p.add_argument("--catalog", metavar="DIR", help="with --images: folder holding landmarks.parquet and maplets/")
     p.add_argument("--method", required=True, metavar="NAME",
                    help="landmark method: a registered name (retina, spc, or one an installed package adds through "
                         "the 'renderlab.landmark_methods' entry point) or module:attr of your own class")
@@ -52,6 +57,8 @@ def run(args) -> int:
                           min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
                           photometry=args.photometry, campaign=args.campaign)
     method = make_method(args.method, opts, allow_reference=True)  # an unknown name fails before anything is read
+    if args.images is not None or args.truthset is None:
+        return _run_images(args, opts)
     ts = TruthSet.open(args.truthset)
     if not (ts.path / "landmarks.parquet").is_file():
         raise UserError(f"truth set {ts.path} has no landmark catalog (landmarks.parquet); "
@@ -86,3 +93,27 @@ def summary_line(table) -> str:
             parts.append(f"{name} bias {float(e.mean()):+.3f} px, robust sigma "
                          f"{1.482602218505602 * float(np.median(np.abs(e - med))):.3f} px")
     return "; ".join(parts)
+
+
+def _run_images(args, opts) -> int:
+    """``--images APRIORI.json --catalog DIR --out FILE``: own images, no truth set."""
+    from pathlib import Path
+
+    from renderlab.errors import UserError
+    from renderlab.measurement.images import measure_images, read_apriori
+    from renderlab.measurement.runner import write_table
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    if args.truthset is not None:
+        raise UserError("give either TRUTHSET or --images, not both")
+    if args.images is None or args.catalog is None or args.out is None:
+        raise UserError("measuring own images needs --images APRIORI.json, --catalog DIR and --out FILE")
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise UserError(f"output {out} exists (use --overwrite to replace it)")
+    read_apriori(Path(args.images))  # validated before anything else is read
+    maplets = read_catalog(Path(args.catalog))
+    table = measure_images(Path(args.images), maplets, args.method, opts, allow_reference=True, progress=not args.quiet)
+    write_table(table, out, overwrite=args.overwrite)
+    print(f"renderlab: {table.num_rows} measurements of {Path(args.images).name}'s images -> {out}")
+    return 0

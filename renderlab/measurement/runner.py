@@ -258,41 +258,56 @@ class _RunContext:
     centres: np.ndarray
 
 
+def run_method_on_image(impl, image: np.ndarray, adc_max, cam, apriori, sun_body, maplets: list, centres: np.ndarray,
+                        cov_p: np.ndarray, cov_r: np.ndarray, options: MeasureOptions, index: int) -> tuple:
+    """The landmarks the a-priori pose predicts inside the image, each with its search distance (n σ of the
+    projected 6×6 a-priori covariance blocks ``cov_p`` m², ``cov_r`` rad²), measured by ``impl``; returns
+    (attempted indices, checked results). The image and its mask reach the method read-only (contract rule 2)."""
+    from estimators.retina import search_radius_px
+    from renderlab.contracts.landmark import LandmarkFrame
+
+    attempt = np.flatnonzero(cam.in_image(cam.project(apriori.to_camera(centres))))
+    if attempt.size == 0:
+        return attempt, []
+    image = np.array(image, dtype=np.float64)
+    a_valid = image < adc_max if adc_max is not None else None
+    image.flags.writeable = False
+    if a_valid is not None:
+        a_valid.flags.writeable = False
+    radii = np.array([search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
+                                       options.min_search_px, options.max_search_px) for k in attempt], int)
+    frame = LandmarkFrame(image=image, valid=a_valid, camera=cam, pose=apriori, sun_body=sun_body,
+                          landmarks=[maplets[k] for k in attempt], search_px=radii, index=index,
+                          seed=int(options.run) * 1_000_003 + index)
+    results = impl.measure_frame(frame)
+    if len(results) != attempt.size:
+        raise UserError(f"landmark method '{impl.name}' returned {len(results)} results for "
+                        f"{attempt.size} landmarks in frame {index}")
+    for res in results:
+        try:
+            res.check(f"landmark method '{impl.name}', frame {index}: ")
+        except ValueError as err:
+            raise UserError(str(err)) from None
+    return attempt, results
+
+
 def _measure_one_frame(ts, i: int, maplets: list, ctx: _RunContext, rng: np.random.Generator) -> list[dict]:
     """Rows of frame ``i``: one a-priori draw, the landmarks predicted inside the image, the method, the truth."""
-    from estimators.retina import search_radius_px
-    from renderlab.contracts.landmark import CameraPose, LandmarkFrame
+    from renderlab.contracts.landmark import CameraPose
 
     options, impl, centres = ctx.options, ctx.impl, ctx.centres
     fr = _frame_record(ts, i)
     R_ap, p_ap, dpos, drot = draw_apriori(fr.R, fr.position, options, rng)
     apriori, true_pose = CameraPose(R_ap, p_ap), CameraPose(fr.R, fr.position)
     cam = fr.camera
-    attempt = np.flatnonzero(cam.in_image(cam.project(apriori.to_camera(centres))))
-    if attempt.size == 0:
+    if not np.any(cam.in_image(cam.project(apriori.to_camera(centres)))):
         return []
-    image = ts.load(i).dn.astype(np.float64)
-    a_valid = image < fr.adc_max if fr.adc_max is not None else None
-    image.flags.writeable = False  # contract rule 2: methods never modify their inputs
-    if a_valid is not None:
-        a_valid.flags.writeable = False
     cov_p, cov_r = np.diag(np.square(options.sigma_pos_m)), np.diag(np.square(options.sigma_att_rad))
-    radii = np.array([search_radius_px(cam, apriori, centres[k], cov_p, cov_r, options.n_sigma,
-                                       options.min_search_px, options.max_search_px) for k in attempt], int)
-    frame = LandmarkFrame(image=image, valid=a_valid, camera=cam, pose=apriori, sun_body=fr.sun,
-                          landmarks=[maplets[k] for k in attempt], search_px=radii, index=fr.index,
-                          seed=int(options.run) * 1_000_003 + fr.index)
-    results = impl.measure_frame(frame)
-    if len(results) != attempt.size:
-        raise UserError(f"landmark method '{impl.name}' returned {len(results)} results for "
-                        f"{attempt.size} landmarks in frame {fr.index}")
+    attempt, results = run_method_on_image(impl, ts.load(i).dn, fr.adc_max, cam, apriori, fr.sun, maplets, centres,
+                                           cov_p, cov_r, options, fr.index)
     truth_px = cam.project(true_pose.to_camera(centres[attempt]))
     rows = []
     for k, res, tp in zip(attempt, results, truth_px):
-        try:
-            res.check(f"landmark method '{impl.name}', frame {fr.index}: ")
-        except ValueError as err:
-            raise UserError(str(err)) from None
         lid = int(maplets[k].landmark_id)
         rows.append(_row(fr, lid, res, impl.name, ctx.photometry, ctx.peak, tp, ctx.truth.get((fr.index, lid)), cam,
                          (dpos, drot), ctx.sigma_cols, options))
