@@ -7,8 +7,8 @@ pixel, with radiance ``L`` in W m⁻² sr⁻¹ integrated over the camera passba
 1. PSF (optional): ``L' = G_σ * L``, a Gaussian of standard deviation ``σ = psf_sigma_px``
    pixels (``scipy.ndimage.gaussian_filter``, mode ``'nearest'``, so flux away from the
    border is conserved).
-2. Mean electrons: ``μ = L' · τ · (π/4) D² · (p/f)² · t · QE / (h c / λ) + i_dark · t``.
-   ``(π/4) D²`` is the aperture area and ``(p/f)²`` the solid angle of one pixel, so their
+2. Mean electrons: ``μ = L' · τ · (π/4) D² · Ω · t · QE / (h c / λ) + i_dark · t``.
+   ``(π/4) D²`` is the aperture area and ``Ω`` the solid angle of one pixel, so their
    product is the étendue of one pixel; ``h c / λ`` turns joules into photons at the
    effective wavelength ``λ``.
 3. Shot noise: ``n = Poisson(μ)`` — one draw of the *total* mean (signal + dark).
@@ -16,6 +16,16 @@ pixel, with radiance ``L`` in W m⁻² sr⁻¹ integrated over the camera passba
 5. Full well: ``e ← min(e, FW)``.
 6. Gain: ``DN = round(bias + e / g)``.
 7. ADC: ``DN ← clip(DN, 0, 2^bits − 1)``, stored as ``uint16``.
+
+**One focal length.** The focal length is the camera's (``camera.fx``, ``camera.fy`` in pixels): the pixel
+solid angle is ``Ω = 1 / (fx fy)`` (:func:`pixel_solid_angle_sr`) and, with the pixel pitch ``p`` (the
+square root of a pixel's area), the lens focal length is ``f = p sqrt(fx fy)``. The aperture is given as an
+f-number ``N`` (``sensor.f_number``, default 4), ``D = f / N``, so the étendue ``(π/4) D² Ω = (π/4) (p/N)²``
+does not depend on the focal length at all: the sensor needs no focal length of its own. A scenario's
+``sensor.aperture_diameter_m`` becomes ``N = f / D`` with the camera's ``f`` when the scenario is loaded
+(:func:`renderlab.scenario.camera.resolve_optics`), and the former ``sensor.focal_length_m`` is accepted
+there only where ``focal_length_m / pixel_pitch_m`` agrees with the camera (0.1 %). Outside a scenario,
+:class:`SensorOptions` still takes ``aperture_diameter_m`` with ``focal_length_m`` (``N = f/D``, ``Ω = (p/f)²``).
 
 Random draws, in this order (Poisson for every pixel, then Normal for every pixel), all come
 from the ``numpy.random.Generator`` passed in, so a seed replays an image bit for bit.
@@ -43,6 +53,13 @@ SPEED_OF_LIGHT_M_S = 299_792_458.0
 _MAX_POISSON_MEAN = 1.0e15
 """Means above this are drawn at this value; they are far beyond any allowed full well."""
 _MAX_FULL_WELL_E = 1.0e12
+_DEFAULT_F_NUMBER = 4.0
+"""f/4: the ARRM navigation camera's 25 mm lens with a 6.25 mm aperture."""
+_REFERENCE_FOCAL_M = 25.0e-3
+"""Focal length at which an f-number is written as ``(π/4) D² (p/f)²``; any value gives ``(π/4) (p/N)²``,
+this one keeps the default f/4 bit-identical to the former default lens (D = 6.25 mm, f = 25 mm)."""
+_OPTICS_RTOL = 1.0e-3
+"""Relative disagreement above which two spellings of the optics (f/p vs the camera, N vs f/D) are refused."""
 
 
 def _check_real(name: str, value, *, positive: bool = False, nonneg: bool = False,
@@ -64,19 +81,21 @@ def _check_real(name: str, value, *, positive: bool = False, nonneg: bool = Fals
 class SensorOptions:
     """Camera and detector parameters, SI units.
 
-    The defaults look like the ARRM navigation camera: 1 Mpx (1024², 5.5 µm pixels),
-    10-bit monochrome, 25 mm f/4 optics (12.6° field of view). The exposure default puts a
-    surface of albedo 0.1 at 1 AU (L ≈ 22 W m⁻² sr⁻¹) at about half the full well; use
-    :func:`exposure_for_peak` for auto-exposure.
+    The defaults look like the ARRM navigation camera's detector: 5.5 µm pixels, 10-bit
+    monochrome, f/4 optics (the focal length, hence the field of view, is the camera model's).
+    The exposure default puts a surface of albedo 0.1 at 1 AU (L ≈ 22 W m⁻² sr⁻¹) at about half
+    the full well; use :func:`exposure_for_peak` for auto-exposure.
 
     Attributes
     ----------
-    aperture_diameter_m : float
-        Entrance pupil diameter D (m), > 0.
-    focal_length_m : float
-        Focal length f (m), > 0.
+    aperture_diameter_m : float or None
+        Entrance pupil diameter D (m), > 0; needs `focal_length_m` (a scenario's loader turns it
+        into `f_number` with the camera's focal length instead).
+    focal_length_m : float or None
+        Focal length f (m), > 0; only to turn `aperture_diameter_m` into an f-number outside a
+        scenario (the pixel solid angle is then ``(p/f)²``).
     pixel_pitch_m : float
-        Pixel pitch p (m), > 0.
+        Pixel pitch p (m), > 0: the square root of a pixel's area.
     exposure_s : float
         Exposure (integration) time t (s), > 0.
     quantum_efficiency : float
@@ -99,10 +118,13 @@ class SensorOptions:
         ADC bit depth, 1..16.
     psf_sigma_px : float
         Standard deviation of the Gaussian PSF in pixels; 0 means no blur.
+    f_number : float or None
+        Focal ratio N = f / D, > 0; None: ``focal_length_m / aperture_diameter_m`` when both are
+        given, else 4. Given with both, it must agree with their ratio (0.1 %).
     """
 
-    aperture_diameter_m: float = 6.25e-3
-    focal_length_m: float = 25.0e-3
+    aperture_diameter_m: float | None = None
+    focal_length_m: float | None = None
     pixel_pitch_m: float = 5.5e-6
     exposure_s: float = 2.5e-4
     quantum_efficiency: float = 0.5
@@ -115,10 +137,13 @@ class SensorOptions:
     bias_dn: float = 16.0
     bits: int = 10
     psf_sigma_px: float = 0.0
+    f_number: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("aperture_diameter_m", "focal_length_m", "pixel_pitch_m", "exposure_s",
-                     "wavelength_m", "gain_e_per_dn"):
+        for name in ("aperture_diameter_m", "focal_length_m", "f_number"):
+            if getattr(self, name) is not None:
+                _check_real(f"sensor.{name}", getattr(self, name), positive=True)
+        for name in ("pixel_pitch_m", "exposure_s", "wavelength_m", "gain_e_per_dn"):
             _check_real(f"sensor.{name}", getattr(self, name), positive=True)
         for name in ("quantum_efficiency", "optical_transmission"):
             _check_real(f"sensor.{name}", getattr(self, name), positive=True, upper=1.0)
@@ -130,6 +155,18 @@ class SensorOptions:
         if not 1 <= int(self.bits) <= 16:
             raise UserError(f"sensor.bits must be in 1..16, got {self.bits!r}")
         _check_real("sensor.bias_dn", self.bias_dn, nonneg=True, upper=float(self.adc_max))
+        self._check_optics()
+
+    def _check_optics(self) -> None:
+        d, f, n = self.aperture_diameter_m, self.focal_length_m, self.f_number
+        if d is None:
+            return
+        if f is None:
+            raise UserError("sensor.aperture_diameter_m needs a focal length for its f-number: give sensor.f_number "
+                            "(in a scenario file the loader takes the focal length from camera.fx, camera.fy)")
+        if n is not None and abs(f / d - n) > _OPTICS_RTOL * n:
+            raise UserError(f"sensor.f_number = {n:g} disagrees with sensor.focal_length_m / "
+                            f"sensor.aperture_diameter_m = {f:g} / {d:g} = {f / d:g}; give one of them")
 
     @property
     def adc_max(self) -> int:
@@ -137,10 +174,28 @@ class SensorOptions:
         return (1 << int(self.bits)) - 1
 
     @property
+    def effective_f_number(self) -> float:
+        """Focal ratio N: `f_number`, else ``focal_length_m / aperture_diameter_m``, else 4."""
+        if self.f_number is not None:
+            return float(self.f_number)
+        if self.aperture_diameter_m is not None:
+            return float(self.focal_length_m) / float(self.aperture_diameter_m)
+        return _DEFAULT_F_NUMBER
+
+    @property
     def etendue_m2_sr(self) -> float:
-        """Étendue of one pixel, ``(π/4) D² (p/f)²`` (m² sr)."""
-        area = 0.25 * math.pi * self.aperture_diameter_m ** 2
-        return area * (self.pixel_pitch_m / self.focal_length_m) ** 2
+        """Étendue of one pixel, ``(π/4) D² (p/f)² = (π/4) (p/N)²`` (m² sr).
+
+        With `aperture_diameter_m` (and its `focal_length_m`) those; otherwise ``D = f/N`` at a reference
+        ``f`` (it cancels: a pixel's étendue depends on the f-number and the pixel size only).
+        """
+        if self.aperture_diameter_m is not None:
+            diameter, focal = float(self.aperture_diameter_m), float(self.focal_length_m)
+        else:
+            focal = _REFERENCE_FOCAL_M
+            diameter = focal / self.effective_f_number
+        area = 0.25 * math.pi * diameter ** 2
+        return area * (self.pixel_pitch_m / focal) ** 2
 
     @property
     def electrons_per_radiance(self) -> float:
@@ -148,6 +203,17 @@ class SensorOptions:
         photon_energy_j = PLANCK_J_S * SPEED_OF_LIGHT_M_S / self.wavelength_m
         return (self.optical_transmission * self.etendue_m2_sr * self.exposure_s
                 * self.quantum_efficiency / photon_energy_j)
+
+
+def pixel_solid_angle_sr(fx: float, fy: float, skew: float = 0.0, skew_yx: float = 0.0) -> float:
+    """Solid angle of one pixel on the boresight, ``1 / |fx fy - skew skew_yx|`` (sr), for a camera's pixel map
+    ``[[fx, skew], [skew_yx, fy]]`` (px per unit normalized coordinate)."""
+    for name, v in (("camera.fx", fx), ("camera.fy", fy), ("camera.skew", skew), ("camera.skew_yx", skew_yx)):
+        _check_real(name, v)
+    det = abs(float(fx) * float(fy) - float(skew) * float(skew_yx))
+    if not det > 0.0:
+        raise UserError(f"camera pixel map [[fx, skew], [skew_yx, fy]] is singular (fx*fy - skew*skew_yx = {det!r})")
+    return 1.0 / det
 
 
 @dataclass(frozen=True)

@@ -2,14 +2,18 @@
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy import stats
 
+from renderlab import sensor
 from renderlab.errors import UserError
 from renderlab.sensor import (SensorOptions, expected_dn, expose, exposure_for_peak,
                               mean_electrons)
+
+REPO = Path(__file__).resolve().parents[1]
 
 # Each statistical check allows a 4-sigma deviation of its estimator; the chi^2 bounds use the
 # same two-sided false-alarm probability (6.3e-5). The seeds are fixed, so the tests are
@@ -191,6 +195,95 @@ def test_options_are_frozen_and_defaults_look_like_arrm_camera():
     with pytest.raises(dataclasses.FrozenInstanceError):
         opts.bits = 12
     assert opts.bits == 10 and opts.adc_max == 1023
-    fov_deg = math.degrees(2 * math.atan(512 * opts.pixel_pitch_m / opts.focal_length_m))
-    assert 10 < fov_deg < 15
+    # f/4 with 5.5 um pixels; the sensor has no focal length of its own (the camera's fx, fy is it)
+    assert opts.focal_length_m is None and opts.aperture_diameter_m is None and opts.effective_f_number == 4.0
     assert opts.bias_dn + opts.full_well_e / opts.gain_e_per_dn <= opts.adc_max
+
+
+# ------------------------------------------------------------------ one focal length: the camera's
+def test_default_etendue_is_bit_identical_to_the_former_25mm_f4_lens():
+    # the former defaults D = 6.25 mm, f = 25 mm: exposures and DN of every existing scene stay bit for bit
+    legacy = SensorOptions(aperture_diameter_m=6.25e-3, focal_length_m=25.0e-3)
+    assert SensorOptions().etendue_m2_sr == legacy.etendue_m2_sr
+    assert SensorOptions(f_number=4.0).electrons_per_radiance == legacy.electrons_per_radiance
+    assert legacy.effective_f_number == 4.0
+
+
+@pytest.mark.parametrize("n, p", [(2.8, 5.5e-6), (1.4, 3.45e-6), (11.0, 12e-6)])
+def test_etendue_depends_on_f_number_and_pixel_only(n, p):
+    # (pi/4) D^2 * Omega with D = f/N and Omega = (p/f)^2 = 1/(fx fy): the focal length cancels
+    opts = SensorOptions(f_number=n, pixel_pitch_m=p)
+    np.testing.assert_allclose(opts.etendue_m2_sr, math.pi / 4 * (p / n) ** 2, rtol=1e-14)
+    for f in (1.4e-3, 25e-3, 0.5):  # any lens with that f-number: same etendue
+        np.testing.assert_allclose(SensorOptions(aperture_diameter_m=f / n, focal_length_m=f,
+                                                 pixel_pitch_m=p).etendue_m2_sr, opts.etendue_m2_sr, rtol=1e-14)
+
+
+def test_pixel_solid_angle_from_the_camera_pixel_map():
+    assert sensor.pixel_solid_angle_sr(262.0, 258.0) == 1.0 / (262.0 * 258.0)
+    np.testing.assert_allclose(sensor.pixel_solid_angle_sr(900.0, 870.0, 2.0, 0.7), 1 / (900 * 870 - 1.4),
+                               rtol=1e-15)
+    with pytest.raises(UserError, match="singular"):
+        sensor.pixel_solid_angle_sr(10.0, 10.0, 10.0, 10.0)
+    with pytest.raises(UserError, match="camera.fx"):
+        sensor.pixel_solid_angle_sr(float("nan"), 10.0)
+
+
+def test_optics_given_twice_must_agree():
+    with pytest.raises(UserError, match="sensor.f_number = 2.8 disagrees with sensor.focal_length_m") as info:
+        SensorOptions(aperture_diameter_m=6.25e-3, focal_length_m=25e-3, f_number=2.8)
+    assert "\n" not in str(info.value)
+    SensorOptions(aperture_diameter_m=6.25e-3, focal_length_m=25e-3, f_number=4.0)  # consistent: fine
+    with pytest.raises(UserError, match="sensor.aperture_diameter_m needs a focal length"):
+        SensorOptions(aperture_diameter_m=6.25e-3)
+
+
+CAMERA_262 = {"fx": 262.0, "fy": 258.0}  # the demo's analytic scene
+
+
+def test_scenario_sensor_focal_length_must_match_the_camera():
+    from renderlab.scenario.camera import resolve_optics
+
+    # the former defaults 25 mm / 5.5 um = 4545 px against the demo camera's 262 x 258 px: refused, both named
+    with pytest.raises(UserError) as info:
+        resolve_optics({"focal_length_m": 25e-3, "pixel_pitch_m": 5.5e-6}, **CAMERA_262)
+    msg = str(info.value)
+    assert "\n" not in msg and "4545.45 px" in msg and "259.992 px" in msg and "sensor.focal_length_m" in msg
+    # consistent (within 0.1 %): accepted, and dropped -- the camera's focal length is the one used
+    f_cam = 5.5e-6 * math.sqrt(262.0 * 258.0)
+    out = resolve_optics({"focal_length_m": f_cam * 1.0005, "pixel_pitch_m": 5.5e-6, "bits": 12}, **CAMERA_262)
+    assert out == {"pixel_pitch_m": 5.5e-6, "bits": 12}
+    assert resolve_optics({"bits": 12}, **CAMERA_262) == {"bits": 12}  # nothing to tie: unchanged
+
+
+def test_scenario_aperture_diameter_becomes_f_number_with_the_camera_focal_length():
+    from renderlab.scenario.camera import resolve_optics
+
+    D, p = 0.36e-3, 5.5e-6
+    out = resolve_optics({"aperture_diameter_m": D, "pixel_pitch_m": p}, **CAMERA_262)
+    assert set(out) == {"pixel_pitch_m", "f_number"}
+    opts = SensorOptions(**out)
+    # etendue = aperture area x the camera's pixel solid angle
+    np.testing.assert_allclose(opts.etendue_m2_sr, math.pi / 4 * D ** 2 / (262.0 * 258.0), rtol=1e-13)
+    with pytest.raises(UserError, match="sensor.f_number = 2 disagrees") as info:
+        resolve_optics({"aperture_diameter_m": D, "f_number": 2.0}, **CAMERA_262)
+    assert "f/3.97" in str(info.value)
+
+
+def test_load_scenario_refuses_an_inconsistent_sensor_focal_length(tmp_path):
+    from renderlab.scenario import load_scenario
+
+    text = (REPO / "scenes" / "analytic_sphere_box.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("[sensor]\n", "[sensor]\nfocal_length_m = 25e-3\npixel_pitch_m = 5.5e-6\n", 1))
+    with pytest.raises(UserError, match=r"^bad.toml: sensor.focal_length_m / sensor.pixel_pitch_m"):
+        load_scenario(bad)
+    good = tmp_path / "good.toml"
+    good.write_text(text.replace("[sensor]\n", "[sensor]\naperture_diameter_m = 0.36e-3\n", 1))
+    sc, _ = load_scenario(good)
+    assert set(sc.sensor.options_dict()) == {"f_number"}
+    np.testing.assert_allclose(SensorOptions(**sc.sensor.options_dict()).etendue_m2_sr,
+                               math.pi / 4 * 0.36e-3 ** 2 / (sc.camera.fx * sc.camera.fy), rtol=1e-13)
+    # an existing scene's sensor section (no optics keys) is not touched: same manifest, same truth-cache key
+    plain, _ = load_scenario(REPO / "scenes" / "analytic_sphere_box.toml")
+    assert plain.to_dict()["sensor"] == {"auto_exposure": True, "auto_exposure_fraction": 0.8}

@@ -10,8 +10,8 @@ the camera frame, :math:`\mathbf{x}_C = \mathbf{T}_C^B(\mathbf{x}_B - \mathbf{t}
    it images onto the physical plane behind the pinhole; the lab uses the positive (virtual) image plane
    in front of it, so the sign flip is absorbed in the frame convention (+x right, +y down) and no minus
    sign appears here;
-2. a distortion model :math:`\mathbf{u}_d = D(\mathbf{u})` (none, Brown/OpenCV, or Owen; see
-   :mod:`renderlab.geometry.distortion`);
+2. a distortion model :math:`\mathbf{u}_d = D(\mathbf{u})` (none, Brown, Owen, OpenCV's full model or
+   the OpenCV fisheye; see :mod:`renderlab.geometry.distortion`);
 3. the pixel map (eq. 4) with a full 2x2 matrix,
    :math:`s = f_x u_d + \mathrm{skew}\,v_d + c_x`, :math:`l = \mathrm{skew\_yx}\,u_d + f_y v_d + c_y`.
    ``[[fx, skew], [skew_yx, fy]]`` is the paper's K (px/mm) times the focal length (mm), and
@@ -69,10 +69,11 @@ class CameraModel:
         Off-diagonal ``K[0, 1]`` (sample per unit y_d), OpenCV's skew.
     skew_yx : float
         Off-diagonal ``K[1, 0]`` (line per unit x_d), the Retina/Owen ``Kyx`` term; 0 for OpenCV.
-    model : {"pinhole", "brown", "owen"}
+    model : {"pinhole", "brown", "owen", "opencv", "kannala_brandt"}
         Distortion model.
     distortion : mapping of str to float
-        Coefficients (``brown``: k1 k2 k3 p1 p2; ``owen``: e1..e6 in units of the focal length).
+        Coefficients (``brown``: k1 k2 k3 p1 p2; ``owen``: e1..e6 in units of the focal length; ``opencv``:
+        k1 k2 p1 p2 k3 k4 k5 k6 s1 s2 s3 s4 tau_x tau_y; ``kannala_brandt``: k1 k2 k3 k4).
         Missing keys are 0; after construction it is a read-only mapping holding every key of the model.
 
     Raises
@@ -89,7 +90,7 @@ class CameraModel:
     cy: float
     skew: float = 0.0
     skew_yx: float = 0.0
-    model: Literal["pinhole", "brown", "owen"] = "pinhole"
+    model: Literal["pinhole", "brown", "owen", "opencv", "kannala_brandt"] = "pinhole"
     distortion: Mapping[str, float] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ construction / validation

@@ -15,11 +15,12 @@ keys ``e1 .. e6``)
     :math:`\Delta = (e_2r^2 + e_4r^4 + e_5y + e_6x)[x, y]^T + (e_1r + e_3r^3)[-y, x]^T`,
     :math:`\mathbf{u}_d = \mathbf{u} + \Delta`. ``e2, e4`` radial, ``e5, e6`` tip/tilt/prism,
     ``e1, e3`` pinwheel.
+``opencv`` (OpenCV's 14-coefficient rational + thin-prism + tilt model): :mod:`.distortion_opencv`.
+``kannala_brandt`` (the fisheye model of ``cv2.fisheye``, keys ``k1 .. k4``): :mod:`.fisheye`.
 
-Owen coefficients here are for focal-plane coordinates in units of the focal length. Coefficients
-fitted on focal-plane coordinates in millimetres (as in GIANT or SPC, where :math:`x_I = f\,x`) convert
-as :math:`e_n = e_n^{mm} f^n` for the :math:`r^n` terms (n = 1..4) and :math:`e_{5,6} = e_{5,6}^{mm} f`;
-see :func:`owen_coefficients_from_mm`.
+Owen coefficients are for focal-plane coordinates in units of the focal length; coefficients fitted in
+millimetres (GIANT, SPC: :math:`x_I = f\,x`) convert as :math:`e_n = e_n^{mm} f^n` for the :math:`r^n`
+terms (n = 1..4) and :math:`e_{5,6} = e_{5,6}^{mm} f` (:func:`owen_coefficients_from_mm`).
 
 The inverse (undistortion) has no closed form; :func:`undistort` solves :math:`D(\mathbf{u}) =
 \mathbf{u}_d` by Newton's method with the analytic Jacobian of :func:`distortion_jacobian`.
@@ -35,14 +36,17 @@ import numpy as np
 
 from renderlab.errors import UserError
 
+from . import distortion_opencv, fisheye
+
 __all__ = ["DISTORTION_KEYS", "MODELS", "normalize_distortion", "distort", "distortion_jacobian", "undistort",
            "max_valid_radius", "owen_coefficients_from_mm"]
 
+_MODULES = {"opencv": distortion_opencv, "kannala_brandt": fisheye}  # models whose kernels live in their own module
 #: Allowed models and their coefficient names (in manifest order).
 DISTORTION_KEYS: dict[str, tuple[str, ...]] = {
     "pinhole": (),
     "brown": ("k1", "k2", "k3", "p1", "p2"),
-    "owen": ("e1", "e2", "e3", "e4", "e5", "e6"),
+    "owen": ("e1", "e2", "e3", "e4", "e5", "e6"), **{name: mod.KEYS for name, mod in _MODULES.items()},
 }
 MODELS: tuple[str, ...] = tuple(DISTORTION_KEYS)
 
@@ -56,10 +60,10 @@ def normalize_distortion(model: str, distortion: Mapping[str, float] | None, whe
 
     Parameters
     ----------
-    model : {"pinhole", "brown", "owen"}
-        Distortion model name.
+    model : str
+        Distortion model name, one of :data:`MODELS`.
     distortion : mapping or None
-        Coefficients by name; missing keys are zero. A ``pinhole`` model accepts Brown or Owen keys
+        Coefficients by name; missing keys are zero. A ``pinhole`` model accepts other models' keys
         only when they are all zero (a manifest may spell out zeros), and returns ``{}``.
     where : str
         Prefix used in error messages (``"camera"`` gives ``camera.distortion.k1 ...``).
@@ -128,6 +132,8 @@ def owen_coefficients_from_mm(e_mm: Mapping[str, float], focal_length_mm: float)
 def _distort_xy(model: str, c: Mapping[str, float], x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if model == "pinhole":
         return x.copy(), y.copy()
+    if model in _MODULES:
+        return _MODULES[model].distort_xy(c, x, y)
     x2, y2, xy = x * x, y * y, x * y
     r2 = x2 + y2
     if model == "brown":
@@ -148,6 +154,8 @@ def _jacobian_xy(model: str, c: Mapping[str, float], x: np.ndarray, y: np.ndarra
     if model == "pinhole":
         one, zero = np.ones_like(x), np.zeros_like(x)
         return one, zero, zero, one.copy()
+    if model in _MODULES:
+        return _MODULES[model].jacobian_xy(c, x, y)
     x2, y2, xy = x * x, y * y, x * y
     r2 = x2 + y2
     if model == "brown":
@@ -192,10 +200,7 @@ def max_valid_radius(model: str, coeffs: Mapping[str, float], *, r_max: float = 
     r = np.geomspace(1e-3, r_max, n_radii)
     th = np.linspace(0.0, 2.0 * np.pi, n_angles, endpoint=False)
     c, s = np.cos(th), np.sin(th)
-
-    def bad(rr, cc, ss):
-        return ~_unfolded(model, coeffs, cc * rr, ss * rr)
-
+    bad = lambda rr, cc, ss: ~_unfolded(model, coeffs, cc * rr, ss * rr)  # noqa: E731
     b = bad(r[None, :], c[:, None], s[:, None])
     folded = b.any(axis=1)
     if not folded.any():
@@ -217,7 +222,8 @@ def distort(model: str, coeffs: Mapping[str, float], u: np.ndarray) -> np.ndarra
 
     Parameters
     ----------
-    model : {"pinhole", "brown", "owen"}
+    model : str
+        One of :data:`MODELS`.
     coeffs : mapping
         Full coefficient dict (as returned by :func:`normalize_distortion`).
     u : array_like, shape (..., 2)
@@ -328,14 +334,8 @@ def _unfolded(model: str, c: Mapping[str, float], x: np.ndarray, y: np.ndarray) 
     return j00 * j11 - j01 * j10 > 0.0
 
 
-def undistort(
-    model: str,
-    coeffs: Mapping[str, float],
-    ud: np.ndarray,
-    *,
-    tol: float = 1e-14,
-    max_iter: int = 50,
-) -> tuple[np.ndarray, np.ndarray]:
+def undistort(model: str, coeffs: Mapping[str, float], ud: np.ndarray, *, tol: float = 1e-14,
+              max_iter: int = 50) -> tuple[np.ndarray, np.ndarray]:
     """Invert the distortion: find u with ``distort(u) == ud`` by damped Newton iteration.
 
     Each point starts at ``u = 2 ud - D(ud)`` (or ``ud`` if that is worse) and iterates
