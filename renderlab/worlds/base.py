@@ -52,8 +52,13 @@ class WorldPlan:
         return self.static_scene
 
     def frame_meta(self, spec: FrameSpec, scene: SceneDescription) -> dict:
-        """Extra manifest entries for this frame (``bodies`` true states, per-frame ``render_frame``, ...)."""
-        return {"bodies": {b.name: b.state() for b in scene.bodies}}
+        """Extra manifest entries for this frame (``bodies`` true states, per-frame ``render_frame``, the frame's
+        ``epoch_utc`` when its trajectory has epochs, ...)."""
+        meta = {"bodies": {b.name: b.state() for b in scene.bodies}}
+        epoch = getattr(spec.pose, "epoch_utc", None)
+        if epoch:
+            meta["epoch_utc"] = epoch
+        return meta
 
     def write_static(self, writer) -> None:
         """Write files every truth set of this world carries (catalogs, maplets, databases)."""
