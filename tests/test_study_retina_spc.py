@@ -200,3 +200,40 @@ def test_truth_perturbation_is_refused_with_one_line(tmp_path, capsys):
     assert main(["campaign", str(scen), "--runs", "2", "--out", str(tmp_path / "c"), "--workers", "0", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "position_sigma_m" in err[0] and "Traceback" not in err[0]
+
+
+class ShiftedNcc:
+    """A user's own method typed on the command line (not installed, no entry point): the NCC baseline under
+    another name."""
+
+    name = "my_ncc"
+
+    def __init__(self, options):
+        from renderlab_ncc_baseline.method import NccBaseline
+
+        self._impl = NccBaseline(options)
+
+    def measure_frame(self, frame):
+        return self._impl.measure_frame(frame)
+
+
+def test_campaign_with_a_plugin_typed_on_the_command_line(tmp_path, capsys):
+    """``--plugin module:attr`` registers a method for one campaign; the scenario names it by its name only; a
+    scenario naming a module is refused before anything is created."""
+    scen = tmp_path / "tiny.toml"
+    scen.write_text(TINY + '\n[retina_vs_spc]\nmethods = ["retina", "my_ncc"]\n')
+    out = tmp_path / "c"
+    argv = ["campaign", str(scen), "--runs", "1", "--out", str(out), "--workers", "0", "--quiet"]
+    assert main(argv) == 2 and "unknown landmark method 'my_ncc'" in capsys.readouterr().err
+    assert not out.exists()
+    assert main([*argv, "--plugin", "test_study_retina_spc:ShiftedNcc"]) == 0
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(out / "runs" / "000000" / "measurements.parquet").to_pydict()
+    assert set(t["method"]) == {"retina", "my_ncc"} and sum(t["has_result"]) > 10
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY + '\n[retina_vs_spc]\nmethods = ["test_study_retina_spc:ShiftedNcc"]\n')
+    capsys.readouterr()
+    assert main(["campaign", str(bad), "--runs", "1", "--out", str(tmp_path / "c2"), "--workers", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "retina_vs_spc.methods" in err and err.count("\n") == 1 and not (tmp_path / "c2").exists()
