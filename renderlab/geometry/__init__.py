@@ -4,9 +4,14 @@
   frame (+z boresight, +x right, +y down), eq. 1 of the Retina paper (``to_camera_frame``).
 - :mod:`.camera`: :class:`CameraModel`, gnomonic projection + distortion + the 2x2 pixel map
   (Retina eqs. 3-4), with an exact inverse and analytic Jacobians.
-- :mod:`.distortion`: the Brown/OpenCV and Owen distortion models and their Newton inverse.
+- :mod:`.distortion`: the Brown/OpenCV and Owen distortion models and their Newton inverse (dispatching to
+  :mod:`.distortion_opencv`, OpenCV's full rational + thin-prism + tilt model, and :mod:`.fisheye`,
+  Kannala–Brandt as in ``cv2.fisheye``).
+- :mod:`.calibration`: OpenCV (``cv2.FileStorage`` YAML/JSON) and ROS ``camera_info`` calibration files → the
+  camera dict (``read_calibration``; ``camera.calibration_file`` in a scenario).
 """
 
+from .calibration import camera_from_opencv, opencv_intrinsics, read_calibration
 from .camera import CameraModel
 from .distortion import (
     DISTORTION_KEYS,
@@ -34,6 +39,9 @@ from .rotations import (
 
 __all__ = [
     "CameraModel",
+    "camera_from_opencv",
+    "opencv_intrinsics",
+    "read_calibration",
     "DISTORTION_KEYS",
     "MODELS",
     "distort",
