@@ -292,33 +292,12 @@ def markdown_table(rows: list[FrameAgreement], title: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def figure(rows: list[FrameAgreement], images: list[dict], path: Path, max_frames: int = 6) -> None:
-    """Difference images: Mitsuba, Cycles, relative radiance difference, hit-point gap, shadow-edge shift."""
-    import matplotlib
+def figure(rows: list[FrameAgreement], images: list[dict], path: Path, max_frames: int = 6) -> list[str]:
+    """Difference images (:func:`renderlab.crosscheck_figures.figure`, PNG + SVG); returns the notes of panels left
+    out (a frame without a cast-shadow edge has no shadow-edge panel)."""
+    from renderlab.crosscheck_figures import figure as draw
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    pick = np.unique(np.linspace(0, len(rows) - 1, min(max_frames, len(rows))).round().astype(int))
-    fig, axes = plt.subplots(len(pick), 5, figsize=(16, 3.2 * len(pick)), squeeze=False, constrained_layout=True)
-    for ax_row, k in zip(axes, pick):
-        im, r = images[k], rows[k]
-        vmax = np.percentile(im["Lm"], 99.9) or 1.0
-        panels = [
-            (im["Lm"], "gray", 0, vmax, f"frame {r.frame}: Mitsuba  L [W m⁻² sr⁻¹]"),
-            (im["Lc"], "gray", 0, vmax, "Cycles"),
-            (im["rel"] * 100, "coolwarm", -2, 2, f"(C−M)/M [%], median |·| {r.rad_median_rel * 100:.3f} %"),
-            (im["gap"], "magma", 0, 0.05, f"hit-point gap [px], max {r.geo_max_px:.4f}"),
-            (im["shift"], "viridis", 0, 0.5, f"shadow-edge shift [px], p99 {r.shadow_p99_px:.3f}"),
-        ]
-        for ax, (data, cmap, lo, hi, title) in zip(ax_row, panels):
-            h = ax.imshow(data, cmap=cmap, vmin=lo, vmax=hi, interpolation="nearest")
-            ax.set_title(title, fontsize=8)
-            ax.set_xticks([])
-            ax.set_yticks([])
-            fig.colorbar(h, ax=ax, shrink=0.8)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
+    return draw(rows, images, path, TARGETS, max_frames=max_frames)
 
 
 def _referee_all(scenario, base_dir, rows, images) -> None:
@@ -340,7 +319,7 @@ def _referee_all(scenario, base_dir, rows, images) -> None:
 def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | None = None,
                    keep_truthsets: bool = False, progress: bool = True) -> list[FrameAgreement]:
     """Render ``scenario`` with both renderers and write ``crosscheck.parquet``, ``crosscheck.md`` and
-    ``crosscheck.png`` into ``out_dir`` (truth sets in ``out_dir/truthsets/`` if ``keep_truthsets``)."""
+    ``crosscheck.png`` / ``.svg`` into ``out_dir`` (truth sets in ``out_dir/truthsets/`` if ``keep_truthsets``)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 

@@ -87,10 +87,16 @@ def test_campaign_and_report(repo, tmp_path):
     for name in again.column_names:                                  # run 2 replays alone, bit for bit
         np.testing.assert_array_equal(again[name].to_numpy(), t[name].to_numpy())
     page = make_report(out, tmp_path / "report").read_text()
-    for f in ("coastline_filter_coastline_errors.png", "coastline_filter_coastline_consistency.png",
-              "coastline_filter_coastline_steady_state.csv", "coastline_filter_errors.png"):
+    for f in ("coastline_filter_coastline_errors.png", "coastline_filter_coastline_errors.svg",
+              "coastline_filter_coastline_consistency.png", "coastline_filter_coastline_consistency.svg",
+              "coastline_filter_coastline_steady_state.csv"):
         assert (tmp_path / "report" / f).is_file()
-    assert "ANEES inside its 99" in page
+    # the study reports its filter table itself (Study.own_tables): no generic section duplicating it
+    assert not (tmp_path / "report" / "coastline_filter_errors.png").exists() and "Filter: coastline_filter" not in page
+    assert "ANEES inside its 99" in page and "χ² band low (99 %)</th><th" in page
+    assert page.index("χ² band low") < page.index("χ² band high") and 'class="badge' in page
+    section = page[page.index("Coastline EKF (Straub"):]
+    assert "_m<" not in section and "_mps" not in section and "time (h)" not in page   # no raw column names; one unit
     earth_sc, earth_base = _scenario(repo)
     assert make_plan(earth_sc.model_copy(update={"campaign": earth_sc.campaign.model_copy(update={"study": ""})}),
                      earth_base, 1).study == "coastline_ekf"                # default study of world kind earth
@@ -137,3 +143,24 @@ def test_demo_piece(tmp_path):
     ss = {k: float(v) for k, v in r["steady_state"].items() if k.startswith(("mc_", "filter_"))}
     for a in ("r", "i", "c"):                 # the images shrank the prior's 3σ = 1500 m (16 runs: 136/278/116 m)
         assert ss[f"filter_3sig_{a}_m"] < 500.0 and ss[f"mc_3sig_{a}_m"] < 3 * ss[f"filter_3sig_{a}_m"]
+
+
+def test_report_section_flags_the_published_image_in_the_loop_inconsistency(repo, tmp_path):
+    """On the published image-in-the-loop tables: ANEES at the end (10.0) and the total NIS per dof (0.76) are
+    outside their 99 % bands → two FAIL badges, each with the study's known reason; units in the tables, the
+    χ² bands low then high, the figure says how many runs are drawn of how many."""
+    from renderlab.studies.coastline_ekf.study import report_sections
+
+    d = repo / "results/coastline_ekf/image_in_the_loop"
+    tables = {n: pq.read_table(d / f"{n}.parquet") for n in ("coastline_filter", "coastline_frames")}
+    [(title, body)] = report_sections(tables, tmp_path)
+    assert "Straub" in title
+    assert body.count('<span class="badge fail">FAIL</span>') == 2 and "badge pass" not in body
+    assert "ANEES 10.00 is above its band [4.54, 7.69]" in body and "map error" in body
+    assert "Total NIS / dof 0.763 is below its band" in body
+    assert "<th class=\"l\">unit</th>" in body and ">mm/s<" in body
+    assert body.index("χ² band low") < body.index("χ² band high")
+    assert "25 of 32 runs drawn" in body and "time (s)" in body
+    for f in ("errors", "consistency"):
+        for ext in ("png", "svg"):
+            assert (tmp_path / f"coastline_filter_coastline_{f}.{ext}").stat().st_size > 10_000

@@ -170,4 +170,5 @@ def test_image_study_through_campaign_engine(repo, clear, cache, tmp_path):
     assert np.all(q["sig_i_m"].to_numpy()[1:] > filt["sig_i_m"].to_numpy()[1:])
     page = make_report(out, tmp_path / "report")
     assert (tmp_path / "report" / "coastline_filter_coastline_errors.png").is_file()
-    assert "Straub" in page.read_text()
+    text = page.read_text()
+    assert "Straub" in text and "Filter: coastline_filter" not in text     # reported once, by the study

@@ -203,3 +203,35 @@ def test_crosscheck_refuses_a_file_as_output(tmp_path, capsys):
     f.write_text("x")
     assert main(["crosscheck", str(REPO / "scenes" / "analytic_sphere_box.toml"), "--out", str(f), "--quiet"]) == 2
     assert "not a folder" in capsys.readouterr().err
+
+
+def test_figure_fits_scales_and_leaves_out_empty_panels(tmp_path):
+    """The figure (PNG + SVG): a frame without a cast-shadow edge gets a note instead of a blank shift panel,
+    and a frame with no common hit a note instead of a gap panel; the panels with data are drawn."""
+    from renderlab.crosscheck import FrameAgreement, figure
+
+    H, W = 24, 32
+    rng = np.random.default_rng(1)
+    Lm = rng.uniform(10, 20, (H, W))
+    gap = rng.uniform(0, 1e-3, (H, W))
+    shift = np.full((H, W), np.nan)
+    shift[5:15, 10] = 0.1
+    nan = float("nan")
+
+    def row(k, geo, p99):
+        return FrameAgreement(frame=k, time_s=float(k), id_agreement=1.0, n_lit=H * W, n_lit_one_only=0,
+                              rad_median_rel=1e-5, rad_p99_rel=1e-4, n_geo=H * W, geo_median_px=geo, geo_max_px=geo,
+                              range_rel_median=0.0, range_rel_max=0.0, reproj_mitsuba_max_px=0.0,
+                              reproj_cycles_max_px=0.0, n_landmarks=0, lmk_max_px=nan, n_shadow_edge=0,
+                              shadow_median_px=p99, shadow_p99_px=p99)
+
+    img = {"Lm": Lm, "Lc": Lm * 1.0001, "rel": np.full((H, W), 1e-4)}
+    rows = [row(0, 1e-3, 0.1), row(1, 1e-3, nan), row(2, nan, nan)]
+    images = [{**img, "gap": gap, "shift": shift}, {**img, "gap": gap, "shift": np.full((H, W), nan)},
+              {**img, "gap": np.full((H, W), nan), "shift": np.full((H, W), nan)}]
+    notes = figure(rows, images, tmp_path / "crosscheck.png")
+    assert notes == ["frame 1: no cast-shadow edge, so no shadow-edge shift: panel left out",
+                     "frame 2: no pixel where both renderers hit the same body: hit-point gap left out",
+                     "frame 2: no cast-shadow edge, so no shadow-edge shift: panel left out"]
+    assert (tmp_path / "crosscheck.png").stat().st_size > 10_000
+    assert (tmp_path / "crosscheck.svg").read_text().startswith("<?xml")

@@ -102,7 +102,7 @@ def _write_all(tables, stage: Path, manifest: dict, confidence) -> tuple[list[di
     found = _study(manifest["plan"]["study"])
     scenario = manifest["plan"].get("scenario") or {}
     for name, t in sorted(tables.items()):
-        kind = scoring.table_kind(t)
+        kind = scoring.table_kind(t) if name not in getattr(found, "own_tables", ()) else "own"
         if kind == "landmark":
             subsets = found.subsets(t, scenario) if getattr(found, "subsets", None) else []
             gross = found.gross_error_px(scenario) if getattr(found, "gross_error_px", None) else 1.0

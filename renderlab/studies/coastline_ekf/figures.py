@@ -1,9 +1,12 @@
-"""Figures of the coastline-EKF Monte Carlo in the style of Straub & Christian Figs. 5-9.
+"""Figures of the coastline-EKF Monte Carlo in the style of Straub & Christian Figs. 5-9, in the report style
+(:mod:`renderlab.report.style`: Okabe–Ito colours, units on every axis, a legend, PNG + SVG).
 
 Each error figure has the radial, in-track and cross-track axes as rows and position (m) / velocity (mm/s) as
-columns: a sample of run errors (thin), the Monte Carlo ±3σ (black), the filter's ±3σ (grey, dashed; RMS of
-the runs' σ) and the PCRB's 3σ (red, dotted). Ticks along the bottom mark images with matched coastline.
-A second figure shows ANEES and ANIS with their 99 % χ² bands.
+columns: a sample of run errors (thin), the Monte Carlo ±3σ (black), the filter's ±3σ (dashed; RMS of the runs'
+σ) and the PCRB's ±3σ (dotted, when given). Ticks along the bottom mark images with matched coastline. The
+figure says how many runs are drawn and how many the ±3σ curves use (the sample can be smaller than the
+campaign). A second figure shows ANEES and ANIS with their 99 % χ² bands, values outside their band marked.
+Time is in the report's one unit (:func:`renderlab.report.filter_section.time_unit`).
 """
 
 from __future__ import annotations
@@ -12,90 +15,144 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_errors", "plot_consistency"]
+from renderlab.report import style
+from renderlab.report.filter_section import time_unit
+
+__all__ = ["plot_errors", "plot_consistency", "time_unit"]
 
 _AXES = [("r", "radial"), ("i", "in-track"), ("c", "cross-track")]
+_KINDS = [("", "m", 1.0, "m", "position"), ("v", "mps", 1e3, "mm/s", "velocity")]
+RUN, MC, FILTER, PCRB, IMAGE = style.OKABE_ITO[0], "#000000", style.OKABE_ITO[1], style.OKABE_ITO[2], style.OKABE_ITO[4]
 
 
-def _mpl():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+def _unit(summary, unit):
+    return unit if unit is not None else time_unit(summary["t_s"].to_numpy())
 
 
-def plot_errors(runs_table, summary, path: Path, title: str, n_sample_runs: int = 25) -> Path:
-    """Figs. 5-9 style: errors with filter 3σ, Monte Carlo 3σ and PCRB 3σ (PNG at ``path``)."""
-    plt = _mpl()
-    t_h = summary["t_s"].to_numpy() / 3600.0
+def _band(ax, t, half, **kw):
+    """Plot ``±half`` against ``t`` (one legend entry)."""
+    ax.plot(t, half, **kw)
+    ax.plot(t, -half, **{k: v for k, v in kw.items() if k != "label"})
+
+
+def _error_panel(ax, runs_table, summary, sample, key: str, scale: float, t_div: float) -> None:
+    """One axis of :func:`plot_errors`: sampled runs, MC / filter / PCRB ±3σ, image ticks; y from the last 80 %."""
+    t = summary["t_s"].to_numpy() / t_div
+    runs, t_run = runs_table["run"].to_numpy(), runs_table["t_s"].to_numpy() / t_div
+    err = runs_table[f"err_{key}"].to_numpy()
+    for k in sample:
+        sel = runs == k
+        ax.plot(t_run[sel], scale * err[sel], color=RUN, lw=0.4, alpha=0.35)
+    mc = scale * summary[f"mc_rms_{key}"].to_numpy()
+    fs = scale * summary[f"filter_sig_{key}"].to_numpy()
+    _band(ax, t, 3 * mc, color=MC, lw=1.3)
+    _band(ax, t, 3 * fs, color=FILTER, ls="--", lw=1.3)
+    if f"pcrb_sig_{key}" in summary.column_names:
+        _band(ax, t, 3 * scale * summary[f"pcrb_sig_{key}"].to_numpy(), color=PCRB, ls=":", lw=1.3)
+    tail = slice(len(mc) // 5, None)
+    lim = 3.5 * max(np.nanmax(mc[tail]), np.nanmax(fs[tail]))
+    ax.set_ylim(-lim, lim)
+    img = summary["n_meas"].to_numpy() > 0
+    ax.plot(t[img], np.full(img.sum(), -0.97 * lim), "|", color=IMAGE, ms=4)
+    ax.grid(alpha=0.3)
+
+
+def plot_errors(runs_table, summary, path: Path, title: str, n_sample_runs: int = 25,
+                unit: tuple[float, str] | None = None) -> list[str]:
+    """Figs. 5-9 style: run errors with the Monte Carlo, filter and PCRB ±3σ.
+
+    Parameters
+    ----------
+    runs_table : pyarrow.Table
+        Per-run filter rows (``run, t_s, err_*``); may hold only a sample of the runs ``summary`` was made from.
+    summary : pyarrow.Table
+        :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary` of all runs (``n_runs`` of them).
+    path : Path
+        ``<stem>.png``; ``<stem>.svg`` is written beside it.
+    title : str
+        First line of the figure title.
+    n_sample_runs : int
+        At most this many runs are drawn as thin lines.
+    unit : (divisor, name), optional
+        Time unit (default: :func:`time_unit` of the summary's times).
+
+    Returns
+    -------
+    list of str
+        The PNG and SVG file names.
+    """
+    plt = style.plt()
+    div, tname = _unit(summary, unit)
     runs = runs_table["run"].to_numpy()
     sample = np.unique(runs)[:n_sample_runs]
-    fig, axs = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    n_all = int(summary["n_runs"].to_numpy()[0])
+    fig, axs = plt.subplots(3, 2, figsize=(11, 8.4), sharex=True, constrained_layout=True)
     for row, (a, name) in enumerate(_AXES):
-        for col, (prefix, unit, scale, label) in enumerate([("", "m", 1.0, "m"), ("v", "mps", 1e3, "mm/s")]):
-            ax = axs[row, col]
-            key = f"{prefix}{a}_{unit}"
-            for k in sample:
-                sel = runs == k
-                ax.plot(runs_table["t_s"].to_numpy()[sel] / 3600.0, scale * runs_table[f"err_{key}"].to_numpy()[sel],
-                        color="tab:blue", lw=0.4, alpha=0.35)
-            mc = scale * summary[f"mc_rms_{key}"].to_numpy()
-            fs = scale * summary[f"filter_sig_{key}"].to_numpy()
-            ax.plot(t_h, 3 * mc, "k", lw=1.3, label="Monte Carlo 3σ")
-            ax.plot(t_h, -3 * mc, "k", lw=1.3)
-            ax.plot(t_h, 3 * fs, color="0.55", ls="--", lw=1.3, label="filter 3σ")
-            ax.plot(t_h, -3 * fs, color="0.55", ls="--", lw=1.3)
-            if f"pcrb_sig_{key}" in summary.column_names:
-                pc = scale * summary[f"pcrb_sig_{key}"].to_numpy()
-                ax.plot(t_h, 3 * pc, color="tab:red", ls=":", lw=1.2, label="PCRB 3σ")
-                ax.plot(t_h, -3 * pc, color="tab:red", ls=":", lw=1.2)
-            lim = 3.5 * max(np.nanmax(mc[len(mc) // 5:]), np.nanmax(fs[len(fs) // 5:]))
-            ax.set_ylim(-lim, lim)
-            img = summary["n_meas"].to_numpy() > 0
-            ax.plot(t_h[img], np.full(img.sum(), -0.97 * lim), "|", color="tab:green", ms=4)
-            ax.set_ylabel(f"{name} [{label}]")
-            ax.grid(alpha=0.3)
-    axs[0, 0].set_title("position error")
-    axs[0, 1].set_title("velocity error")
-    axs[-1, 0].set_xlabel("time [h]")
-    axs[-1, 1].set_xlabel("time [h]")
-    axs[0, 1].legend(loc="upper right", fontsize=8)
-    fig.suptitle(f"{title} — {len(np.unique(runs))} runs (y-range set by the last 80 %; green ticks: images with "
-                 f"coastline)", fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+        for col, (prefix, u, scale, ulabel, kind) in enumerate(_KINDS):
+            _error_panel(axs[row, col], runs_table, summary, sample, f"{prefix}{a}_{u}", scale, div)
+            axs[row, col].set_ylabel(f"{name} {kind} error ({ulabel})")
+    for col, (*_, kind) in enumerate(_KINDS):
+        axs[0, col].set_title(f"{kind} error")
+        axs[-1, col].set_xlabel(f"time ({tname})")
+    handles = [plt.Line2D([], [], color=RUN, lw=0.8, label=f"run error ({len(sample)} of {n_all} runs drawn)"),
+               plt.Line2D([], [], color=MC, lw=1.3, label=f"Monte Carlo ±3σ (all {n_all} runs)"),
+               plt.Line2D([], [], color=FILTER, ls="--", lw=1.3, label=f"filter ±3σ (RMS over {n_all} runs)")]
+    if "pcrb_sig_r_m" in summary.column_names:
+        handles.append(plt.Line2D([], [], color=PCRB, ls=":", lw=1.3, label="PCRB ±3σ"))
+    handles.append(plt.Line2D([], [], color=IMAGE, marker="|", ls="none", label="image with matched coastline"))
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.suptitle(f"{title}\n{len(sample)} of {n_all} runs drawn; the ±3σ curves use all {n_all} runs; "
+                 "y-range set by the last 80 % of the span")
+    return style.save(fig, Path(path).with_suffix(""))
 
 
-def plot_consistency(summary, path: Path, title: str) -> Path:
-    """ANEES (6 dof) and ANIS (2 dof per LOS) against time with their 99 % χ² bands."""
-    plt = _mpl()
-    t_h = summary["t_s"].to_numpy() / 3600.0
+def _consistency_panel(ax, t, value, lo, hi, label: str, band_label: str, per_time_band: bool) -> None:
+    inside = (value >= lo) & (value <= hi)
+    if per_time_band:
+        ax.vlines(t, lo, hi, color=PCRB, alpha=0.45, lw=2.0, label=band_label)
+    else:
+        ax.fill_between(t, lo, hi, color=PCRB, alpha=0.25, label=band_label)
+    ax.plot(t[inside], value[inside], ".", color=MC, ms=4, label=f"{label}, inside its band")
+    if (~inside).any():
+        ax.plot(t[~inside], value[~inside], "x", color=FILTER, ms=5, label=f"{label}, outside its band")
+    ax.legend(fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+
+
+def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | None = None) -> list[str]:
+    """ANEES (6 dof) and ANIS per dof (2 dof per LOS) against time with their 99 % χ² bands.
+
+    Parameters
+    ----------
+    summary : pyarrow.Table
+        :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary`.
+    path : Path
+        ``<stem>.png``; ``<stem>.svg`` is written beside it.
+    title : str
+        Figure title.
+    unit : (divisor, name), optional
+        Time unit (default: :func:`time_unit` of the summary's times).
+
+    Returns
+    -------
+    list of str
+        The PNG and SVG file names.
+    """
+    plt = style.plt()
+    div, tname = _unit(summary, unit)
+    t = summary["t_s"].to_numpy() / div
     n = int(summary["n_runs"].to_numpy()[0])
-    fig, axs = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
-    axs[0].plot(t_h, summary["anees"].to_numpy(), "k.", ms=3, label="ANEES")
-    axs[0].fill_between(t_h, summary["anees_lo"].to_numpy(), summary["anees_hi"].to_numpy(), color="tab:green",
-                        alpha=0.25, label=f"99 % χ²(6·{n})/{n} band")
+    fig, axs = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True, constrained_layout=True)
+    _consistency_panel(axs[0], t, summary["anees"].to_numpy(), summary["anees_lo"].to_numpy(),
+                       summary["anees_hi"].to_numpy(), "ANEES", f"99 % χ²(6·{n})/{n} band", False)
     axs[0].axhline(6.0, color="0.5", lw=0.8)
-    axs[0].set_ylabel("ANEES")
+    axs[0].set_ylabel("ANEES (6 dof)")
     img = summary["n_meas"].to_numpy() > 0
-    m = summary["n_meas"].to_numpy()[img]
-    axs[1].plot(t_h[img], summary["anis"].to_numpy()[img] / (2 * m), "k.", ms=3, label="ANIS / (2m)")
-    axs[1].vlines(t_h[img], summary["anis_lo"].to_numpy()[img] / (2 * m), summary["anis_hi"].to_numpy()[img] / (2 * m),
-                  color="tab:green", alpha=0.45, lw=2.0, label="99 % band of that image (2m dof)")
+    dof = 2 * summary["n_meas"].to_numpy()[img]
+    _consistency_panel(axs[1], t[img], summary["anis"].to_numpy()[img] / dof, summary["anis_lo"].to_numpy()[img] / dof,
+                       summary["anis_hi"].to_numpy()[img] / dof, "ANIS / dof", "99 % band of that image (2m dof)", True)
     axs[1].axhline(1.0, color="0.5", lw=0.8)
-    axs[1].set_ylabel("ANIS / dof")
-    axs[1].set_xlabel("time [h]")
-    for ax in axs:
-        ax.legend(fontsize=8, loc="upper right")
-        ax.grid(alpha=0.3)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    axs[1].set_ylabel("ANIS per dof (2 dof per LOS)")
+    axs[1].set_xlabel(f"time ({tname})")
+    fig.suptitle(f"{title}: filter consistency over {n} runs (grey line: the expected value)")
+    return style.save(fig, Path(path).with_suffix(""))

@@ -96,12 +96,15 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
 
 def report_sections(tables: dict, stage) -> list[tuple[str, str]]:
-    """``renderlab report`` hook: the coastline section (Figs. 5-9, ANEES/ANIS with 2m-dof bands) per filter table."""
+    """``renderlab report`` hook: the coastline section (Figs. 5-9, ANEES/ANIS with 2m-dof bands) per filter table
+    (the image mode's ``coastline_frames`` table, when present, explains its consistency)."""
     from pathlib import Path
 
     from renderlab.studies.coastline_ekf.report_section import coastline_section, is_coastline_table
 
-    return [coastline_section(name, t, Path(stage)) for name, t in sorted(tables.items()) if is_coastline_table(t)]
+    frames = tables.get("coastline_frames")
+    return [coastline_section(name, t, Path(stage), frames=frames) for name, t in sorted(tables.items())
+            if is_coastline_table(t)]
 
 
 def run_demo_coastline(out, progress: bool = True, runs: int = 16) -> dict:

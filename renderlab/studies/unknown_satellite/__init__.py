@@ -7,4 +7,5 @@ from renderlab.contracts.study import Study, lazy
 STUDY = Study(name="unknown_satellite", run=lazy("renderlab.studies.unknown_satellite.run:run"), worlds=("microsat",),
               description="pose and inertia of an unknown tumbling microsatellite (Ivanov et al.)",
               report_sections=lazy("renderlab.studies.unknown_satellite.run:report_sections"),
+              own_tables=("stage2",),
               demo=lazy("renderlab.studies.unknown_satellite.demo:run_demo_unknown_satellite"))

@@ -9,54 +9,65 @@
   RMS over runs).
 * Fig 14: stage-2 body-rate errors per axis and the attitude error against time.
 
-Everything is drawn from the campaign's tables (``scores``, ``stage1_history``, ``stage2``).
+Everything is drawn from the campaign's tables (``scores``, ``stage1_history``, ``stage2``) in the report style
+(:mod:`renderlab.report.style`: titled figures, units on every axis, legends, integer run ticks, plain numbers on
+log axes, PNG + SVG). Body-frame quantities are drawn with the principal axes relabelled to the truth's (the
+``*_aligned`` columns) when the tables have them; the raw ones only where they differ.
 """
 
 from __future__ import annotations
 
-import html
 from pathlib import Path
 
 import numpy as np
 
-from renderlab.report.campaign_report import write_csv
+from renderlab.report import style
+from renderlab.report.campaign_report import write_csv  # noqa: F401  (re-exported: results/.../make_campaign.py)
 
-#: scores summarised across runs: column → (label, unit scale, unit)
+#: scores summarised across runs: column → (score id in the unit of the summary, label, scale, unit, group)
 SCORES = {
-    "point_lvlh_err_rms_m": ("reference points, RMS error in LVLH at the epoch", 100, "cm"),
-    "point_lvlh_crlb_rms_m": ("reference points in LVLH, CRLB σ (RMS over points, eq. 7)", 100, "cm"),
-    "point_err_rms_m": ("reference points, RMS error in the body frame", 100, "cm"),
-    "point_err_rms_aligned_m": ("reference points, RMS error in the body frame, axes relabelled to truth", 100, "cm"),
-    "point_shape_err_rms_m": ("reference points, RMS error after the best rotation", 100, "cm"),
-    "r0_err_m": ("initial position error ‖r0‖", 100, "cm"),
-    "v0_err_mps": ("initial velocity error ‖v0‖", 100, "cm/s"),
-    "stage2_vel_rms_mps": ("stage 2: velocity RMS", 100, "cm/s"),
-    "stage2_pos_rms_m": ("stage 2: position RMS", 100, "cm"),
-    "w0_norm_est_deg_s": ("‖ω0‖ estimated", 1, "°/s"),
-    "w0_norm_err_deg_s": ("‖ω0‖ error", 1, "°/s"),
-    "w0_norm_crlb_deg_s": ("‖ω0‖ CRLB σ (eq. 7)", 1, "°/s"),
-    "w0_lvlh_err_deg_s": ("ω0 error in LVLH (vector)", 1, "°/s"),
-    "v0_crlb_mps": ("initial velocity CRLB σ (eq. 7)", 100, "cm/s"),
-    "stage2_wx_rms_deg_s": ("stage 2: ωx RMS error", 1, "°/s"),
-    "stage2_wy_rms_deg_s": ("stage 2: ωy RMS error", 1, "°/s"),
-    "stage2_wz_rms_deg_s": ("stage 2: ωz RMS error", 1, "°/s"),
-    "stage2_att_rms_deg": ("stage 2: attitude RMS error (principal axes)", 1, "°"),
-    "stage2_att_rms_aligned_deg": ("stage 2: attitude RMS error, axes relabelled to truth", 1, "°"),
-    "stage2_wx_rms_aligned_deg_s": ("stage 2: ωx RMS error, axes relabelled", 1, "°/s"),
-    "stage2_wy_rms_aligned_deg_s": ("stage 2: ωy RMS error, axes relabelled", 1, "°/s"),
-    "stage2_wz_rms_aligned_deg_s": ("stage 2: ωz RMS error, axes relabelled", 1, "°/s"),
-    "err_ratio_12_aligned": ("I1/I3 error, axes relabelled to truth", 1, ""),
-    "err_ratio_23_aligned": ("I2/I3 error, axes relabelled to truth", 1, ""),
-    "err_ratio_12": ("I1/I3 error", 1, ""),
-    "err_ratio_23": ("I2/I3 error", 1, ""),
-    "err_moments_sorted_max": ("trace-normalised principal moments, max error (axis labels free)", 1, ""),
-    "inertia_tensor_lvlh_err_max": ("trace-normalised inertia tensor in LVLH, max error", 1, ""),
-    "ratio_sigma_1": ("I1/I3 CRLB σ (eq. 7)", 1, ""),
-    "ratio_sigma_2": ("I2/I3 CRLB σ (eq. 7)", 1, ""),
-    "stage1_rms_px": ("stage 1: residual RMS", 1, "px"),
-    "database_points": ("database points", 1, ""),
-    "rigidity_rejected": ("tracks rejected by the rigidity test", 1, ""),
+    "point_lvlh_err_rms_m": ("point_lvlh_err_rms_cm", "reference points, RMS error in LVLH at the epoch", 100, "cm", "g"),
+    "point_lvlh_crlb_rms_m": ("point_lvlh_crlb_rms_cm", "reference points in LVLH, CRLB σ (RMS over points, eq. 7)",
+                              100, "cm", "g"),
+    "point_shape_err_rms_m": ("point_shape_err_rms_cm", "reference points, RMS error after the best rotation", 100, "cm",
+                              "g"),
+    "r0_err_m": ("r0_err_cm", "initial position error ‖r0‖", 100, "cm", "g"),
+    "v0_err_mps": ("v0_err_cm_s", "initial velocity error ‖v0‖", 100, "cm/s", "g"),
+    "v0_crlb_mps": ("v0_crlb_cm_s", "initial velocity CRLB σ (eq. 7)", 100, "cm/s", "g"),
+    "stage2_pos_rms_m": ("stage2_pos_rms_cm", "stage 2: position RMS", 100, "cm", "g"),
+    "stage2_vel_rms_mps": ("stage2_vel_rms_cm_s", "stage 2: velocity RMS", 100, "cm/s", "g"),
+    "w0_norm_est_deg_s": ("w0_norm_est_deg_s", "‖ω0‖ estimated", 1, "deg/s", "g"),
+    "w0_norm_err_deg_s": ("w0_norm_err_deg_s", "‖ω0‖ error", 1, "deg/s", "g"),
+    "w0_norm_crlb_deg_s": ("w0_norm_crlb_deg_s", "‖ω0‖ CRLB σ (eq. 7)", 1, "deg/s", "g"),
+    "w0_lvlh_err_deg_s": ("w0_lvlh_err_deg_s", "ω0 error in LVLH (vector)", 1, "deg/s", "g"),
+    "err_moments_sorted_max": ("err_moments_sorted_max", "trace-normalised principal moments, max error "
+                               "(axis labels free)", 1, "—", "g"),
+    "inertia_tensor_lvlh_err_max": ("inertia_tensor_lvlh_err_max", "trace-normalised inertia tensor in LVLH, "
+                                    "max error", 1, "—", "g"),
+    "point_err_rms_m": ("point_err_rms_cm", "reference points, RMS error in the body frame", 100, "cm", "b"),
+    "point_err_rms_aligned_m": ("point_err_rms_aligned_cm", "reference points, RMS error in the body frame, axes "
+                                "relabelled to truth", 100, "cm", "b"),
+    "stage2_att_rms_deg": ("stage2_att_rms_deg", "stage 2: attitude RMS error (principal axes)", 1, "deg", "b"),
+    "stage2_att_rms_aligned_deg": ("stage2_att_rms_aligned_deg", "stage 2: attitude RMS error, axes relabelled to "
+                                   "truth", 1, "deg", "b"),
+    **{f"stage2_w{a}_rms_deg_s": (f"stage2_w{a}_rms_deg_s", f"stage 2: ω{a} RMS error", 1, "deg/s", "b") for a in "xyz"},
+    **{f"stage2_w{a}_rms_aligned_deg_s": (f"stage2_w{a}_rms_aligned_deg_s", f"stage 2: ω{a} RMS error, axes relabelled",
+                                          1, "deg/s", "b") for a in "xyz"},
+    "err_ratio_12": ("err_ratio_12", "I1/I3 error", 1, "—", "b"),
+    "err_ratio_12_aligned": ("err_ratio_12_aligned", "I1/I3 error, axes relabelled to truth", 1, "—", "b"),
+    "err_ratio_23": ("err_ratio_23", "I2/I3 error", 1, "—", "b"),
+    "err_ratio_23_aligned": ("err_ratio_23_aligned", "I2/I3 error, axes relabelled to truth", 1, "—", "b"),
+    "ratio_sigma_1": ("ratio_sigma_1", "I1/I3 CRLB σ (eq. 7)", 1, "—", "b"),
+    "ratio_sigma_2": ("ratio_sigma_2", "I2/I3 CRLB σ (eq. 7)", 1, "—", "b"),
+    "stage1_rms_px": ("stage1_rms_px", "stage 1: residual RMS", 1, "px", "d"),
+    "database_points": ("database_points", "database points", 1, "points", "d"),
+    "rigidity_rejected": ("rigidity_rejected", "tracks rejected by the rigidity test", 1, "tracks", "d"),
 }
+#: (raw, relabelled) score columns: the same quantity before and after the discrete principal-axes gauge
+PAIRS = [("point_err_rms_m", "point_err_rms_aligned_m"), ("stage2_att_rms_deg", "stage2_att_rms_aligned_deg"),
+         *((f"stage2_w{a}_rms_deg_s", f"stage2_w{a}_rms_aligned_deg_s") for a in "xyz"),
+         ("err_ratio_12", "err_ratio_12_aligned"), ("err_ratio_23", "err_ratio_23_aligned")]
+FIGURES = ("fig5_convergence", "fig6_inertia", "fig7_points", "fig13_stage2_position", "fig14_stage2_attitude")
 
 
 def _np(t, name, dtype=float):
@@ -64,9 +75,10 @@ def _np(t, name, dtype=float):
 
 
 def score_summary(scores) -> list[dict]:
-    """Per score: runs, mean, std, median, 10th and 90th percentile (in the unit of :data:`SCORES`)."""
+    """Per score: runs, mean, std, median, 10th and 90th percentile in the unit of :data:`SCORES` (the score id
+    carries that unit); per run flag: ``flagged`` runs of ``runs``."""
     rows = []
-    for col, (label, scale, unit) in SCORES.items():
+    for col, (sid, label, scale, unit, _) in SCORES.items():
         if col not in scores.column_names:
             continue
         v = _np(scores, col) * scale
@@ -74,27 +86,60 @@ def score_summary(scores) -> list[dict]:
         if not len(v):
             continue
         p10, med, p90 = np.percentile(v, [10, 50, 90])
-        rows.append({"score": col, "label": label, "unit": unit, "runs": len(v), "mean": float(v.mean()),
+        rows.append({"score": sid, "label": label, "unit": unit, "runs": len(v), "mean": float(v.mean()),
                      "std": float(v.std(ddof=1)) if len(v) > 1 else float("nan"), "median": float(med),
                      "p10": float(p10), "p90": float(p90)})
     from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
-    for name in RUN_FLAGS:
-        if f"flag_{name}" not in scores.column_names:
-            continue
-        on = _np(scores, f"flag_{name}", bool)
-        rows.append({"score": f"flag_{name}", "label": f"runs flagged {name}", "unit": "runs", "runs": len(on),
-                     "mean": float(np.mean(on)), "median": float(np.sum(on))})
+    for name, on in run_flags(scores).items():
+        rows.append({"score": f"flag_{name}", "label": RUN_FLAGS[name], "unit": "runs", "runs": len(on),
+                     "flagged": int(np.sum(on))})
     return rows
 
 
-def _plt():
-    import matplotlib
+def run_flags(scores) -> dict[str, np.ndarray]:
+    """Flag name → bool per run, from the ``flag_<name>`` columns or, in tables published before them, from the
+    comma-separated ``flag_names`` column."""
+    from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    names = scores.column_names
+    if any(f"flag_{n}" in names for n in RUN_FLAGS):
+        return {n: _np(scores, f"flag_{n}", bool) for n in RUN_FLAGS if f"flag_{n}" in names}
+    if "flag_names" not in names:
+        return {}
+    sets = [set(str(v).split(",")) for v in scores.column("flag_names").to_pylist()]
+    return {n: np.array([n in s for s in sets]) for n in RUN_FLAGS}
 
-    return plt
+
+def same_pairs(scores) -> set[str]:
+    """Raw score columns equal to their relabelled twin in every run (no run relabelled: show one)."""
+    out = set()
+    for raw, al in PAIRS:
+        if raw in scores.column_names and al in scores.column_names:
+            if np.allclose(_np(scores, raw), _np(scores, al), rtol=1e-12, atol=0, equal_nan=True):
+                out.add(raw)
+    return out
+
+
+def _plain_log(ax, values, axis: str = "y") -> None:
+    """Log scale with plain tick labels (0.5, 2, 10) when the values span more than a decade, else linear."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if len(v) < 2 or v.max() < 10 * v.min():
+        return
+    a = ax.yaxis if axis == "y" else ax.xaxis
+    (ax.set_yscale if axis == "y" else ax.set_xscale)("log")
+    a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    a.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    a.set_minor_formatter(NullFormatter())
+
+
+def _int_ticks(ax, axis: str = "x") -> None:
+    from matplotlib.ticker import MaxNLocator
+
+    (ax.xaxis if axis == "x" else ax.yaxis).set_major_locator(MaxNLocator(integer=True))
 
 
 def _by_run(t, cols):
@@ -104,130 +149,172 @@ def _by_run(t, cols):
         yield r, {c: _np(t, c)[sel] for c in cols}
 
 
-def fig5_convergence(hist, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(1, 2, figsize=(9, 3.5), constrained_layout=True)
-    cols = ["iteration"] + [f"err_r0_{a}_m" for a in "xyz"] + [f"err_v0_{a}_mps" for a in "xyz"]
-    for _, d in _by_run(hist, cols):
-        er = np.linalg.norm([d[f"err_r0_{a}_m"] for a in "xyz"], axis=0)
-        ev = np.linalg.norm([d[f"err_v0_{a}_mps"] for a in "xyz"], axis=0)
-        ax[0].semilogy(d["iteration"], 100 * er, lw=0.7, alpha=0.6)
-        ax[1].semilogy(d["iteration"], 100 * ev, lw=0.7, alpha=0.6)
-    ax[0].set(xlabel="accepted iterate", ylabel="‖r0 error‖ (cm)", title="(a) initial CM position (Fig. 5a)")
-    ax[1].set(xlabel="accepted iterate", ylabel="‖v0 error‖ (cm/s)", title="(b) initial velocity (Fig. 5b)")
-    for a in ax:
-        a.grid(alpha=0.3, which="both")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def _runs_line(ax, n: int, color=style.OKABE_ITO[0]) -> None:
+    ax.plot([], [], color=color, lw=0.8, alpha=0.7, label=f"one line per run ({n} runs)")
 
 
-def fig6_inertia(hist, scores, path: Path) -> None:
-    plt = _plt()
+def fig5_convergence(hist, stem: Path) -> list[str]:
+    plt = style.plt()
     fig, ax = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
+    cols = ["iteration"] + [f"err_r0_{a}_m" for a in "xyz"] + [f"err_v0_{a}_mps" for a in "xyz"]
+    er_all, ev_all, n = [], [], 0
+    for _, d in _by_run(hist, cols):
+        er = 100 * np.linalg.norm([d[f"err_r0_{a}_m"] for a in "xyz"], axis=0)
+        ev = 100 * np.linalg.norm([d[f"err_v0_{a}_mps"] for a in "xyz"], axis=0)
+        ax[0].plot(d["iteration"], er, color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
+        ax[1].plot(d["iteration"], ev, color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
+        er_all.append(er)
+        ev_all.append(ev)
+        n += 1
+    for a, vals, ylabel, title in ((ax[0], er_all, "‖r0 error‖ (cm)", "(a) initial CM position"),
+                                   (ax[1], ev_all, "‖v0 error‖ (cm/s)", "(b) initial CM velocity")):
+        _plain_log(a, np.concatenate(vals))
+        _runs_line(a, n)
+        _int_ticks(a)
+        a.set(xlabel="accepted iterate (count)", ylabel=ylabel, title=title)
+        a.legend(fontsize=8)
+        a.grid(alpha=0.3, which="both")
+    fig.suptitle("Stage 1: convergence of the initial centre-of-mass state (cf. Ivanov et al. Fig. 5)")
+    return style.save(fig, stem)
+
+
+def fig6_inertia(hist, scores, stem: Path) -> list[str]:
+    plt = style.plt()
+    c1, c2 = style.OKABE_ITO[0], style.OKABE_ITO[1]
+    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.2), constrained_layout=True)
     for _, d in _by_run(hist, ["iteration", "err_ratio12", "err_ratio23"]):
-        ax[0].plot(d["iteration"], d["err_ratio12"], "C0", lw=0.6, alpha=0.6)
-        ax[0].plot(d["iteration"], d["err_ratio23"], "C1", lw=0.6, alpha=0.6)
-    ax[0].plot([], [], "C0", label="I1/I3")
-    ax[0].plot([], [], "C1", label="I2/I3")
+        ax[0].plot(d["iteration"], d["err_ratio12"], color=c1, lw=0.6, alpha=0.6)
+        ax[0].plot(d["iteration"], d["err_ratio23"], color=c2, lw=0.6, alpha=0.6)
+    ax[0].plot([], [], color=c1, label="I1/I3 (one line per run)")
+    ax[0].plot([], [], color=c2, label="I2/I3 (one line per run)")
     ax[0].axhline(0, color="k", lw=0.5)
-    ax[0].set(xlabel="accepted iterate", ylabel="ratio error", title="inertia ratios, convergence (cf. Fig. 6)")
-    ax[0].legend(fontsize=8)
+    _int_ticks(ax[0])
+    ax[0].set(xlabel="accepted iterate (count)", ylabel="ratio error (dimensionless)", title="(a) convergence")
     al = "ratio_I1_I3_aligned" in scores.column_names
     e1 = _np(scores, "ratio_I1_I3_aligned" if al else "ratio_I1_I3_est")
     e2 = _np(scores, "ratio_I2_I3_aligned" if al else "ratio_I2_I3_est")
     s1, s2 = _np(scores, "ratio_sigma_1"), _np(scores, "ratio_sigma_2")
-    fb = _np(scores, "flag_inertia_boundary", bool)
-    for m, mk, lab in ((~fb, "o", "free solve"), (fb, "s", "physical re-solve (boundary)")):
+    fb = run_flags(scores).get("inertia_boundary", np.zeros(scores.num_rows, bool))
+    for m, mk, col, lab in ((~fb, "o", c1, "free solve"), (fb, "s", c2, "physical re-solve (boundary)")):
         if m.any():
-            ax[1].errorbar(e1[m], e2[m], xerr=s1[m], yerr=s2[m], fmt=mk, ms=4, lw=0.6, alpha=0.7, label=lab)
+            ax[1].errorbar(e1[m], e2[m], xerr=s1[m], yerr=s2[m], fmt=mk, color=col, ms=4, lw=0.6, alpha=0.7,
+                           label=f"{lab}: {int(m.sum())} runs")
     t1, t2 = _np(scores, "ratio_I1_I3_true"), _np(scores, "ratio_I2_I3_true")
     ax[1].plot(t1, t2, "k*", ms=12, label="truth")
     x = np.linspace(0, 2, 50)
-    ax[1].plot(x, 1 - x, "k:", lw=0.8, label="I1+I2 = I3 (flat body)")
-    lo = np.nanmin(np.r_[e1, e2, t1, t2]) - 0.2
-    hi = np.nanmax(np.r_[e1, e2, t1, t2]) + 0.2
-    ax[1].set(xlim=(max(lo, 0), hi), ylim=(max(lo, 0), hi), xlabel="I1/I3", ylabel="I2/I3",
-              title="final ratios" + (" (axes relabelled to truth)" if al else "") + ", bars: CRLB 1σ")
-    ax[1].legend(fontsize=7)
+    ax[1].plot(x, 1 - x, "k:", lw=0.8, label="I1 + I2 = I3 (flat body)")
+    lo, hi = np.nanmin(np.r_[e1, e2, t1, t2]) - 0.2, np.nanmax(np.r_[e1, e2, t1, t2]) + 0.2
+    ax[1].set(xlim=(max(lo, 0), hi), ylim=(max(lo, 0), hi), xlabel="I1/I3 (dimensionless)",
+              ylabel="I2/I3 (dimensionless)", title="(b) final ratios" + (", axes relabelled" if al else "")
+              + "; bars: CRLB 1σ")
     for a in ax:
+        a.legend(fontsize=8)
         a.grid(alpha=0.3)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    fig.suptitle("Stage 1: inertia ratios (cf. Ivanov et al. Fig. 6)")
+    return style.save(fig, stem)
 
 
-def fig7_points(hist, scores, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
+def fig7_points(hist, scores, stem: Path) -> list[str]:
+    plt = style.plt()
+    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
+    vals, n = [], 0
     for _, d in _by_run(hist, ["iteration", "err_points_rms_m"]):
-        ax[0].semilogy(d["iteration"], 100 * d["err_points_rms_m"], lw=0.7, alpha=0.6)
-    ax[0].set(xlabel="accepted iterate", ylabel="RMS point error, body frame (cm)",
-              title="reference points, convergence (cf. Fig. 7)")
+        ax[0].plot(d["iteration"], 100 * d["err_points_rms_m"], color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
+        vals.append(100 * d["err_points_rms_m"])
+        n += 1
+    _plain_log(ax[0], np.concatenate(vals) if vals else [])
+    _runs_line(ax[0], n)
+    _int_ticks(ax[0])
+    ax[0].set(xlabel="accepted iterate (count)", ylabel="RMS point error, body frame (cm)", title="(a) convergence")
     runs = _np(scores, "run", np.int64)
-    ax[1].semilogy(runs, 100 * _np(scores, "point_lvlh_err_rms_m"), "o", label="LVLH at the epoch (gauge-free)")
-    ax[1].semilogy(runs, 100 * _np(scores, "point_err_rms_m"), "s", mfc="none", label="body frame (principal axes)")
+    series = [("point_lvlh_err_rms_m", "o", "LVLH at the epoch (gauge-free)")]
     if "point_err_rms_aligned_m" in scores.column_names:
-        ax[1].semilogy(runs, 100 * _np(scores, "point_err_rms_aligned_m"), "^", mfc="none",
-                       label="body frame, axes relabelled to truth")
+        series.append(("point_err_rms_aligned_m", "^", "body frame, axes relabelled to truth"))
+    if "point_err_rms_m" not in same_pairs(scores):
+        series.append(("point_err_rms_m", "s", "body frame, principal axes as estimated"))
+    allv = []
+    for k, (col, mk, lab) in enumerate(series):
+        v = 100 * _np(scores, col)
+        ax[1].plot(runs, v, mk, color=style.OKABE_ITO[k], mfc="none" if k else None, label=lab)
+        allv.append(v)
     ax[1].axhline(3.0, color="k", ls="--", lw=0.8, label="paper: 3 cm")
-    ax[1].set(xlabel="run", ylabel="RMS error (cm)", title="reference points, final, per run")
-    ax[1].legend(fontsize=7)
+    _plain_log(ax[1], np.concatenate(allv + [[3.0]]))
+    _int_ticks(ax[1])
+    ax[1].set(xlabel="run (index)", ylabel="RMS point error (cm)", title="(b) final, per run")
+    ax[0].legend(fontsize=8)
+    ax[1].legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
     for a in ax:
         a.grid(alpha=0.3, which="both")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    fig.suptitle("Stage 1: reference points (cf. Ivanov et al. Fig. 7)")
+    return style.save(fig, stem)
 
 
 def _rms_over_runs(t, col):
-    ts = _np(t, "t_s")
-    v = _np(t, col)
+    ts, v = _np(t, "t_s"), _np(t, col)
     u = np.unique(ts)
     return u, np.array([np.sqrt(np.nanmean(v[ts == x] ** 2)) for x in u])
 
 
-def fig13_position(s2, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
-    for k, (q, scale, unit) in enumerate((("r", 100, "cm"), ("v", 100, "cm/s"))):
-        cols = [f"err_{q}{a}_{'m' if q == 'r' else 'mps'}" for a in "xyz"]
+def fig13_position(s2, stem: Path) -> list[str]:
+    plt = style.plt()
+    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
+    n = len(np.unique(_np(s2, "run", np.int64)))
+    for k, (q, u) in enumerate((("r", "m"), ("v", "mps"))):
+        cols = [f"err_{q}{a}_{u}" for a in "xyz"]
         for _, d in _by_run(s2, ["t_s"] + cols):
-            ax[k].plot(d["t_s"], scale * np.linalg.norm([d[c] for c in cols], axis=0), lw=0.5, alpha=0.4)
-        u = np.unique(_np(s2, "t_s"))
-        tot = np.sqrt(sum(_rms_over_runs(s2, c)[1] ** 2 for c in cols))
-        ax[k].plot(u, scale * tot, "k", lw=1.5, label="RMS over runs")
-        ax[k].legend(fontsize=7)
+            ax[k].plot(d["t_s"], 100 * np.linalg.norm([d[c] for c in cols], axis=0), color=style.OKABE_ITO[0],
+                       lw=0.5, alpha=0.4)
+        t = np.unique(_np(s2, "t_s"))
+        ax[k].plot(t, 100 * np.sqrt(sum(_rms_over_runs(s2, c)[1] ** 2 for c in cols)), "k", lw=1.5,
+                   label="RMS over runs")
+        _runs_line(ax[k], n)
         ax[k].grid(alpha=0.3)
-    ax[0].set(xlabel="t (s)", ylabel="‖position error‖ (cm)", title="stage 2: CM position, LVLH (cf. Fig. 13)")
-    ax[1].axhline(1.0, color="k", ls="--", lw=0.8)
-    ax[1].set(xlabel="t (s)", ylabel="‖velocity error‖ (cm/s)", title="stage 2: velocity (dashed: paper ≈1 cm/s)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def fig14_attitude(s2, path: Path) -> None:
-    plt = _plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6), constrained_layout=True)
-    for i, a in enumerate("xyz"):
-        c = f"err_w{a}_aligned_deg_s" if f"err_w{a}_aligned_deg_s" in s2.column_names else f"err_w{a}_deg_s"
-        u, r = _rms_over_runs(s2, c)
-        ax[0].plot(u, r, f"C{i}", lw=1.5, label=f"ω{a} RMS over runs")
-    ax[0].set(xlabel="t (s)", ylabel="°/s", title="stage 2: body-rate error (cf. Fig. 14)")
-    ax[0].legend(fontsize=7)
-    att = "err_att_aligned_deg" if "err_att_aligned_deg" in s2.column_names else "err_att_deg"
-    for _, d in _by_run(s2, ["t_s", att]):
-        ax[1].semilogy(d["t_s"], d[att], lw=0.5, alpha=0.5)
-    ax[1].set(xlabel="t (s)", ylabel="°", title="stage 2: principal-axes attitude error"
-              + (" (relabelled)" if att != "err_att_deg" else ""))
+    ax[1].axhline(1.0, color=style.OKABE_ITO[1], ls="--", lw=1.0, label="paper: ≈1 cm/s")
+    ax[0].set(xlabel="time (s)", ylabel="‖position error‖ (cm)", title="(a) CM position, LVLH")
+    ax[1].set(xlabel="time (s)", ylabel="‖velocity error‖ (cm/s)", title="(b) CM velocity, LVLH")
     for a in ax:
-        a.grid(alpha=0.3)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+        a.legend(fontsize=8)
+    fig.suptitle("Stage 2: relative centre-of-mass position and velocity (cf. Ivanov et al. Fig. 13)")
+    return style.save(fig, stem)
 
 
-FIGURES = ("fig5_convergence", "fig6_inertia", "fig7_points", "fig13_stage2_position", "fig14_stage2_attitude")
+def fig14_attitude(s2, stem: Path) -> list[str]:
+    plt = style.plt()
+    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
+    al = "err_wx_aligned_deg_s" in s2.column_names
+    for i, a in enumerate("xyz"):
+        u, r = _rms_over_runs(s2, f"err_w{a}_aligned_deg_s" if al else f"err_w{a}_deg_s")
+        ax[0].plot(u, r, color=style.OKABE_ITO[i], lw=1.5, label=f"ω{a}, RMS over runs")
+    ax[0].set(xlabel="time (s)", ylabel="body-rate error (deg/s)",
+              title="(a) body rates" + (", axes relabelled" if al else ""))
+    att = "err_att_aligned_deg" if "err_att_aligned_deg" in s2.column_names else "err_att_deg"
+    n = 0
+    for _, d in _by_run(s2, ["t_s", att]):
+        ax[1].plot(d["t_s"], d[att], color=style.OKABE_ITO[0], lw=0.5, alpha=0.5)
+        n += 1
+    _runs_line(ax[1], n)
+    _plain_log(ax[1], _np(s2, att))
+    ax[1].set(xlabel="time (s)", ylabel="attitude error (deg)",
+              title="(b) principal-axes attitude" + (", axes relabelled" if att != "err_att_deg" else ""))
+    for a in ax:
+        a.legend(fontsize=8)
+        a.grid(alpha=0.3, which="both")
+    fig.suptitle("Stage 2: body rates and attitude of the principal axes (cf. Ivanov et al. Fig. 14)")
+    return style.save(fig, stem)
 
 
-def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satellite_") -> list[str]:
-    """Draw the figures that the tables allow; return their file names."""
+#: figure name → caption
+CAPTIONS = {
+    "fig5_convergence": "Stage-1 errors of the initial centre-of-mass position and velocity at every accepted iterate.",
+    "fig6_inertia": "Inertia ratios: convergence, and the final ratios of every run with their Cramér–Rao 1σ.",
+    "fig7_points": "Reference-point RMS error: convergence (body frame), and per run at the end.",
+    "fig13_stage2_position": "Stage-2 centre-of-mass position and velocity error against time.",
+    "fig14_stage2_attitude": "Stage-2 body-rate RMS error per axis and the principal-axes attitude error per run.",
+}
+
+
+def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satellite_") -> list[dict]:
+    """Draw the figures that the tables allow (PNG + SVG); return ``{"name", "png", "svg", "caption"}`` each."""
     out_dir = Path(out_dir)
     done = []
     sc, hist, s2 = tables.get("scores"), tables.get("stage1_history"), tables.get("stage2")
@@ -238,29 +325,13 @@ def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satelli
             ("fig14_stage2_attitude", s2 is not None, lambda p: fig14_attitude(s2, p))]
     for name, ok, draw in jobs:
         if ok:
-            draw(out_dir / f"{prefix}{name}.png")
-            done.append(f"{prefix}{name}.png")
+            png, svg = draw(out_dir / f"{prefix}{name}")
+            done.append({"name": name, "png": png, "svg": svg, "caption": CAPTIONS[name]})
     return done
 
 
 def campaign_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
-    """HTML sections of the report (figures + score summary, written as ``unknown_satellite_summary.csv`` and,
-    where the generic report wrote none, ``summary.csv``)."""
-    if "scores" not in tables:
-        return []
-    rows = score_summary(tables["scores"])
-    write_csv(out_dir / "unknown_satellite_summary.csv", rows)
-    if not (out_dir / "summary.csv").exists():  # the page links summary.csv; no measurement table wrote one
-        write_csv(out_dir / "summary.csv", rows)
-    figs = campaign_figures(tables, out_dir)
+    """HTML section of the report (:mod:`renderlab.studies.unknown_satellite.report_section`)."""
+    from renderlab.studies.unknown_satellite.report_section import study_section
 
-    def fmt(v):
-        return f"{v:.4g}" if isinstance(v, float) else html.escape(str(v))
-    cols = ["label", "unit", "runs", "mean", "std", "median", "p10", "p90"]
-    table = ("<table><tr>" + "".join(f"<th>{c}</th>" for c in cols) + "</tr>"
-             + "".join("<tr>" + "".join(f"<td>{fmt(r.get(c, ''))}</td>" for c in cols) + "</tr>" for r in rows)
-             + "</table>")
-    body = ("<p>Scores over runs (paper: reference points 3 cm, velocity ≈1 cm/s, ‖ω‖ 4.24 °/s, gyro 4.5). "
-            "Table: <a href='unknown_satellite_summary.csv'>unknown_satellite_summary.csv</a>.</p>" + table
-            + "".join(f'<p><img src="{f}" alt="{f}"></p>' for f in figs))
-    return [("Unknown satellite: scores and figures (Ivanov et al. Figs 5-7, 13-14)", body)]
+    return study_section(tables, Path(out_dir))

@@ -169,7 +169,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
 
 def report_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
-    """Report hook: figures like Figs 5-7 and 13-14 over the campaign and the score summary (HTML sections)."""
-    from renderlab.studies.unknown_satellite.figures import campaign_sections
+    """Report hook: the score tables, run flags and figures like Figs 5-7 and 13-14 over the campaign (one HTML
+    section, :mod:`renderlab.studies.unknown_satellite.report_section`; it reports ``stage2`` itself)."""
+    from renderlab.studies.unknown_satellite.report_section import study_section
 
-    return campaign_sections(tables, Path(out_dir))
+    return study_section(tables, Path(out_dir))
