@@ -189,7 +189,8 @@ def fig6_inertia(hist, scores, stem: Path) -> list[str]:
     ax[0].plot([], [], color=c2, label="I2/I3 (one line per run)")
     ax[0].axhline(0, color="k", lw=0.5)
     _int_ticks(ax[0])
-    ax[0].set(xlabel="accepted iterate (count)", ylabel="ratio error (dimensionless)", title="(a) convergence")
+    ax[0].set(xlabel="accepted iterate (count)", ylabel="ratio error (dimensionless)",
+              title="(a) convergence, principal axes as estimated")
     al = "ratio_I1_I3_aligned" in scores.column_names
     e1 = _np(scores, "ratio_I1_I3_aligned" if al else "ratio_I1_I3_est")
     e2 = _np(scores, "ratio_I2_I3_aligned" if al else "ratio_I2_I3_est")
