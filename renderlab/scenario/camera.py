@@ -61,16 +61,23 @@ def _fov_intrinsics(cam: dict[str, Any]) -> dict[str, Any]:
 class CameraConfig(_Strict):
     """Intrinsics in pixels (pixel centres are integers, (0, 0) is the top-left pixel's centre)."""
 
-    width: Annotated[int, Field(gt=0, le=16384)] = 256
-    height: Annotated[int, Field(gt=0, le=16384)] = 192
-    fx: Positive = 300.0
-    fy: Positive = 300.0
-    cx: Finite = 127.5
-    cy: Finite = 95.5
-    skew: Finite = 0.0
-    skew_yx: Finite = 0.0
-    model: Literal["pinhole", "brown", "owen", "opencv", "kannala_brandt"] = "pinhole"
-    distortion: dict[str, Finite] = {}
+    width: Annotated[int, Field(gt=0, le=16384)] = Field(256, description="Image width [px]")
+    height: Annotated[int, Field(gt=0, le=16384)] = Field(192, description="Image height [px]")
+    fx: Positive = Field(300.0, description="Focal length along image x (columns); or give fov_deg, or "
+                         "calibration_file [px]")
+    fy: Positive = Field(300.0, description="Focal length along image y (rows) [px]")
+    cx: Finite = Field(127.5, description="Principal point x; pixel centres are integers, (0, 0) is the top-left "
+                       "pixel's centre [px]")
+    cy: Finite = Field(95.5, description="Principal point y [px]")
+    skew: Finite = Field(0.0, description="Off-diagonal K[0, 1] of the pixel map (sample per unit y_d), OpenCV's "
+                         "skew [px]")
+    skew_yx: Finite = Field(0.0, description="Off-diagonal K[1, 0] (line per unit x_d), the Retina/Owen Kyx term; "
+                            "0 for OpenCV [px]")
+    model: Literal["pinhole", "brown", "owen", "opencv", "kannala_brandt"] = Field(
+        "pinhole", description="Distortion model (renderlab.geometry.camera.CameraModel)")
+    distortion: dict[str, Finite] = Field({}, description="Coefficients by name, missing ones 0 (brown: k1 k2 k3 "
+                                          "p1 p2; owen: e1..e6 in units of the focal length; opencv: k1 k2 p1 p2 "
+                                          "k3 k4 k5 k6 s1 s2 s3 s4 tau_x tau_y; kannala_brandt: k1 k2 k3 k4)")
 
     @model_validator(mode="before")
     @classmethod

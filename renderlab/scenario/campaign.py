@@ -40,19 +40,31 @@ class PerturbationConfig(Strict):
     the truth while the estimator keeps the nominal scenario values (a calibration/model error).
     """
 
-    position_sigma_m: NonNegVec3 = [0.0, 0.0, 0.0]  # truth camera/trajectory position, render frame
-    position_cov_m2: Matrix | None = None  # full 3x3 covariance; replaces position_sigma_m
-    velocity_sigma_mps: NonNegVec3 = [0.0, 0.0, 0.0]  # truth velocity (worlds with a dynamic state)
-    attitude_sigma_deg: NonNegative = 0.0  # truth pointing: rotation vector per camera axis
-    apriori_position_sigma_m: NonNegVec3 = [0.0, 0.0, 0.0]  # estimator prior error
-    apriori_velocity_sigma_mps: NonNegVec3 = [0.0, 0.0, 0.0]
-    apriori_attitude_sigma_deg: NonNegative = 0.0  # estimator prior pointing error, per camera axis
-    apriori_cov: Matrix | None = None  # full 6x6 [position m, velocity m/s]; replaces the two above
-    focal_length_sigma_frac: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = 0.0
-    principal_point_sigma_px: NonNegative = 0.0
-    distortion_sigma: dict[str, NonNegative] = {}  # absolute 1σ per coefficient (k1, k2, p1, ...)
-    maplet_spacing_sigma_frac: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = 0.0
-    sun_direction_sigma_deg: NonNegative = 0.0  # per axis of a small rotation of the sun vector
+    position_sigma_m: NonNegVec3 = Field([0.0, 0.0, 0.0], description="Truth camera/trajectory position 1σ per "
+                                         "axis, render frame [m]")
+    position_cov_m2: Matrix | None = Field(None, description="Full 3x3 truth position covariance; replaces "
+                                           "position_sigma_m [m²]")
+    velocity_sigma_mps: NonNegVec3 = Field([0.0, 0.0, 0.0], description="Truth velocity 1σ per axis (worlds with a "
+                                           "dynamic state) [m/s]")
+    attitude_sigma_deg: NonNegative = Field(0.0, description="Truth pointing 1σ: rotation vector per camera axis "
+                                            "[deg]")
+    apriori_position_sigma_m: NonNegVec3 = Field([0.0, 0.0, 0.0], description="Estimator prior position error 1σ "
+                                                 "per axis [m]")
+    apriori_velocity_sigma_mps: NonNegVec3 = Field([0.0, 0.0, 0.0], description="Estimator prior velocity error "
+                                                   "1σ per axis [m/s]")
+    apriori_attitude_sigma_deg: NonNegative = Field(0.0, description="Estimator prior pointing error 1σ, per "
+                                                    "camera axis [deg]")
+    apriori_cov: Matrix | None = Field(None, description="Full 6x6 prior covariance [position m, velocity m/s]; "
+                                       "replaces the two sigmas above [m², m²/s, m²/s²]")
+    focal_length_sigma_frac: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = Field(
+        0.0, description="Truth focal length 1σ, fraction of fx and fy (calibration error) [fraction]")
+    principal_point_sigma_px: NonNegative = Field(0.0, description="Truth principal point 1σ per axis [px]")
+    distortion_sigma: dict[str, NonNegative] = Field({}, description="Absolute 1σ per distortion coefficient "
+                                                     "(k1, k2, p1, ...) of the truth camera")
+    maplet_spacing_sigma_frac: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = Field(
+        0.0, description="Landmark resolution 1σ: relative error of the maplet spacing [fraction]")
+    sun_direction_sigma_deg: NonNegative = Field(0.0, description="Sun direction 1σ per axis of a small rotation "
+                                                 "of the sun vector [deg]")
 
     @model_validator(mode="after")
     def _covariances(self):
@@ -69,6 +81,8 @@ class CampaignConfig(Strict):
     ``target`` names the body a study measures where it needs one (``analytic_pointing``: a sphere).
     """
 
-    study: str = ""
-    seed: Seed = 0
-    target: str = ""
+    study: str = Field("", description="Registered study name (renderlab scenes lists them); empty: the world "
+                       "kind's default study")
+    seed: Seed = Field(0, description="Root seed: run i is seeded by SeedSequence(seed, spawn_key=(i,))")
+    target: str = Field("", description="Body the study measures where it needs one (analytic_pointing: a "
+                        "sphere's name)")

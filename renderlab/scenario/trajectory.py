@@ -16,17 +16,20 @@ class TrajectoryConfig(_Strict):
     ``range_m`` and ``elevation_deg`` from ``azimuth_start_deg`` to ``azimuth_end_deg``.
     The camera always looks at ``target_m`` with ``up`` toward the top of the image."""
 
-    kind: Literal["line", "orbit"] = "orbit"
-    frames: Annotated[int, Field(gt=0, le=100000)] = 1
-    dt_s: Positive = 1.0
-    target_m: Vec3 = [0.0, 0.0, 0.0]
-    up: Vec3 = [0.0, 0.0, 1.0]
-    start_m: Vec3 | None = None
-    end_m: Vec3 | None = None
-    range_m: Positive = 10.0
-    elevation_deg: Annotated[float, Field(gt=-90, lt=90, allow_inf_nan=False)] = 30.0
-    azimuth_start_deg: Finite = -90.0
-    azimuth_end_deg: Finite = -90.0
+    kind: Literal["line", "orbit"] = Field("orbit", description="line: from start_m to end_m; orbit: around "
+                                           "target_m at range_m and elevation_deg")
+    frames: Annotated[int, Field(gt=0, le=100000)] = Field(1, description="Number of frames")
+    dt_s: Positive = Field(1.0, description="Time between frames [s]")
+    target_m: Vec3 = Field([0.0, 0.0, 0.0], description="Point the camera looks at, render frame [m]")
+    up: Vec3 = Field([0.0, 0.0, 1.0], description="Direction toward the top of the image, render frame")
+    start_m: Vec3 | None = Field(None, description="line: first camera position, render frame (required) [m]")
+    end_m: Vec3 | None = Field(None, description="line: last camera position (default: start_m) [m]")
+    range_m: Positive = Field(10.0, description="orbit: distance from target_m [m]")
+    elevation_deg: Annotated[float, Field(gt=-90, lt=90, allow_inf_nan=False)] = Field(
+        30.0, description="orbit: elevation of the camera above target_m (height range_m·sin(elevation)) [deg]")
+    azimuth_start_deg: Finite = Field(-90.0, description="orbit: azimuth of the first frame, from +x toward +y "
+                                      "[deg]")
+    azimuth_end_deg: Finite = Field(-90.0, description="orbit: azimuth of the last frame [deg]")
 
     @model_validator(mode="after")
     def _line_fields(self):
@@ -61,27 +64,41 @@ class SourceTrajectoryConfig(_Strict):
     Positions interpolate by ``interpolation`` (cubic/linear), attitude by SLERP.
     """
 
-    kind: Literal["table", "ccsds", "spice"]
-    frames: Annotated[int, Field(gt=0, le=100000)] = 1
-    dt_s: Positive = 1.0
-    start_s: Finite = 0.0
-    times_s: Annotated[list[Finite], Field(min_length=1, max_length=100000)] | None = None
-    epoch_utc: str | None = None
-    frame: Annotated[str, Field(min_length=1)] | None = None
-    file: str | None = None
-    quaternion_order: Literal["xyzw", "wxyz"] | None = None
-    quaternion_direction: Literal["cam_to_frame", "frame_to_cam"] | None = None
-    oem: str | None = None
-    aem: str | None = None
-    kernels: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)] | None = None
-    observer: str | None = None
-    center: str | None = None
-    camera_frame: str | None = None
-    attitude: Literal["file", "look_at"] = "file"
-    target_m: Vec3 = [0.0, 0.0, 0.0]
-    up: Vec3 = [0.0, 0.0, 1.0]
-    camera_mount_quat_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] | None = None
-    interpolation: Literal["cubic", "linear"] = "cubic"
+    kind: Literal["table", "ccsds", "spice"] = Field(description="table: CSV/Parquet file; ccsds: OEM (+ AEM) "
+                                                     "KVN files; spice: SPICE kernels")
+    frames: Annotated[int, Field(gt=0, le=100000)] = Field(1, description="Number of frames")
+    dt_s: Positive = Field(1.0, description="Time between frames [s]")
+    start_s: Finite = Field(0.0, description="Time of frame 0 after epoch_utc (or on the table's time_s axis) [s]")
+    times_s: Annotated[list[Finite], Field(min_length=1, max_length=100000)] | None = Field(
+        None, description="Explicit frame times, strictly increasing; replaces frames/dt_s/start_s [s]")
+    epoch_utc: str | None = Field(None, description="ISO UTC epoch of time 0 (default: the source's first epoch; "
+                                  "required for spice)")
+    frame: Annotated[str, Field(min_length=1)] | None = Field(None, description="Reference frame of the positions "
+                                                              "as the source names it (spice: required)")
+    file: str | None = Field(None, description="table: CSV or Parquet with time_s or epoch, x_m y_m z_m, qx qy qz "
+                             "qw; relative to the scenario file")
+    quaternion_order: Literal["xyzw", "wxyz"] | None = Field(None, description="table: component order of the "
+                                                             "file's quaternions")
+    quaternion_direction: Literal["cam_to_frame", "frame_to_cam"] | None = Field(
+        None, description="table: the rotation the file's quaternions describe")
+    oem: str | None = Field(None, description="ccsds: OEM file (positions), KVN, relative to the scenario file")
+    aem: str | None = Field(None, description="ccsds: AEM file (attitude), KVN, relative to the scenario file")
+    kernels: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)] | None = Field(
+        None, description="spice: kernel files (or meta-kernels), relative to the scenario file")
+    observer: str | None = Field(None, description="ccsds/spice: the camera's body as the source spells it "
+                                 "(OEM OBJECT_NAME, checked; SPICE observer)")
+    center: str | None = Field(None, description="ccsds/spice: origin of frame (OEM CENTER_NAME, checked; SPICE "
+                               "center)")
+    camera_frame: str | None = Field(None, description="ccsds: the AEM's camera-side frame (checked); spice: the "
+                                     "camera's SPICE frame (attitude = file)")
+    attitude: Literal["file", "look_at"] = Field("file", description="file: the source's attitude; look_at: "
+                                                 "ignore it and point the camera at target_m with up up")
+    target_m: Vec3 = Field([0.0, 0.0, 0.0], description="look_at: point the camera looks at [m]")
+    up: Vec3 = Field([0.0, 0.0, 1.0], description="look_at: direction toward the top of the image")
+    camera_mount_quat_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] | None = Field(
+        None, description="Unit quaternion R_att_from_cam mounting the camera in the attitude file's frame")
+    interpolation: Literal["cubic", "linear"] = Field("cubic", description="Interpolation of the positions "
+                                                      "(attitude: SLERP); not for spice")
 
     @field_validator("epoch_utc", mode="before")
     @classmethod

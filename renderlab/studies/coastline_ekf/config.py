@@ -28,20 +28,27 @@ class CoastlineStudyConfig(Strict):
     with the a-priori state, and the matched LOS feed the same EKF.
     """
 
-    mode: Literal["geometric", "image"] = "geometric"
-    sigma_theta_mrad: Positive = 0.5               # filter's per-axis LOS σ (eq. 18)
-    points_per_image: Annotated[int, Field(ge=1, le=4096)] = 16
-    db_spacing_m: Annotated[float, Field(ge=100, allow_inf_nan=False)] = 2000.0  # geometric database thinning
-    duration_s: Positive | None = None             # geometric: None = one orbital period; image: trajectory.frames
-    process_noise_m2_s3: NonNegative = 0.0          # white-acceleration PSD q of the onboard model
-    filter_step_s: Positive = 10.0                  # RK4 step of the onboard propagation
+    mode: Literal["geometric", "image"] = Field("geometric", description="geometric: LOS to database points plus "
+                                                "angular noise (no rendering); image: rendered frames, extracted "
+                                                "coastline")
+    sigma_theta_mrad: Positive = Field(0.5, description="Filter's per-axis LOS σ (eq. 18) [mrad]")
+    points_per_image: Annotated[int, Field(ge=1, le=4096)] = Field(16, description="Matched points per image")
+    db_spacing_m: Annotated[float, Field(ge=100, allow_inf_nan=False)] = Field(
+        2000.0, description="Geometric database thinning: spacing of the database points [m]")
+    duration_s: Positive | None = Field(None, description="geometric: run length (None = one orbital period); "
+                                        "image: trajectory.frames [s]")
+    process_noise_m2_s3: NonNegative = Field(0.0, description="White-acceleration PSD q of the onboard model "
+                                             "[m²/s³]")
+    filter_step_s: Positive = Field(10.0, description="RK4 step of the onboard propagation [s]")
     # image mode
-    match_gate_px: Positive = 1.5                   # max distance of an inlier after registration
-    search_px: Positive = 40.0                      # max a-priori offset the registration searches
-    cloud_rejection: bool = True                    # drop edges next to bright, textured (cloud) pixels
-    sensor_noise: bool = True                       # re-expose the cached radiance with this run's noise
-    map_error_m: NonNegative | None = None          # None: world.coast_db_error_m; per-run map realisation
-    map_error_in_filter: bool = False               # filter models the map error as a shared per-image LOS term
+    match_gate_px: Positive = Field(1.5, description="image: max distance of an inlier after registration [px]")
+    search_px: Positive = Field(40.0, description="image: max a-priori offset the registration searches [px]")
+    cloud_rejection: bool = Field(True, description="image: drop edges next to bright, textured (cloud) pixels")
+    sensor_noise: bool = Field(True, description="image: re-expose the cached radiance with this run's noise")
+    map_error_m: NonNegative | None = Field(None, description="image: per-run map realisation 1σ (None: "
+                                            "world.coast_db_error_m) [m]")
+    map_error_in_filter: bool = Field(False, description="image: the filter models the map error as a shared "
+                                      "per-image LOS term")
 
 
 SUPPORTED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps")

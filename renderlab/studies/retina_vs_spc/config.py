@@ -21,9 +21,10 @@ from renderlab.config_types import NonNegative, Positive, Strict
 class WellMeasuredSubset(Strict):
     """The pre-declared well-measured subset (module docstring)."""
 
-    gsd_ratio_min: Positive = 0.5
-    gsd_ratio_max: Positive = 2.0
-    shadow_fraction_max: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.05
+    gsd_ratio_min: Positive = Field(0.5, description="Lowest GSD ratio (image GSD / maplet spacing) of the subset")
+    gsd_ratio_max: Positive = Field(2.0, description="Highest GSD ratio of the subset (>= gsd_ratio_min)")
+    shadow_fraction_max: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = Field(
+        0.05, description="Largest truth shadow fraction of a landmark in the subset [fraction]")
 
     @model_validator(mode="after")
     def _order(self):
@@ -36,9 +37,12 @@ class RetinaVsSpcConfig(Strict):
     """Options of study ``retina_vs_spc``."""
 
     methods: Annotated[list[Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]],
-                       Field(min_length=1, max_length=16)] = ["retina", "spc", "ncc_baseline"]
-    well_measured: WellMeasuredSubset = WellMeasuredSubset()
-    gross_error_px: NonNegative = 1.0   # |err| above this (per axis) counts as a gross error
+                       Field(min_length=1, max_length=16)] = Field(
+        ["retina", "spc", "ncc_baseline"], description="Registered landmark-method names, unique; every method sees "
+        "the same image, a-priori draw and beliefs")
+    well_measured: WellMeasuredSubset = Field(WellMeasuredSubset(), description="The pre-declared well-measured "
+                                              "subset the findings are stated for")
+    gross_error_px: NonNegative = Field(1.0, description="|err| above this (per axis) counts as a gross error [px]")
 
     @model_validator(mode="after")
     def _unique(self):

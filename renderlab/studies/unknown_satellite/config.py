@@ -24,17 +24,23 @@ class UnknownSatelliteStudyConfig(Strict):
     """Per-run dispersions and estimator settings of the ``unknown_satellite`` study."""
 
     # stage-1 initial-value errors not covered by [perturbations] (the estimator's a-priori guess)
-    apriori_omega_sigma_deg_s: NonNegative = 0.5     # per body axis
-    apriori_ratio_sigma_frac: Fraction = 0.1         # relative error of I1/I3 and I2/I3
-    range_prior_sigma_m: Positive = 0.05             # σ of the initial-range prior (and of its draw)
+    apriori_omega_sigma_deg_s: NonNegative = Field(0.5, description="Stage-1 initial body-rate error 1σ, per body "
+                                                   "axis [deg/s]")
+    apriori_ratio_sigma_frac: Fraction = Field(0.1, description="Stage-1 relative error of I1/I3 and I2/I3 "
+                                               "[fraction]")
+    range_prior_sigma_m: Positive = Field(0.05, description="σ of the initial-range prior (and of its draw) [m]")
     # truth dispersions (each run renders its own sequence when one of these is > 0)
-    tumble_rate_sigma_frac: Fraction = 0.0           # ‖ω0‖ scaled by (1 + δ), direction kept
-    initial_attitude_sigma_deg: NonNegative = 0.0    # q0 rotated by a random rotation vector (per axis)
+    tumble_rate_sigma_frac: Fraction = Field(0.0, description="Truth: ‖ω0‖ scaled by (1 + δ), direction kept; > 0 "
+                                             "renders per run [fraction]")
+    initial_attitude_sigma_deg: NonNegative = Field(0.0, description="Truth: q0 rotated by a random rotation vector "
+                                                    "(per axis); > 0 renders per run [deg]")
     # estimator settings
-    sigma_px: Positive = 0.3                         # whitening σ of stage 1 / stage 2
-    epsilon_px: Positive = 12.0                      # ε-neighbourhood of the tracker
-    min_track_frames: Annotated[int, Field(ge=2, le=10000)] = 5
-    max_nfev: Annotated[int, Field(ge=10, le=100000)] = 300
+    sigma_px: Positive = Field(0.3, description="Whitening σ of stage 1 / stage 2 [px]")
+    epsilon_px: Positive = Field(12.0, description="ε-neighbourhood of the tracker [px]")
+    min_track_frames: Annotated[int, Field(ge=2, le=10000)] = Field(5, description="Shortest track the estimator "
+                                                                    "uses [frames]")
+    max_nfev: Annotated[int, Field(ge=10, le=100000)] = Field(300, description="Stage-1 evaluation budget of the "
+                                                              "least-squares solver")
 
 
 #: conditions of a run, one boolean ``flag_<name>`` column each in the ``scores`` table (and named in its

@@ -24,11 +24,11 @@ class LandmarkTier(Strict):
     half a maplet apart; each maplet has ``size`` × ``size`` points spaced ``spacing_m``.
     """
 
-    name: str = Field(min_length=1)
-    count: Annotated[int, Field(ge=0, le=10000)]
-    spacing_m: Positive
-    size: Odd = 31
-    radius_m: Positive
+    name: str = Field(min_length=1, description="Tier name, unique (measurement tables name it)")
+    count: Annotated[int, Field(ge=0, le=10000)] = Field(description="Number of landmarks of the tier")
+    spacing_m: Positive = Field(description="Maplet point spacing, not finer than world.site.cell_m [m]")
+    size: Odd = Field(31, description="Maplet points per side (odd)")
+    radius_m: Positive = Field(description="Landmarks lie in a disc of this radius around the site centre [m]")
 
     @model_validator(mode="after")
     def _odd(self):
@@ -46,23 +46,31 @@ def _default_tiers() -> list[LandmarkTier]:
 class EV5Site(Strict):
     """The high-resolution landing site: a square DEM patch centred on the surface at (lat, lon)."""
 
-    lat_deg: Annotated[float, Field(ge=-80, le=80, allow_inf_nan=False)] = 20.0
-    lon_deg: Finite = 30.0
-    extent_m: Positive = 64.0
-    cell_m: Positive = 0.02
-    taper_m: Positive = 2.0  # border strip where the detail fades into the global surface
-    roughness_rms_m: NonNegative = 0.05  # fractal regolith roughness (all scales up to the patch)
-    roughness_hurst: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = 0.75
-    crater_density_per_m2: NonNegative = 0.01  # cumulative, craters wider than 1 m
-    crater_min_m: Positive = 0.3
-    crater_max_m: Positive = 8.0
-    boulder_density_per_m2: NonNegative = 0.02  # cumulative, boulders wider than 1 m
-    boulder_sfd_slope: Positive = 3.0  # N(>D) ∝ D^-slope
-    boulder_min_m: Positive = 0.15
-    boulder_max_m: Positive = 2.0
-    target_boulder_m: Annotated[float, Field(ge=2, le=4, allow_inf_nan=False)] = 3.0
-    albedo_rms: Fraction = 0.12  # relative albedo variation (correlated), besides per-boulder albedo
-    albedo_corr_m: Positive = 0.3
+    lat_deg: Annotated[float, Field(ge=-80, le=80, allow_inf_nan=False)] = Field(20.0, description="Latitude of "
+                                                                                 "the site centre [deg]")
+    lon_deg: Finite = Field(30.0, description="Longitude of the site centre [deg]")
+    extent_m: Positive = Field(64.0, description="Side of the square DEM patch, at least 20 cells [m]")
+    cell_m: Positive = Field(0.02, description="DEM cell size of the site [m]")
+    taper_m: Positive = Field(2.0, description="Border strip where the detail fades into the global surface, less "
+                              "than half of extent_m [m]")
+    roughness_rms_m: NonNegative = Field(0.05, description="Fractal regolith roughness (all scales up to the "
+                                         "patch) [m]")
+    roughness_hurst: Annotated[float, Field(gt=0, lt=1, allow_inf_nan=False)] = Field(
+        0.75, description="Hurst exponent of the fractal roughness")
+    crater_density_per_m2: NonNegative = Field(0.01, description="Cumulative density of craters wider than 1 m "
+                                               "[1/m²]")
+    crater_min_m: Positive = Field(0.3, description="Smallest crater diameter [m]")
+    crater_max_m: Positive = Field(8.0, description="Largest crater diameter [m]")
+    boulder_density_per_m2: NonNegative = Field(0.02, description="Cumulative density of boulders wider than 1 m "
+                                                "[1/m²]")
+    boulder_sfd_slope: Positive = Field(3.0, description="Boulder size-frequency slope: N(>D) ∝ D^-slope")
+    boulder_min_m: Positive = Field(0.15, description="Smallest boulder diameter [m]")
+    boulder_max_m: Positive = Field(2.0, description="Largest boulder diameter [m]")
+    target_boulder_m: Annotated[float, Field(ge=2, le=4, allow_inf_nan=False)] = Field(
+        3.0, description="Diameter of the boulder at the site (the sampling target) [m]")
+    albedo_rms: Fraction = Field(0.12, description="Relative albedo variation (correlated), besides per-boulder "
+                                 "albedo [fraction]")
+    albedo_corr_m: Positive = Field(0.3, description="Correlation length of the albedo variation [m]")
 
     @model_validator(mode="after")
     def _sizes(self):
@@ -78,35 +86,48 @@ class EV5Site(Strict):
 class EV5World(Strict):
     """Procedural 2008 EV5 (or a user's shape model) with a high-resolution landing site."""
 
-    kind: Literal["ev5"] = "ev5"
-    seed: Seed = 0  # the same seed makes the same body, site, catalog and maplets
+    kind: Literal["ev5"] = Field("ev5", description="World kind: procedural 2008 EV5 with a landing site")
+    seed: Seed = Field(0, description="The same seed makes the same body, site, catalog and maplets")
     # global shape: procedural (Busch et al. 2011) unless shape_file (OBJ, PLY or Gaskell ICQ) is given
-    shape_file: str | None = None  # relative to the scenario file
-    shape_file_units: Literal["m", "km"] = "km"
-    size_m: Vec3 = [420.0, 410.0, 390.0]  # full extents of the procedural body
-    ridge_height_m: NonNegative = 8.0
-    concavity_diameter_m: NonNegative = 150.0
-    concavity_depth_m: NonNegative = 15.0
-    concavity_lat_deg: Annotated[float, Field(ge=-90, le=90, allow_inf_nan=False)] = -15.0
-    concavity_lon_deg: Finite = 200.0
-    roughness_rms_m: NonNegative = 3.0  # global large-scale topography
-    global_craters: Annotated[int, Field(ge=0, le=5000)] = 300
-    facet_m: Positive = 1.0  # edge length of the global facets (icosphere level chosen from it)
+    shape_file: str | None = Field(None, description="Global shape model (OBJ, PLY or Gaskell ICQ), relative to "
+                                   "the scenario file; default: procedural (Busch et al. 2011)")
+    shape_file_units: Literal["m", "km"] = Field("km", description="Length unit of shape_file")
+    size_m: Vec3 = Field([420.0, 410.0, 390.0], description="Full extents of the procedural body [m]")
+    ridge_height_m: NonNegative = Field(8.0, description="Height of the equatorial ridge [m]")
+    concavity_diameter_m: NonNegative = Field(150.0, description="Diameter of the large concavity [m]")
+    concavity_depth_m: NonNegative = Field(15.0, description="Depth of the large concavity [m]")
+    concavity_lat_deg: Annotated[float, Field(ge=-90, le=90, allow_inf_nan=False)] = Field(
+        -15.0, description="Latitude of the concavity centre [deg]")
+    concavity_lon_deg: Finite = Field(200.0, description="Longitude of the concavity centre [deg]")
+    roughness_rms_m: NonNegative = Field(3.0, description="Global large-scale topography rms [m]")
+    global_craters: Annotated[int, Field(ge=0, le=5000)] = Field(300, description="Number of craters on the global "
+                                                                 "shape")
+    facet_m: Positive = Field(1.0, description="Edge length of the global facets (icosphere level chosen from it) "
+                              "[m]")
     # photometry: Hapke with C-type parameters (253 Mathilde, Clark et al. 1999); w = 0.085 gives a
     # normal albedo π r(0, 0, 0) ≈ 0.10 (C-type)
-    law: Literal["lambert", "lommel_seeliger", "mcewen", "hapke"] = "hapke"
-    law_params: dict[str, Finite] = {}
-    albedo: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = 0.085
-    albedo_rms: Fraction = 0.08  # relative albedo variation of the global surface
+    law: Literal["lambert", "lommel_seeliger", "mcewen", "hapke"] = Field(
+        "hapke", description="Photometric law; default Hapke with C-type parameters (253 Mathilde, Clark et al. "
+        "1999)")
+    law_params: dict[str, Finite] = Field({}, description="Parameters of the law by name (missing: the law's "
+                                          "defaults)")
+    albedo: Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)] = Field(
+        0.085, description="Albedo (Hapke w); 0.085 gives a normal albedo π r(0, 0, 0) ≈ 0.10 (C-type)")
+    albedo_rms: Fraction = Field(0.08, description="Relative albedo variation of the global surface [fraction]")
     # spin state (Busch et al. 2011): retrograde, P = 3.725 h, pole (λ, β) ≈ (180°, −84°)
-    rotation_period_h: Positive = 3.725
-    pole_lambda_deg: Finite = 180.0
-    pole_beta_deg: Annotated[float, Field(ge=-90, le=90, allow_inf_nan=False)] = -84.0
-    site: EV5Site = EV5Site()
-    landmarks: list[LandmarkTier] = Field(default_factory=_default_tiers)
-    mapping_error_m: NonNegative = 0.03  # rms of maplet height errors (the survey maps to 3 cm)
-    mapping_error_corr_cells: NonNegative = 1.0  # Gaussian correlation length of the error, maplet cells
-    albedo_error_rms: NonNegative = 0.02  # relative albedo error of the maplets
+    rotation_period_h: Positive = Field(3.725, description="Spin period (Busch et al. 2011: retrograde, 3.725 h) "
+                                        "[h]")
+    pole_lambda_deg: Finite = Field(180.0, description="Spin pole ecliptic longitude λ [deg]")
+    pole_beta_deg: Annotated[float, Field(ge=-90, le=90, allow_inf_nan=False)] = Field(
+        -84.0, description="Spin pole ecliptic latitude β [deg]")
+    site: EV5Site = Field(EV5Site(), description="The high-resolution landing site ([world.site])")
+    landmarks: list[LandmarkTier] = Field(default_factory=_default_tiers, description="Landmark tiers "
+                                          "([[world.landmarks]]); default: regional, approach, site")
+    mapping_error_m: NonNegative = Field(0.03, description="Rms of maplet height errors (the survey maps to 3 cm) "
+                                         "[m]")
+    mapping_error_corr_cells: NonNegative = Field(1.0, description="Gaussian correlation length of the mapping "
+                                                  "error [maplet cells]")
+    albedo_error_rms: NonNegative = Field(0.02, description="Relative albedo error of the maplets [fraction]")
 
     @model_validator(mode="after")
     def _tiers(self):
@@ -137,22 +158,30 @@ class EV5DescentTrajectory(Strict):
     carries its ``epoch_utc``.
     """
 
-    kind: Literal["ev5_descent"] = "ev5_descent"
-    start_altitude_m: Positive = 1000.0
-    waypoint_altitude_m: Positive = 200.0
-    spin_match_altitude_m: Positive = 50.0
-    final_altitude_m: Positive = 5.0
-    transfer_to_waypoint_s: Positive = 900.0
-    transfer_to_spin_match_s: Positive = 600.0
-    descent_rate_mps: Positive = 0.1
-    phase_deg: Annotated[float, Field(ge=0, lt=90, allow_inf_nan=False)] = 30.0
-    sun_azimuth_deg: Finite = 60.0
-    sampling: Literal["altitude", "rate"] = "altitude"
-    frames: Annotated[int, Field(gt=0, le=100000)] = 12
-    altitudes_m: list[Positive] | None = None
-    frame_rate_hz: Positive = 3.0
-    start_time_s: NonNegative = 0.0
-    epoch_utc: str | None = None
+    kind: Literal["ev5_descent"] = Field("ev5_descent", description="Trajectory kind: the EV5 descent")
+    start_altitude_m: Positive = Field(1000.0, description="Hold-point altitude above the site [m]")
+    waypoint_altitude_m: Positive = Field(200.0, description="Waypoint altitude, below start [m]")
+    spin_match_altitude_m: Positive = Field(50.0, description="Altitude where the spacecraft matches the spin, "
+                                            "below the waypoint [m]")
+    final_altitude_m: Positive = Field(5.0, description="Last altitude, below spin match [m]")
+    transfer_to_waypoint_s: Positive = Field(900.0, description="Duration start → waypoint [s]")
+    transfer_to_spin_match_s: Positive = Field(600.0, description="Duration waypoint → spin match [s]")
+    descent_rate_mps: Positive = Field(0.1, description="Descent rate below spin match, along the site normal "
+                                       "[m/s]")
+    phase_deg: Annotated[float, Field(ge=0, lt=90, allow_inf_nan=False)] = Field(
+        30.0, description="Sun phase angle at the spin-match time [deg]")
+    sun_azimuth_deg: Finite = Field(60.0, description="Sun azimuth from site east toward north at the spin-match "
+                                    "time [deg]")
+    sampling: Literal["altitude", "rate"] = Field("altitude", description="altitude: frames spread geometrically "
+                                                  "in altitude (or altitudes_m); rate: frames at frame_rate_hz")
+    frames: Annotated[int, Field(gt=0, le=100000)] = Field(12, description="Number of frames (ignored "
+                                                           "when altitudes_m is given)")
+    altitudes_m: list[Positive] | None = Field(None, description="Explicit frame altitudes within "
+                                               "final_altitude_m..start_altitude_m; replaces sampling [m]")
+    frame_rate_hz: Positive = Field(3.0, description="rate sampling: frames per second [Hz]")
+    start_time_s: NonNegative = Field(0.0, description="rate sampling: time of the first frame [s]")
+    epoch_utc: str | None = Field(None, description="ISO UTC epoch of time 0; each manifest frame then carries its "
+                                  "epoch_utc")
 
     @field_validator("epoch_utc", mode="before")
     @classmethod

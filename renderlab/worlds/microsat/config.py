@@ -26,21 +26,25 @@ class MicrosatWorld(Strict):
     """A Chibis-M-like microsatellite: bus, two solar panels, long thin antennas whose tips carry small
     bright knobs (the reference features). Body frame = principal axes, origin at the centre of mass."""
 
-    kind: Literal["microsat"] = "microsat"
-    seed: Seed = 0                                   # jitters the antenna directions (± antenna_jitter_deg)
-    bus_size_m: PositiveVec3 = [0.45, 0.45, 0.5]
-    panel_size_m: Annotated[list[Positive], Field(min_length=2, max_length=2)] = [0.45, 0.3]
-    n_antennas: Annotated[int, Field(ge=4, le=12)] = 6
-    antenna_length_m: Positive = 0.8
-    antenna_width_m: Positive = 0.012
-    antenna_jitter_deg: Annotated[float, Field(ge=0, le=20, allow_inf_nan=False)] = 5.0
-    knob_radius_m: Positive = 0.03
-    inertia_kg_m2: PositiveVec3 = [1.6, 2.1, 2.6]    # principal moments (body axes)
-    albedo_bus: Albedo = 0.12
-    albedo_panel: Albedo = 0.05
-    albedo_antenna: Albedo = 0.25
-    albedo_knob: Albedo = 0.9
-    sun_lvlh: Vec3 = [0.4, 0.7, 0.5]               # toward the sun at t = 0, chaser LVLH frame
+    kind: Literal["microsat"] = Field("microsat", description="World kind: a Chibis-M-like microsatellite")
+    seed: Seed = Field(0, description="Jitters the antenna directions (± antenna_jitter_deg)")
+    bus_size_m: PositiveVec3 = Field([0.45, 0.45, 0.5], description="Bus box extents, body axes [m]")
+    panel_size_m: Annotated[list[Positive], Field(min_length=2, max_length=2)] = Field(
+        [0.45, 0.3], description="Solar panel extents [m]")
+    n_antennas: Annotated[int, Field(ge=4, le=12)] = Field(6, description="Number of antennas (knob tips are the "
+                                                           "reference features)")
+    antenna_length_m: Positive = Field(0.8, description="Antenna length [m]")
+    antenna_width_m: Positive = Field(0.012, description="Antenna width [m]")
+    antenna_jitter_deg: Annotated[float, Field(ge=0, le=20, allow_inf_nan=False)] = Field(
+        5.0, description="Seeded jitter of the antenna directions [deg]")
+    knob_radius_m: Positive = Field(0.03, description="Radius of the bright knob at each antenna tip [m]")
+    inertia_kg_m2: PositiveVec3 = Field([1.6, 2.1, 2.6], description="Principal moments of inertia (body axes), "
+                                        "triangle inequality [kg·m²]")
+    albedo_bus: Albedo = Field(0.12, description="Albedo of the bus")
+    albedo_panel: Albedo = Field(0.05, description="Albedo of the solar panels")
+    albedo_antenna: Albedo = Field(0.25, description="Albedo of the antennas")
+    albedo_knob: Albedo = Field(0.9, description="Albedo of the antenna-tip knobs")
+    sun_lvlh: Vec3 = Field([0.4, 0.7, 0.5], description="Toward the sun at t = 0, chaser LVLH frame (non-zero)")
 
     @model_validator(mode="after")
     def _checks(self):
@@ -62,18 +66,25 @@ class SeparationTrajectory(Strict):
     the absolute body rate ``omega0_body_deg_s``.
     """
 
-    kind: Literal["separation"] = "separation"
-    frames: Annotated[int, Field(gt=0, le=100000)] = 100
-    dt_s: Positive = 0.1
-    altitude_m: Annotated[float, Field(gt=100e3, lt=50000e3, allow_inf_nan=False)] = 600e3
-    r0_lvlh_m: Vec3 = [0.05, -4.6, 0.05]
-    v0_lvlh_mps: Vec3 = [0.01, -0.12, 0.005]
-    q0_lvlh_from_body_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] = [0.2, -0.1, 0.3, 0.93]
-    omega0_body_deg_s: Vec3 = [1.5, 3.6, 1.5]
-    camera_offset_lvlh_m: Vec3 = [0.0, -0.6, 0.0]
-    camera_boresight_lvlh: Vec3 = [0.0, -1.0, 0.0]
-    camera_up_lvlh: Vec3 = [1.0, 0.0, 0.0]
-    attitude_substeps: Annotated[int, Field(ge=1, le=1000)] = 10
+    kind: Literal["separation"] = Field("separation", description="Trajectory kind: Clohessy-Wiltshire motion "
+                                        "after separation")
+    frames: Annotated[int, Field(gt=0, le=100000)] = Field(100, description="Number of frames")
+    dt_s: Positive = Field(0.1, description="Time between frames [s]")
+    altitude_m: Annotated[float, Field(gt=100e3, lt=50000e3, allow_inf_nan=False)] = Field(
+        600e3, description="Circular orbit altitude of the chaser (mean motion, gravity gradient) [m]")
+    r0_lvlh_m: Vec3 = Field([0.05, -4.6, 0.05], description="Target position at the first frame, relative to the "
+                            "chaser's centre of mass, LVLH [m]")
+    v0_lvlh_mps: Vec3 = Field([0.01, -0.12, 0.005], description="Target velocity at the first frame, LVLH [m/s]")
+    q0_lvlh_from_body_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] = Field(
+        [0.2, -0.1, 0.3, 0.93], description="Target attitude at the first frame (normalised), x y z w")
+    omega0_body_deg_s: Vec3 = Field([1.5, 3.6, 1.5], description="Absolute body rate of the target at the first "
+                                    "frame, body axes [deg/s]")
+    camera_offset_lvlh_m: Vec3 = Field([0.0, -0.6, 0.0], description="Camera position on the chaser from its "
+                                       "centre of mass, LVLH [m]")
+    camera_boresight_lvlh: Vec3 = Field([0.0, -1.0, 0.0], description="Camera boresight, LVLH (non-zero)")
+    camera_up_lvlh: Vec3 = Field([1.0, 0.0, 0.0], description="Toward the top of the image, LVLH (non-zero)")
+    attitude_substeps: Annotated[int, Field(ge=1, le=1000)] = Field(10, description="Attitude integration steps "
+                                                                    "per frame interval")
 
     @model_validator(mode="after")
     def _checks(self):
