@@ -75,7 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=_nonneg_int, metavar="S", help="override render.seed")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="override a scenario key (TOML value), e.g. --set camera.width=128; repeatable")
-    r.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
+    r.add_argument("--overwrite", action="store_true", help="replace DIR (and the --save-blend file) if it exists")
+    r.add_argument("--save-blend", metavar="FILE.blend",
+                   help="also save the first frame's Blender scene (Cycles only), to open in Blender's GUI")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
     for module in dict.fromkeys(_extra_commands().values()):  # one add_parser per module (report adds publish)
@@ -92,11 +94,21 @@ def cmd_render(args) -> int:
     from renderlab.scenario import load_scenario
 
     scenario, base = load_scenario(args.scenario, args.overrides)
-    out = render_truthset(
-        scenario, base, Path(args.out), frames=args.frames, seed=args.seed, renderer=args.renderer,
-        progress=not args.quiet, overwrite=args.overwrite,
-    )
+    from renderlab.render.cycles_backend import check_blend_target, saving_blend
+
+    blend = None
+    if getattr(args, "save_blend", None):
+        blend = check_blend_target(args.save_blend, args.renderer or scenario.render.renderer,
+                                   overwrite=args.overwrite)
+    with saving_blend(blend) as saved:
+        out = render_truthset(
+            scenario, base, Path(args.out), frames=args.frames, seed=args.seed, renderer=args.renderer,
+            progress=not args.quiet, overwrite=args.overwrite,
+        )
     print(f"renderlab: wrote truth set {out}")
+    if saved is not None:
+        print(f"renderlab: saved the Blender scene of the first frame to {blend}" if saved["saved"] else
+              f"renderlab: warning: no Cycles frame was rendered, {blend} not written")
     return 0
 
 

@@ -26,14 +26,20 @@ pickle, multilayer float EXR). Mapping to the lab's conventions:
 * Shapes: Mitsuba's sphere is analytic; here it is a smooth-shaded latitude-longitude mesh
   (``SPHERE_SEGMENTS`` × ``SPHERE_SEGMENTS/2``, exact radial vertex normals): the facets lie inside the
   sphere by at most R(1 − cos(π/SPHERE_SEGMENTS)) ≈ 1.9e-5 R. Box and plane are exact; trimesh bodies
-  keep their flat facets, per-vertex albedo (a float point attribute) and uv + albedo map.
-  Albedo maps on sphere/box/plane and mesh files are not supported yet (UserError).
+  keep their flat facets (or their ``vertex_normals``, smooth), per-vertex albedo (a float point
+  attribute) and uv + albedo map. Mesh files (OBJ/PLY/STL/GLB) are read by :mod:`renderlab.render.mesh_io`
+  into the same arrays. Albedo maps on sphere/box/plane are not supported yet (UserError).
+* ``--save-blend`` (:func:`saving_blend`): the worker saves the first frame's scene as a .blend after
+  rendering it (OSL source embedded, images packed, relative paths; coordinates are the float32 local
+  ones around ``origin_m``).
 * Blender objects are float32: coordinates of magnitude X keep ≈ X·6e-8 m. Like the Mitsuba backend,
   geometry and camera are built around ``SceneDescription.origin_m`` (shifted in float64; P shifted back).
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import json
 import os
 import shutil
@@ -45,6 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.render.mesh_io import mesh_body
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 
 OSL_PATH = Path(__file__).parent / "osl" / "rl_photometry.osl"
@@ -114,7 +121,20 @@ def _box():
 
 
 def body_mesh(body: BodySpec) -> dict:
-    """Render-frame triangle mesh arrays of a body: ``v``, ``f`` and optional ``n``, ``va``, ``uv``, ``map``."""
+    """Render-frame triangle mesh arrays of a body: ``v``, ``f`` and optional ``n``, ``va``, ``uv``, ``map``.
+
+    Parameters
+    ----------
+    body : BodySpec
+        Any body; a mesh file (``shape = "mesh"``) is read by :mod:`renderlab.render.mesh_io`.
+
+    Returns
+    -------
+    dict
+        ``v`` (V, 3) render-frame vertices, ``f`` (F, 3) triangles, ``n`` (V, 3) render-frame vertex normals
+        (smooth shading), ``va`` per-vertex albedo, ``uv`` texture coordinates, ``map`` albedo map.
+    """
+    body = mesh_body(body)
     R, c = np.asarray(body.R_render_from_body, float), np.asarray(body.center_m, float)
     out: dict = {}
     if body.albedo_map is not None and not (body.shape == "trimesh" and body.vertex_uv is not None):
@@ -139,12 +159,72 @@ def body_mesh(body: BodySpec) -> dict:
             out["uv"] = np.asarray(body.vertex_uv, np.float32)
         if body.albedo_map is not None:
             out["map"] = np.asarray(body.albedo_map, np.float32)
+        if body.vertex_normals is not None:
+            out["n"] = np.asarray(body.vertex_normals, np.float64) @ R.T
     else:
-        raise UserError(f"cycles backend: body '{body.name}': shape '{body.shape}' is not supported yet "
-                        "(sphere, box, plane and trimesh are)")
+        raise UserError(f"cycles backend: body '{body.name}': shape '{body.shape}' is not supported "
+                        "(sphere, box, plane, mesh and trimesh are)")
     out["v"] = V @ R.T + c
     out["f"] = np.asarray(F, np.int64)
     return out
+
+
+#: while set ({"path": str, "saved": bool}), the next frame a CyclesBackend renders is also saved as a .blend
+_SAVE_BLEND: contextvars.ContextVar[dict | None] = contextvars.ContextVar("renderlab_save_blend", default=None)
+
+
+def check_blend_target(path: str | Path, renderer: str, *, overwrite: bool = False) -> Path:
+    """The absolute path for ``--save-blend``, or a one-line UserError.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Requested ``.blend`` file.
+    renderer : str
+        The renderer the command will use (must be ``cycles``).
+    overwrite : bool
+        Whether an existing file may be replaced.
+
+    Returns
+    -------
+    pathlib.Path
+        The resolved path (its folder exists).
+    """
+    if renderer != "cycles":
+        raise UserError(f"--save-blend needs the Cycles renderer (--renderer cycles); this render uses '{renderer}'")
+    target = Path(path).expanduser().resolve()
+    if target.suffix.lower() != ".blend":
+        raise UserError(f"--save-blend: {Path(path).name} must end in .blend")
+    if not target.parent.is_dir():
+        raise UserError(f"--save-blend: folder {target.parent} does not exist")
+    if target.is_dir() or (target.exists() and not overwrite):
+        raise UserError(f"--save-blend: {target} already exists (pass --overwrite to replace it)")
+    return target
+
+
+@contextlib.contextmanager
+def saving_blend(path: Path | None):
+    """Within this block, the first frame any :class:`CyclesBackend` renders is also saved to ``path``.
+
+    Parameters
+    ----------
+    path : pathlib.Path or None
+        Absolute ``.blend`` path; None makes the block a no-op.
+
+    Yields
+    ------
+    dict or None
+        ``{"path": str, "saved": bool}``: ``saved`` turns True once the worker wrote the file.
+    """
+    if path is None:
+        yield None
+        return
+    state = {"path": str(path), "saved": False}
+    token = _SAVE_BLEND.set(state)
+    try:
+        yield state
+    finally:
+        _SAVE_BLEND.reset(token)
 
 
 def _read_multilayer(path: Path) -> dict[str, np.ndarray]:
@@ -281,12 +361,17 @@ class CyclesBackend:
             "far_clip_m": self.settings.far_clip_m,
             "renders": renders,
         }
+        save = _SAVE_BLEND.get()
+        if save is not None and not save["saved"]:
+            job["save_blend"] = save["path"]
         (self.workdir / f"{tag}.json").write_text(json.dumps(job))
         if self._proc is None or self._proc.poll() is not None:
             raise RuntimeError("Cycles worker is not running")
         self._proc.stdin.write(f"{tag}.json\n")
         self._proc.stdin.flush()
         self._expect("done")
+        if "save_blend" in job:
+            save["saved"] = True
         centre = _read_multilayer(self.workdir / renders[0]["exr"])
         beauty = _read_multilayer(self.workdir / renders[-1]["exr"])
         for r in renders:

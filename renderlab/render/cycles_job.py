@@ -5,7 +5,8 @@ from ``WORKDIR/scene.json`` + ``WORKDIR/scene.npz`` (written by :mod:`renderlab.
 no pickle), then renders one frame per line read on stdin: the line names a frame JSON file in
 WORKDIR; each render it lists is written as a multilayer float EXR. Protocol lines go to the
 original stdout, prefixed ``RLJOB``: ``ready <blender version>``, ``done <frame file>``,
-``error <message>``. Blender's own chatter goes to ``WORKDIR/worker.log``.
+``error <message>``. Blender's own chatter goes to ``WORKDIR/worker.log``. A frame JSON with
+``save_blend`` also saves the scene as a .blend file after rendering (:func:`save_blend`).
 
 Cycles settings that would corrupt truth are all set explicitly: Standard view transform and linear
 float EXR, box pixel filter (width from the job: 1 px for radiance, 0.01 px ≈ the pixel centre for the
@@ -120,12 +121,12 @@ def _material(bpy, body: dict, arrays, osl_path: str, has_attr: bool, has_map: b
         amap = np.asarray(arrays[f"map_{k}"], np.float32)
         h, w = amap.shape
         img = bpy.data.images.new(f"rl_map_{k}", w, h, float_buffer=True, is_data=True)
+        img.colorspace_settings.is_data = True  # before the pixels: changing it regenerates (blanks) the image
         rgba = np.repeat(amap[..., None], 4, axis=2)
         rgba[..., 3] = 1.0
         # map row 0 goes to Blender's pixel row 0 (its v in [0, 1/h]); with uv passed unchanged the
         # texel centre of map (row, col) is at u = (col + 1/2)/w, v = (row + 1/2)/h, the lab's convention
         img.pixels.foreach_set(rgba.ravel())
-        img.colorspace_settings.is_data = True
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
         tex.interpolation = "Linear"
@@ -223,6 +224,52 @@ def render_frame(bpy, sc, scripts, sun, cam, job: dict, workdir: Path) -> None:
         bpy.ops.render.render(write_still=True)
 
 
+def _set_path(owner, attr: str, value: str) -> None:
+    """Set a fixed-size path field, overwriting the old bytes (Blender saves the whole buffer, old tail too)."""
+    setattr(owner, attr, " " * 1000)
+    setattr(owner, attr, value)
+
+
+def _embed_script(bpy, scr) -> None:
+    """Switch an external OSL script node to an internal text block (same source, same input values)."""
+    import cycles.osl as cycles_osl
+
+    src = Path(bpy.path.abspath(scr.filepath))
+    text = bpy.data.texts.get(src.name) or bpy.data.texts.new(src.name)
+    text.from_string(src.read_text())
+    values = {s.name: (tuple(s.default_value) if hasattr(s.default_value, "__len__") else s.default_value)
+              for s in scr.inputs if hasattr(s, "default_value")}
+    scr.mode = "INTERNAL"
+    scr.script = text
+    _set_path(scr, "filepath", "")
+    errors = []
+    if not cycles_osl.update_script_node(scr, lambda kind, msg: errors.append(msg)):
+        raise RuntimeError(f"OSL compile of the embedded {src.name} failed: {'; '.join(errors)}")
+    for name, value in values.items():
+        if name in scr.inputs:
+            scr.inputs[name].default_value = value
+
+
+def save_blend(bpy, sc, scripts, path: str) -> None:
+    """Save the scene as this frame rendered it to ``path`` (a .blend a user opens in Blender's GUI).
+
+    Nothing in it points into the worker's temporary folder: the OSL shader source is embedded as a
+    text block, generated albedo-map images are packed, the output path is relative (``//``) and
+    remaining paths are remapped relative to the file. No ``.blend1`` backup is written.
+    """
+    for scr in scripts:
+        if scr.mode == "EXTERNAL":
+            _embed_script(bpy, scr)
+    for img in bpy.data.images:
+        if img.packed_file is None and img.source in ("GENERATED", "FILE") and img.has_data:
+            img.pack()
+    bpy.ops.file.pack_all()
+    _set_path(sc.render, "filepath", "//" + Path(path).stem + "_")
+    bpy.context.preferences.filepaths.save_version = 0
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), relative_remap=True, copy=True, compress=False,
+                                check_existing=False)
+
+
 def main(argv=None) -> int:
     workdir = Path((argv or sys.argv[1:])[0])
     proto = os.fdopen(os.dup(1), "w", buffering=1)
@@ -243,6 +290,8 @@ def main(argv=None) -> int:
         try:
             job = json.loads((workdir / name).read_text())
             render_frame(bpy, sc, scripts, sun, cam, job, workdir)
+            if job.get("save_blend"):
+                save_blend(bpy, sc, scripts, job["save_blend"])
             proto.write(f"RLJOB done {name}\n")
         except Exception as exc:  # noqa: BLE001
             proto.write(f"RLJOB error {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}\n")

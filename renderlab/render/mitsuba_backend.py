@@ -18,6 +18,9 @@ through :meth:`CameraModel.unproject` in float64 and becomes a Mitsuba ray. Mits
 * Clip planes are planar, like a camera's: a ray starts at depth ``near_clip_m`` and ends at
   depth ``far_clip_m`` along the boresight.
 * The scene is loaded once; per frame only the sun (``mi.traverse``) and the rays change.
+* Meshes are built from arrays (``mi.Mesh``): in-memory ``trimesh`` bodies, and mesh files read by
+  :mod:`renderlab.render.mesh_io` (Mitsuba never parses a mesh file itself); ``vertex_normals`` give
+  smooth shading, else facets are flat.
 * Geometry and rays are built around ``SceneDescription.origin_m`` (shifted in float64, P shifted
   back): Mitsuba offsets shadow-ray origins by (1 + max|p|)·8.9e-5 m (``RayEpsilon``), which at
   200 m coordinates (≈2 cm) lets sunlight leak under 5 cm relief at grazing incidence.
@@ -28,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.render.mesh_io import mesh_body
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 from renderlab.render.variant import init_mitsuba
 
@@ -91,6 +95,7 @@ class MitsubaBackend:
         for body in scene.bodies:
             key = f"body{body.body_id}"
             keys[key] = body.body_id
+            body = mesh_body(body)  # a mesh file → in-memory arrays (renderlab.render.mesh_io)
             desc[key] = self._trimesh(body, key) if body.shape == "trimesh" else {**self._shape_dict(body), "id": key}
         # optimize=False: no merging of meshes that share a BSDF (each body keeps its own id)
         self.scene = mi.load_dict(desc, optimize=False)
@@ -131,11 +136,14 @@ class MitsubaBackend:
             albedo = self._albedo_texture(body)
         props = mi.Properties()
         props["bsdf"] = mi.load_dict(bsdf_dict(body.law, albedo))
-        has_uv = body.vertex_uv is not None
-        mesh = mi.Mesh(key, len(V), len(F), props=props, has_vertex_texcoords=has_uv)
+        has_uv, has_n = body.vertex_uv is not None, body.vertex_normals is not None
+        mesh = mi.Mesh(key, len(V), len(F), props=props, has_vertex_normals=has_n, has_vertex_texcoords=has_uv)
         params = mi.traverse(mesh)
         params["vertex_positions"] = type(params["vertex_positions"])(_aligned_f32(V))
         params["faces"] = type(params["faces"])(F.ravel())
+        if has_n:  # smooth shading: body-frame unit normals rotated into the render frame
+            params["vertex_normals"] = type(params["vertex_normals"])(
+                _aligned_f32(np.asarray(body.vertex_normals, np.float64) @ body.R_render_from_body.T))
         if has_uv:
             params["vertex_texcoords"] = type(params["vertex_texcoords"])(_aligned_f32(body.vertex_uv))
         if body.vertex_albedo is not None:
@@ -156,15 +164,7 @@ class MitsubaBackend:
         elif body.shape == "plane":
             sx, sy = body.size_m
             d = {"type": "rectangle", "to_world": mi.ScalarTransform4f(_transform4(R, c, [sx / 2, sy / 2, 1.0]))}
-        elif body.shape == "mesh":
-            kind = "ply" if str(body.mesh_path).lower().endswith(".ply") else "obj"
-            d = {
-                "type": kind,
-                "filename": str(body.mesh_path),
-                "face_normals": bool(body.face_normals),
-                "to_world": mi.ScalarTransform4f(_transform4(R, c, 1.0)),
-            }
-        else:  # validated upstream
+        else:  # validated upstream (mesh files arrive as trimesh bodies)
             raise ValueError(body.shape)
         d["bsdf"] = bsdf_dict(body.law, self._albedo_texture(body))
         return d

@@ -24,10 +24,12 @@ class BodySpec:
     """A rigid body: ``p_render = R_render_from_body @ p_body + center_m``.
 
     ``shape`` is ``sphere`` (``radius_m``), ``box`` (``size_m`` = 3 edge lengths), ``plane``
-    (``size_m`` = 2 edge lengths, normal +z of the body frame), ``mesh`` (``mesh_path``, OBJ/PLY,
-    vertices in metres in the body frame) or ``trimesh`` (in-memory ``vertices`` (V, 3) float64 in
-    metres in the body frame and ``faces`` (F, 3) int, counter-clockwise seen from outside; flat
-    facets). ``albedo_map`` (H, W) multiplies ``albedo`` through the surface's uv coordinates;
+    (``size_m`` = 2 edge lengths, normal +z of the body frame), ``mesh`` (``mesh_path``: an OBJ, PLY,
+    STL or GLB file in metres in the body frame, read by :mod:`renderlab.render.mesh_io`, which both
+    backends turn into the ``trimesh`` form; ``face_normals`` False shades it smooth) or ``trimesh``
+    (in-memory ``vertices`` (V, 3) float64 in metres in the body frame and ``faces`` (F, 3) int,
+    counter-clockwise seen from outside; flat facets unless ``vertex_normals`` (V, 3) unit normals in the
+    body frame are given). ``albedo_map`` (H, W) multiplies ``albedo`` through the surface's uv coordinates;
     ``vertex_albedo`` (V,) multiplies it per vertex of a trimesh (interpolated over each facet);
     ``vertex_uv`` (V, 2) gives a trimesh texture coordinates for ``albedo_map`` (u → map column left to
     right, v → map row top to bottom: the centre of map pixel (row, col) is at u = (col + ½)/W,
@@ -50,6 +52,7 @@ class BodySpec:
     faces: np.ndarray | None = None
     vertex_albedo: np.ndarray | None = None
     vertex_uv: np.ndarray | None = None
+    vertex_normals: np.ndarray | None = None
 
     def state(self) -> dict:
         """JSON-able true state for the manifest."""

@@ -42,7 +42,9 @@ class BodyConfig(_Strict):
     rotation_deg: Vec3 = [0.0, 0.0, 0.0]  # intrinsic xyz Euler angles of the body frame
     radius_m: Positive | None = None  # sphere
     size_m: list[Positive] | None = None  # box: [x, y, z]; plane: [x, y]
-    file: str | None = None  # mesh: OBJ or PLY, relative to the scenario file
+    file: str | None = None  # mesh: OBJ, PLY, STL or GLB (renderlab.render.mesh_io), relative to the scenario file
+    units: Literal["m", "km", "cm"] | None = None  # mesh: length unit of the file (default m)
+    normals: Literal["flat", "smooth"] | None = None  # mesh: facet or area-weighted vertex normals (default flat)
     law: Literal["lambert", "lommel_seeliger", "mcewen", "hapke"] = "lambert"
     law_params: dict[str, Finite] = {}
     albedo: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.3
@@ -57,6 +59,8 @@ class BodyConfig(_Strict):
             raise ValueError("box size_m needs 3 values [x, y, z]")
         if self.shape == "plane" and len(self.size_m) != 2:
             raise ValueError("plane size_m needs 2 values [x, y]")
+        if self.shape != "mesh" and (self.units is not None or self.normals is not None):
+            raise ValueError("'units' and 'normals' apply to shape 'mesh' only")
         return self
 
 

@@ -2,6 +2,9 @@
 
 They prove the renderers: a Lambert sphere in sunlight has radiance A·E·cos(i)/π, a box on a
 plane casts a shadow whose edge is the projection of the box's edge along the sun direction.
+
+User meshes (``shape = "mesh"``: OBJ, PLY, STL or GLB, ``units``, ``normals``) are read by
+:mod:`renderlab.render.mesh_io` into in-memory triangle meshes, which every backend renders.
 """
 
 from __future__ import annotations
@@ -35,17 +38,38 @@ def load_albedo_map(path: Path) -> np.ndarray:
     return img
 
 
+def _mesh_arrays(b, k: int, base_dir: Path) -> dict:
+    """BodySpec fields of a ``shape = "mesh"`` body: the file read by :func:`renderlab.render.mesh_io.load_mesh`."""
+    from renderlab.render.mesh_io import load_mesh
+
+    where = f"world.bodies.{k}.file"
+    mesh = load_mesh((base_dir / b.file).resolve(), units=b.units or "m", normals=b.normals or "flat", where=where)
+    if b.albedo_map and mesh.vertex_uv is None:
+        raise UserError(f"world.bodies.{k}.albedo_map: {mesh.source} has no texture coordinates to map it with")
+    return {"shape": "trimesh", "vertices": mesh.vertices, "faces": mesh.faces,
+            "vertex_normals": mesh.vertex_normals, "vertex_uv": mesh.vertex_uv if b.albedo_map else None,
+            "face_normals": mesh.vertex_normals is None}
+
+
 def build_scene(world, base_dir: Path) -> SceneDescription:
-    """Scene description of a :class:`renderlab.scenario.AnalyticWorld` (ids follow the body order)."""
+    """Scene description of a :class:`renderlab.scenario.AnalyticWorld` (ids follow the body order).
+
+    Parameters
+    ----------
+    world : AnalyticWorld
+        The validated world section.
+    base_dir : pathlib.Path
+        Folder that mesh and albedo-map paths are relative to.
+
+    Returns
+    -------
+    SceneDescription
+        One body per entry; ``shape = "mesh"`` bodies arrive as in-memory ``trimesh`` bodies (vertices in
+        metres after ``units``, ``normals`` flat or smooth), the same array path every backend renders.
+    """
     bodies = []
     for k, b in enumerate(world.bodies):
-        mesh_path = None
-        if b.shape == "mesh":
-            mesh_path = (base_dir / b.file).resolve()
-            if not mesh_path.is_file():
-                raise UserError(f"world.bodies.{k}.file: mesh not found: {b.file}")
-            if mesh_path.suffix.lower() not in (".obj", ".ply"):
-                raise UserError(f"world.bodies.{k}.file: only OBJ and PLY meshes are supported, got {b.file}")
+        mesh = _mesh_arrays(b, k, base_dir) if b.shape == "mesh" else {"shape": b.shape}
         amap = load_albedo_map((base_dir / b.albedo_map).resolve()) if b.albedo_map else None
         try:
             law = make_law(b.law, **b.law_params)
@@ -55,15 +79,14 @@ def build_scene(world, base_dir: Path) -> SceneDescription:
             BodySpec(
                 name=b.name,
                 body_id=k,
-                shape=b.shape,
                 center_m=np.asarray(b.center_m, float),
                 R_render_from_body=Rotation.from_euler("xyz", b.rotation_deg, degrees=True).as_matrix(),
                 law=law,
                 albedo=b.albedo,
                 radius_m=b.radius_m,
                 size_m=tuple(b.size_m) if b.size_m else None,
-                mesh_path=mesh_path,
                 albedo_map=amap,
+                **mesh,
             )
         )
     return SceneDescription(bodies=bodies, render_frame={"name": "SCENE"})

@@ -13,9 +13,9 @@ concavity centre (θ_c = D_cav / 2 / R), and random plane waves with a power-law
 subdivided icosahedron (level chosen so the mean edge ≤ ``facet_m``) are pushed to r(u)·u.
 Seeded: the same ``world.seed`` makes the same arrays.
 
-A user's model replaces it: Wavefront OBJ (``v``/``f`` records), PLY (ASCII or binary
-little-endian, ``vertex`` x y z and ``face`` vertex_indices) or Gaskell ICQ (q, then 6 faces of
-(q+1)² vertices, km). Units per ``shape_file_units``.
+A user's model replaces it: OBJ, PLY (ASCII or binary), STL or GLB through the lab's one mesh reader
+(:mod:`renderlab.render.mesh_io`: polygons triangulated, degenerate faces removed), or Gaskell ICQ (q, then
+6 faces of (q+1)² vertices, km; read here). Units per ``shape_file_units``.
 """
 
 from __future__ import annotations
@@ -166,87 +166,6 @@ def procedural_shape(world, rng: np.random.Generator) -> GlobalShape:
 
 
 # ------------------------------------------------------------------------------- user models
-def _read_obj(path: Path):
-    verts, faces = [], []
-    for line in path.read_text(errors="replace").splitlines():
-        parts = line.split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            verts.append([float(x) for x in parts[1:4]])
-        elif parts[0] == "f":
-            idx = [int(p.split("/")[0]) for p in parts[1:]]
-            idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
-            faces.extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
-    return np.array(verts, float), np.array(faces, np.int64)
-
-
-def _read_ply(path: Path):
-    data = path.read_bytes()
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise ValueError("not a PLY file")
-    header = data[:end].decode("ascii", "replace").splitlines()
-    body = data[data.index(b"\n", end) + 1:]
-    fmt = next(line.split()[1] for line in header if line.startswith("format"))
-    elements, cur = [], None
-    for line in header:
-        p = line.split()
-        if p[:1] == ["element"]:
-            cur = [p[1], int(p[2]), []]
-            elements.append(cur)
-        elif p[:1] == ["property"] and cur is not None:
-            cur[2].append(p[1:])
-    types = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
-             "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-             "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
-    verts = faces = None
-    if fmt == "ascii":
-        tokens = iter(body.decode("ascii", "replace").split())
-        for name, count, props in elements:
-            rows = []
-            for _ in range(count):
-                row = []
-                for pr in props:
-                    if pr[0] == "list":
-                        row.append([float(next(tokens)) for _ in range(int(next(tokens)))])
-                    else:
-                        row.append(float(next(tokens)))
-                rows.append(row)
-            if name == "vertex":
-                names = [pr[-1] for pr in props]
-                verts = np.array([[r[names.index(a)] for a in "xyz"] for r in rows], float)
-            elif name == "face":
-                faces = [r[0] for r in rows]
-    elif fmt == "binary_little_endian":
-        off = 0
-        for name, count, props in elements:
-            if all(pr[0] != "list" for pr in props):
-                dt = np.dtype([(pr[1], "<" + types[pr[0]]) for pr in props])
-                arr = np.frombuffer(body, dt, count, off)
-                off += dt.itemsize * count
-                if name == "vertex":
-                    verts = np.column_stack([arr[a].astype(float) for a in "xyz"])
-            else:
-                if len(props) != 1:
-                    raise ValueError("faces with extra properties are not supported")
-                ct, it = np.dtype("<" + types[props[0][1]]), np.dtype("<" + types[props[0][2]])
-                rows = []
-                for _ in range(count):
-                    k = int(np.frombuffer(body, ct, 1, off)[0])
-                    off += ct.itemsize
-                    rows.append(np.frombuffer(body, it, k, off).tolist())
-                    off += it.itemsize * k
-                if name == "face":
-                    faces = rows
-    else:
-        raise ValueError(f"PLY format {fmt} is not supported (ascii or binary_little_endian)")
-    if verts is None or faces is None:
-        raise ValueError("no vertex or face element")
-    tri = [[int(f[0]), int(f[k]), int(f[k + 1])] for f in faces for k in range(1, len(f) - 1)]
-    return verts, np.array(tri, np.int64)
-
-
 def _read_icq(path: Path):
     """Gaskell ICQ: q, then 6 faces × (q+1)² vertices (x y z, km), index (i, j, face) with i fastest."""
     tok = path.read_text().split()
@@ -267,21 +186,40 @@ def _read_icq(path: Path):
 
 
 def load_shape_file(path: Path, units: str) -> GlobalShape:
-    """Read an OBJ, PLY or ICQ shape model → :class:`GlobalShape` (m), faces oriented outward."""
-    if not path.is_file():
-        raise UserError(f"world.shape_file: shape model not found: {path}")
+    """Read a user's shape model → :class:`GlobalShape` (m), faces oriented outward.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        OBJ, PLY, STL or GLB (read by :func:`renderlab.render.mesh_io.load_mesh`) or Gaskell ICQ
+        (``.icq`` / ``.txt``, read here).
+    units : str
+        Length unit of the file (``m``, ``km`` or ``cm``).
+
+    Returns
+    -------
+    GlobalShape
+        Vertices in metres, faces counter-clockwise seen from outside, uniform relative albedo.
+    """
+    from renderlab.render.mesh_io import FORMATS, load_mesh
+
     suffix = path.suffix.lower()
-    reader = {".obj": _read_obj, ".ply": _read_ply, ".icq": _read_icq, ".txt": _read_icq}.get(suffix)
-    if reader is None:
-        raise UserError(f"world.shape_file: {path.name} is not an OBJ, PLY or ICQ shape model")
-    try:
-        v, f = reader(path)
-    except (ValueError, IndexError, StopIteration, UnicodeDecodeError) as exc:
-        raise UserError(f"world.shape_file: cannot read {path.name}: {exc}") from None
+    if suffix in FORMATS:
+        mesh = load_mesh(path, units=units, where="world.shape_file")
+        v, f = mesh.vertices, mesh.faces
+    elif suffix in (".icq", ".txt"):
+        if not path.is_file():
+            raise UserError(f"world.shape_file: shape model not found: {path}")
+        try:
+            v, f = _read_icq(path)
+        except (ValueError, IndexError, UnicodeDecodeError) as exc:
+            raise UserError(f"world.shape_file: cannot read {path.name}: {exc}") from None
+        v = v * {"km": 1000.0, "cm": 0.01}.get(units, 1.0)
+    else:
+        raise UserError(f"world.shape_file: {path.name} is not an OBJ, PLY, STL, GLB or ICQ shape model")
     if len(v) < 4 or len(f) < 4 or f.min() < 0 or f.max() >= len(v) or not np.all(np.isfinite(v)):
         raise UserError(f"world.shape_file: {path.name} has no valid closed triangle mesh")
-    v = v * (1000.0 if units == "km" else 1.0)
-    shape = GlobalShape(v, f.astype(np.int32), np.ones(len(v), np.float32))
+    shape = GlobalShape(np.asarray(v, float), np.asarray(f).astype(np.int32), np.ones(len(v), np.float32))
     if shape.volume() < 0:  # inward-facing winding
         shape.faces = shape.faces[:, ::-1].copy()
     return shape
