@@ -32,11 +32,25 @@ def test_ray_ellipsoid_matches_root_finding():
 
 
 def test_sun_at_june_solstice_and_march_equinox():
-    jd_solstice = wgs84.julian_date(wgs84.parse_epoch("2024-06-20T20:51:00Z"))  # published solstice time
-    u, r = sun_eci(jd_solstice)
-    assert abs(np.degrees(np.arcsin(u[2])) - 23.44) < 0.01 and abs(r - 1.0163) < 1e-3
-    jd_eq = wgs84.julian_date(wgs84.parse_epoch("2024-03-20T03:06:00Z"))
-    assert abs(np.degrees(np.arcsin(sun_eci(jd_eq)[0][2]))) < 0.01
+    """At the published (USNO, to the minute) 2024 equinox and solstice the apparent sun, rotated from GCRF to the
+    true equator and equinox of date by ERFA's IAU 2006/2000A NPB matrix (``pnm06a``, not used by the lab's sun),
+    has declination 0 and the true obliquity ε_A + Δε (``obl06``, ``nut06a``): ±30 s of rounding is ±0.5″ of
+    declination at the equinox, the sun's ecliptic latitude ≤ 1″."""
+    import erfa
+    from astropy.time import Time
+
+    def true_of_date(iso):
+        tt = Time(iso, scale="utc").tt
+        u, r = sun_eci(wgs84.julian_date(wgs84.parse_epoch(iso + "Z")))
+        return erfa.pnm06a(tt.jd1, tt.jd2) @ u, r, tt
+
+    u, r, tt = true_of_date("2024-06-20T20:51:00")
+    eps = erfa.obl06(tt.jd1, tt.jd2) + erfa.nut06a(tt.jd1, tt.jd2)[1]
+    arcsec = np.degrees(1.0) * 3600
+    assert abs(np.arcsin(u[2]) - eps) * arcsec < 2.0 and abs(np.arctan2(u[1], u[0]) - np.pi / 2) * arcsec < 2.0
+    assert abs(r - 1.0163) < 1e-3
+    u, _, _ = true_of_date("2024-03-20T03:06:00")
+    assert abs(np.arcsin(u[2])) * arcsec < 2.0 and abs(np.arctan2(u[1], u[0])) * arcsec < 2.0
 
 
 def test_footprint_vs_eq1_and_spherical_closed_form():

@@ -165,13 +165,14 @@ def _geometry_key(o: CoastlineGeometricOptions) -> CoastlineGeometricOptions:
 
 
 def truth_geometry(options: CoastlineGeometricOptions) -> Geometry:
-    """Truth orbit, attitude and the matched coastline points at every measurement time (cached per process)."""
+    """Truth orbit (:func:`~renderlab.dynamics.truth_orbit.propagate_for`), attitude, matched points (cached)."""
     return _truth_geometry_cached(_geometry_key(options.validate()))
 
 
 @functools.lru_cache(maxsize=8)
 def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
-    from renderlab.dynamics.orbits import nadir_attitude, propagate, state_from_elements
+    from renderlab.dynamics.orbits import nadir_attitude, state_from_elements
+    from renderlab.dynamics.truth_orbit import propagate_for          # RK4 two-body/J2, or zonal_dop853 if asked
 
     from .database import coastline_points
 
@@ -180,7 +181,7 @@ def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
     t = o.t0_s + np.arange(K) * o.cadence_s
     r0, v0 = state_from_elements(R_EARTH_M + o.altitude_m, 0.0, o.inclination_rad, o.raan_rad, o.argp_rad,
                                  o.nu0_rad)
-    x = propagate(np.concatenate([r0, v0]), t, j2=o.truth_j2, max_step_s=1.0)
+    x = propagate_for(o, np.concatenate([r0, v0]), t, rk4_step_s=1.0)
     T = np.swapaxes(nadir_attitude(x[:, :3], x[:, 3:]), -1, -2)          # cam_from_eci
     db = coastline_points(o.db_spacing_m)
     tan_half = math.tan(0.5 * o.fov_rad)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from renderlab.config_types import NonNegative, Positive, Seed, Strict
 
@@ -51,6 +51,19 @@ class LEOTrajectory(Strict):
     (if set) replaces the camera's fx, fy, cx, cy by a centred square-pixel pinhole whose image width spans
     it. ``pointing_error_deg`` is the true attitude's random offset from nadir (1σ per axis, seeded by
     ``world.seed``); ``star_tracker_sigma_arcsec`` the noise of the attitude the star tracker reports.
+
+    The elements are osculating elements in GCRF (the Earth world's inertial frame, see
+    :mod:`renderlab.worlds.earth.orientation`). ``truth_model`` picks the truth orbit:
+
+    ``"j2_rk4"`` (default)
+        The lab's original model, of the onboard filters' own class: Kepler two-body, or with ``j2 = true``
+        fixed-step RK4 two-body + J2 about the GCRF z axis (:func:`renderlab.dynamics.orbits.propagate`).
+        Default because the published results and the tests that map studies onto the world were made with it.
+    ``"zonal_dop853"``
+        :func:`renderlab.dynamics.truth_orbit.propagate_truth`: DOP853 (rtol 1e-12) with EGM2008 zonals up to
+        ``zonal_degree`` about the true Earth pole of each epoch, plus ``drag`` (exponential atmosphere, ``drag_cd``),
+        ``srp`` (cannonball, ``srp_cr``, cylindrical shadow) and ``third_body`` (Sun and Moon, ERFA ephemerides);
+        ``area_to_mass_m2_kg`` is the spacecraft's cross-section over mass. ``j2`` is ignored.
     """
 
     kind: Literal["leo"] = "leo"
@@ -62,6 +75,14 @@ class LEOTrajectory(Strict):
     argp_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
     true_anomaly_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
     j2: bool = False
+    truth_model: Literal["j2_rk4", "zonal_dop853"] = "j2_rk4"
+    zonal_degree: Annotated[int, Field(ge=2, le=6)] = 6
+    drag: bool = False
+    srp: bool = False
+    third_body: bool = False
+    drag_cd: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 2.2
+    srp_cr: Annotated[float, Field(ge=0, le=3, allow_inf_nan=False)] = 1.3
+    area_to_mass_m2_kg: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 0.01
     frames: Annotated[int, Field(gt=0, le=100000)] = 1
     dt_s: Positive = 30.0
     start_s: NonNegative = 0.0
@@ -87,3 +108,13 @@ class LEOTrajectory(Strict):
         except ValueError:
             raise ValueError(f"not an ISO 8601 UTC time like 2024-06-21T15:00:00Z: {v!r}") from None
         return v
+
+    @model_validator(mode="after")
+    def _truth_options(self):
+        """Force-model options only mean something for ``truth_model = "zonal_dop853"``: refuse them otherwise."""
+        extra = {"zonal_degree", "drag", "srp", "third_body", "drag_cd", "srp_cr", "area_to_mass_m2_kg"}
+        given = sorted(n for n in extra & self.model_fields_set
+                       if getattr(self, n) != type(self).model_fields[n].default)
+        if self.truth_model == "j2_rk4" and given:
+            raise ValueError(f"{', '.join(given)} need(s) truth_model = 'zonal_dop853' (truth_model is 'j2_rk4')")
+        return self

@@ -1,10 +1,17 @@
 """The Earth world's :class:`~renderlab.worlds.base.WorldPlan`: LEO frames, one ENU tile per frame.
 
-Frame k is taken at t_k = start_s + k·dt_s after the epoch. The orbit is two-body (Kepler, paper eqs.
-10-12) or numerically propagated with J2; the true attitude is nadir (plus an optional seeded pointing
-error); the star tracker's reported attitude (noise σ) goes to the manifest for the estimators. Per frame
-the manifest gets the tile's render frame (origin, R_ecef_from_render: P AOVs → ECEF → lat/lon), the epoch,
-the true ECI/ECEF state, the ECI→ECEF rotation and the sun.
+Frame k is taken at t_k = start_s + k·dt_s after the epoch. The orbit (GCRF elements) is two-body (Kepler, paper
+eqs. 10-12), RK4 two-body + J2, or the high-fidelity truth propagator
+(:mod:`renderlab.dynamics.truth_orbit`, ``trajectory.truth_model = "zonal_dop853"``); the true attitude is nadir
+(plus an optional seeded pointing error); the star tracker's reported attitude (noise σ) goes to the manifest for
+the estimators. Earth orientation (GCRF → ITRF, :mod:`.orientation`) and the sun (:mod:`.sun`) are computed for
+all frame epochs at once.
+
+Frames named in the manifest (each frame record's ``frames``): ``inertial = "GCRF"`` (every ``*_eci`` key),
+``earth_fixed = "ITRF"`` (every ``*_ecef`` key, the WGS-84 ellipsoid), ``render = "ENU_TILE"`` (the frame's own
+``render_frame``: ``p_itrf = R_ecef_from_render @ p_render + origin_ecef_m``, parent ITRF), ``camera`` (lab
+convention: +z boresight, +x right, +y down). Per frame the manifest gets the tile's render frame, the epoch, the
+true GCRF/ITRF state, the GCRF→ITRF rotation with the Earth orientation parameters used, and the sun.
 """
 
 from __future__ import annotations
@@ -20,11 +27,35 @@ from renderlab.geometry.camera import CameraModel
 from renderlab.photometry import make_law
 from renderlab.render.scene import BodySpec, FrameSpec, SceneDescription, SunSpec
 from renderlab.worlds.base import WorldPlan
+from renderlab.worlds.earth import orientation
 from renderlab.worlds.earth import sun as sunmod
 from renderlab.worlds.earth import tiles, wgs84
 from renderlab.worlds.earth.clouds import CloudField
 
 GROUND_ID, CLOUD_ID = 0, 1
+FRAMES = {"inertial": "GCRF", "earth_fixed": "ITRF", "render": "ENU_TILE", "camera": "CAMERA",
+          "keys": "*_eci: GCRF; *_ecef: ITRF; R_ecef_from_eci: GCRF to ITRF; R_ecef_from_render: ENU_TILE to ITRF"}
+
+
+def truth_orbit(tr, epoch, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """True GCRF position and velocity (N, 3) at ``t`` (s after the epoch) for the ``leo`` trajectory ``tr``."""
+    el = OrbitElements(wgs84.A + tr.altitude_km * 1e3, tr.eccentricity, np.radians(tr.inclination_deg),
+                       np.radians(tr.raan_deg), np.radians(tr.argp_deg), np.radians(tr.true_anomaly_deg))
+    r0, v0 = el.state(0.0)
+    if tr.truth_model == "zonal_dop853":
+        from renderlab.dynamics.truth_orbit import forces_from_config, propagate_truth
+
+        t_end = float(t.max(initial=0.0))
+        nodes = np.linspace(0.0, t_end, max(2, int(np.ceil(t_end / 21600.0)) + 1))
+        eo = orientation.earth_orientation(epoch, nodes)              # the true pole every ≤ 6 h
+        tt = eo.time[0].tt
+        forces = forces_from_config(tr, (float(tt.jd1), float(tt.jd2)), (nodes, eo.pole_gcrf))
+        x = propagate_truth(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), forces)[1:]
+        return x[:, :3], x[:, 3:]
+    if tr.j2:
+        x = propagate(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), j2=True)[1:]
+        return x[:, :3], x[:, 3:]
+    return el.state(t)
 
 
 @dataclass
@@ -44,27 +75,21 @@ class EarthPlan(WorldPlan):
         else:
             camera = CameraModel.from_dict(scenario.camera.model_dump())
         epoch = wgs84.parse_epoch(tr.epoch_utc)
-        el = OrbitElements(wgs84.A + tr.altitude_km * 1e3, tr.eccentricity, np.radians(tr.inclination_deg),
-                           np.radians(tr.raan_deg), np.radians(tr.argp_deg), np.radians(tr.true_anomaly_deg))
         t = tr.start_s + tr.dt_s * np.arange(tr.frames)
-        if tr.j2:
-            r0, v0 = el.state(0.0)
-            x = propagate(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), j2=True)[1:]
-            r, v = x[:, :3], x[:, 3:]
-        else:
-            r, v = el.state(t)
+        r, v = truth_orbit(tr, epoch, t)
         jd = wgs84.julian_date(epoch, t)
-        R_ef = wgs84.R_ecef_from_eci(jd)
+        eo = orientation.earth_orientation(epoch, t)
+        R_ef = eo.R_itrf_from_gcrf
+        r_ef, v_ef = eo.to_itrf(r, v)
         R_eci_cam = nadir_attitude(r, v)
         rng = np.random.default_rng(np.random.SeedSequence([w.seed, 0xA77]))
         if tr.pointing_error_deg > 0:
             R_eci_cam = star_tracker_attitude(R_eci_cam, np.radians(tr.pointing_error_deg), rng)
         R_st = star_tracker_attitude(R_eci_cam, np.radians(tr.star_tracker_sigma_arcsec / 3600.0), rng)
-        s_eci, dist_au = sunmod.sun_eci(jd)
+        s_eci, dist_au = sunmod.sun_gcrf(eo.time)
         frames, states = [], []
         for k in range(len(t)):
-            pos = R_ef[k] @ r[k]
-            vel = R_ef[k] @ v[k] - np.cross([0.0, 0.0, wgs84.OMEGA_EARTH], pos)
+            pos, vel = r_ef[k], v_ef[k]
             R_ecef_cam = R_ef[k] @ R_eci_cam[k]
             tile = tiles.TileFrame.at_boresight(pos, R_ecef_cam)
             R_ren = tile.R_ecef_from_render
@@ -74,8 +99,9 @@ class EarthPlan(WorldPlan):
             frames.append(FrameSpec(k, pose, camera, sun))
             states.append(dict(t=float(t[k]), jd=float(jd[k]), r_eci=r[k], v_eci=v[k], r_ecef=pos, v_ecef=vel,
                                R_ecef_from_eci=R_ef[k], R_ecef_from_cam=R_ecef_cam, R_eci_from_cam_st=R_st[k],
-                               sun_eci=s_eci[k], sun_ecef=s_ecef, tile=tile))
-        return cls(frames=frames, render_frame={"name": "ENU_TILE"}, world=w, traj=tr, epoch=epoch, states=states)
+                               sun_eci=s_eci[k], sun_ecef=s_ecef, tile=tile, earth_orientation=eo.record(k)))
+        return cls(frames=frames, render_frame={"name": "ENU_TILE", "parent_frame": "ITRF", "inertial_frame": "GCRF"},
+                   world=w, traj=tr, epoch=epoch, states=states)
 
     # ------------------------------------------------------------------ scenes
     def scene_key(self, spec: FrameSpec):
@@ -141,7 +167,11 @@ class EarthPlan(WorldPlan):
 
         return {
             "bodies": {b.name: b.state() for b in scene.bodies},
-            "render_frame": st["tile"].to_dict(),
+            "render_frame": {**st["tile"].to_dict(), "parent_frame": "ITRF"},
+            "frames": dict(FRAMES),
+            "earth_orientation": st["earth_orientation"],
+            "truth_orbit_model": self.traj.truth_model if self.traj.truth_model != "j2_rk4"
+            else ("rk4_two_body_j2" if self.traj.j2 else "kepler_two_body"),
             "epoch_utc": (self.epoch + timedelta(seconds=st["t"])).isoformat().replace("+00:00", "Z"),
             "julian_date_utc": st["jd"],
             "spacecraft": {"r_eci_m": vec(st["r_eci"]), "v_eci_mps": vec(st["v_eci"]),

@@ -8,10 +8,23 @@ Geodetic → ECEF: :math:`N = a/\sqrt{1-e^2\sin^2\phi}`, :math:`[(N+h)\cos\phi\c
 A ray :math:`\mathbf o + t\mathbf d` meets the ellipsoid where the quadratic in t of the scaled coordinates
 :math:`(x/a, y/a, z/b)` has its smaller positive root.
 
-Earth rotation: the lab's inertial frame (ECI) is the mean equator and equinox of date; ECEF = R3(GMST) ECI
-with GMST from IAU 1982 (UT1 taken = UTC, |UT1−UTC| < 0.9 s; precession and nutation are inside the
-frame's definition, polar motion ignored: ≤ 15 m). The sun ephemeris (:mod:`.sun`) uses the same frame, so
-the lighting and the geometry are consistent to the ephemeris accuracy (0.01°).
+Frames
+------
+ECEF
+    Earth-fixed: the ITRF (WGS-84 realisations agree with it to a few cm), origin at the geocentre, z the
+    IERS reference pole, x the reference meridian. Geodetic coordinates and ENU frames here are in it.
+ENU
+    East, north, up at a geodetic (lat, lon) — the Earth world's render frame per frame (``ENU_TILE``,
+    :mod:`.tiles`), origin on the ellipsoid where the boresight meets it.
+ECI
+    The lab's inertial frame is the GCRF (see :mod:`.orientation`); :func:`R_ecef_from_eci` is the full
+    GCRS → ITRS rotation of IAU 2006/2000A with UT1 and polar motion from astropy's bundled IERS tables
+    (:mod:`.orientation` agrees with ``astropy.coordinates`` to < 1 mm on the ground; float Julian dates resolve
+    40 µs, 2 cm). The sun (:mod:`.sun`) is in the same GCRF.
+
+:func:`gmst_rad` (IAU 1982 GMST) is *not* used by the truth: it remains for the geometric coastline study's
+simplified Earth (a uniform rotation :math:`R_3(\mathrm{GMST}_0 + \omega_\oplus t)` of its own inertial frame);
+the onboard estimators carry their own Earth models.
 """
 
 from __future__ import annotations
@@ -98,16 +111,16 @@ def julian_date(epoch: datetime, t_s=0.0) -> np.ndarray:
 
 
 def gmst_rad(jd_ut1) -> np.ndarray:
-    """Greenwich mean sidereal time (IAU 1982) in radians for Julian date(s) (UT1)."""
+    """Greenwich mean sidereal time (IAU 1982) in radians for Julian date(s) (UT1); not the truth's rotation."""
     d = np.asarray(jd_ut1, float) - 2451545.0
     T = d / 36525.0
     deg = 280.46061837 + 360.98564736629 * d + 0.000387933 * T**2 - T**3 / 38710000.0
     return np.radians(np.mod(deg, 360.0))
 
 
-def R_ecef_from_eci(jd_ut1) -> np.ndarray:
-    """Rotation (…, 3, 3) from the lab's ECI (mean of date) to ECEF: R3(GMST)."""
-    g = gmst_rad(jd_ut1)
-    c, s = np.cos(g), np.sin(g)
-    z, o = np.zeros_like(g), np.ones_like(g)
-    return np.stack([np.stack([c, s, z], -1), np.stack([-s, c, z], -1), np.stack([z, z, o], -1)], -2)
+def R_ecef_from_eci(jd_utc) -> np.ndarray:
+    """Rotation (…, 3, 3) GCRF → ITRF (:mod:`.orientation`) for Julian date(s) (UTC) given as floats."""
+    from renderlab.worlds.earth.orientation import earth_orientation_jd
+
+    jd = np.asarray(jd_utc, float)
+    return earth_orientation_jd(jd).R_itrf_from_gcrf.reshape(jd.shape + (3, 3))
