@@ -119,6 +119,15 @@ def _consistency_panel(ax, t, value, lo, hi, label: str, band_label: str, per_ti
     ax.grid(alpha=0.3)
 
 
+def _plain_log_y(ax) -> None:
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+
+
 def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | None = None) -> list[str]:
     """ANEES (6 dof) and ANIS per dof (2 dof per LOS) against time with their 99 % χ² bands.
 
@@ -147,6 +156,8 @@ def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | 
                        summary["anees_hi"].to_numpy(), "ANEES", f"99 % χ²(6·{n})/{n} band", False)
     axs[0].axhline(6.0, color="0.5", lw=0.8)
     axs[0].set_ylabel("ANEES (6 dof)")
+    if np.nanmax(summary["anees"].to_numpy()) > 3 * np.nanmax(summary["anees_hi"].to_numpy()):
+        _plain_log_y(axs[0])  # far outside its band: a log axis keeps the band visible
     img = summary["n_meas"].to_numpy() > 0
     dof = 2 * summary["n_meas"].to_numpy()[img]
     _consistency_panel(axs[1], t[img], summary["anis"].to_numpy()[img] / dof, summary["anis_lo"].to_numpy()[img] / dof,
