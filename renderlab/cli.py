@@ -1,3 +1,4 @@
+# PYTHON_ARGCOMPLETE_OK
 """The ``renderlab`` command.
 
 User errors (bad scenario, bad arguments, missing or unwritable files) print one line
@@ -8,6 +9,8 @@ Heavy packages (mitsuba, bpy, dask) are imported inside the commands, so ``--hel
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import sys
 from pathlib import Path
 
@@ -19,7 +22,24 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose errors are one line and exit code 2."""
 
     def error(self, message: str):  # noqa: D401 - argparse API
+        import difflib
+        import re
+
+        choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if choice:  # a mistyped command or choice: the closest valid one
+            close = difflib.get_close_matches(choice[1], [c.strip(" '") for c in choice[2].split(",")], n=1)
+            message += f"; did you mean '{close[0]}'?" if close else ""
         raise UserError(message)
+
+
+class _DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """``--help`` with each option's default, unless it is empty (None, false, []) or the help text gives it."""
+
+    def _get_help_string(self, action):
+        d = action.default
+        if d is None or d is False or d == [] or d == "" or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
 
 
 def _nonneg_int(text: str) -> int:
@@ -48,6 +68,9 @@ EXTRA_COMMANDS = {
     "campaign": "renderlab.commands.campaign",
     "report": "renderlab.commands.report",
     "publish": "renderlab.commands.report",
+    "scenes": "renderlab.commands.scenes",
+    "show": "renderlab.commands.show",
+    "info": "renderlab.commands.info",
 }
 
 
@@ -63,9 +86,13 @@ def _extra_commands() -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="renderlab", description="renderlab: truth images and estimator validation for optical navigation.")
+    import functools
+
+    p = _Parser(prog="renderlab", description="renderlab: truth images and estimator validation for optical navigation.",
+                formatter_class=_DefaultsFormatter)
     p.add_argument("--version", action="version", version=f"renderlab {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND",  # every sub-command's --help shows its defaults
+                           parser_class=functools.partial(_Parser, formatter_class=_DefaultsFormatter))
 
     r = sub.add_parser("render", help="render a scenario into a truth set")
     r.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file (see scenes/)")
@@ -78,6 +105,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--overwrite", action="store_true", help="replace DIR (and the --save-blend file) if it exists")
     r.add_argument("--save-blend", metavar="FILE.blend",
                    help="also save the first frame's Blender scene (Cycles only), to open in Blender's GUI")
+    r.add_argument("--dry-run", action="store_true",
+                   help="check the request and print what would be made (frames, rays, disk), creating nothing")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
     for module in dict.fromkeys(_extra_commands().values()):  # one add_parser per module (report adds publish)
@@ -94,6 +123,10 @@ def cmd_render(args) -> int:
     from renderlab.scenario import load_scenario
 
     scenario, base = load_scenario(args.scenario, args.overrides)
+    if getattr(args, "dry_run", False):
+        from renderlab.commands.dryrun import render_dry_run
+
+        return render_dry_run(scenario, args)
     from renderlab.render.cycles_backend import check_blend_target, saving_blend
 
     blend = None
@@ -121,6 +154,11 @@ def cmd_demo(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if argv is None and os.environ.get("_ARGCOMPLETE"):  # shell completion: answers and exits, before any set-up
+        with contextlib.suppress(ImportError):
+            import argcomplete
+
+            argcomplete.autocomplete(build_parser())
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

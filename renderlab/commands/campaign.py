@@ -51,6 +51,8 @@ def add_parser(subparsers) -> None:
                    help="register your own landmark method (or Study) under NAME (default: its 'name') for this "
                         "campaign, e.g. --plugin mypkg.method:MyMethod; repeatable. Scenario files name only "
                         "registered names, never modules")
+    p.add_argument("--dry-run", action="store_true",
+                   help="check the request and print what would be run (runs, frames, rays, disk), creating nothing")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -65,6 +67,10 @@ def run(args) -> int:
     refs = register_cli_plugins(args.plugin)
     scenario, base = load_scenario(args.scenario, args.overrides)
     plan = make_plan(scenario, base, args.runs, seed=args.seed, plugins=refs)
+    if args.dry_run:
+        from renderlab.commands.dryrun import campaign_dry_run
+
+        return campaign_dry_run(scenario, plan, args)
     executor = make_executor(args.workers, args.scheduler, args.connect_timeout)
     res = run_campaign(plan, Path(args.out), executor=executor, resume=args.resume, progress=not args.quiet)
     msg = (f"renderlab: campaign {res.path}: {res.runs - len(res.failed)} of {res.runs} runs finished "

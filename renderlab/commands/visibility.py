@@ -20,16 +20,17 @@ def _floats(text: str) -> list[float]:
 def add_parser(sub) -> None:
     p = sub.add_parser("visibility", help="share of nadir images containing coastline vs inclination and FOV")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder (table, contour plot)")
-    p.add_argument("--altitude-km", type=float, default=1000.0)
+    p.add_argument("--altitude-km", type=float, default=1000.0, metavar="KM",
+                   help="circular orbit altitude, km (150..40000)")
     p.add_argument("--inclinations", default="0,10,20,30,40,50,60,70,80,90", help="degrees, comma-separated")
     p.add_argument("--fovs", default="5,10,15,20,30,40,50,60", help="full FOV in degrees, comma-separated")
-    p.add_argument("--hours", type=float, default=24.0)
-    p.add_argument("--cadence-s", type=float, default=30.0)
+    p.add_argument("--hours", type=float, default=24.0, metavar="H", help="length of each orbit track, hours")
+    p.add_argument("--cadence-s", type=float, default=30.0, metavar="S", help="time between images, seconds")
     p.add_argument("--epoch", default="2024-03-20T00:00:00Z", help="UTC epoch of the elements (sun, Earth angle)")
     p.add_argument("--daylight", action="store_true", help="count only coast lit by the sun")
     p.add_argument("--cloud-cover", type=float, default=0.0, help="cloud cover fraction in [0, 1)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the cloud field (with --cloud-cover)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args) -> int:

@@ -36,19 +36,24 @@ LAW_NAMES = ("lambert", "lommel_seeliger", "mcewen", "hapke")
 class BodyConfig(_Strict):
     """One body: an analytic primitive or a triangle mesh, with a photometric law and an albedo."""
 
-    name: str = Field(min_length=1)
-    shape: Literal["sphere", "box", "plane", "mesh"]
-    center_m: Vec3 = [0.0, 0.0, 0.0]
-    rotation_deg: Vec3 = [0.0, 0.0, 0.0]  # intrinsic xyz Euler angles of the body frame
-    radius_m: Positive | None = None  # sphere
-    size_m: list[Positive] | None = None  # box: [x, y, z]; plane: [x, y]
-    file: str | None = None  # mesh: OBJ, PLY, STL or GLB (renderlab.render.mesh_io), relative to the scenario file
-    units: Literal["m", "km", "cm"] | None = None  # mesh: length unit of the file (default m)
-    normals: Literal["flat", "smooth"] | None = None  # mesh: facet or area-weighted vertex normals (default flat)
-    law: Literal["lambert", "lommel_seeliger", "mcewen", "hapke"] = "lambert"
-    law_params: dict[str, Finite] = {}
-    albedo: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = 0.3
-    albedo_map: str | None = None  # image file (relative to the scenario file); scales `albedo`
+    name: str = Field(min_length=1, description="Body name, unique (the id AOV and the manifest name it)")
+    shape: Literal["sphere", "box", "plane", "mesh"] = Field(description="Analytic primitive or triangle mesh")
+    center_m: Vec3 = Field([0.0, 0.0, 0.0], description="Centre of the body frame, render frame [m]")
+    rotation_deg: Vec3 = Field([0.0, 0.0, 0.0], description="xyz Euler angles of the body frame "
+                               "(Rotation.from_euler('xyz')) [deg]")
+    radius_m: Positive | None = Field(None, description="sphere: radius [m]")
+    size_m: list[Positive] | None = Field(None, description="box: full extents x, y, z; plane: x, y [m]")
+    file: str | None = Field(None, description="mesh: OBJ, PLY, STL or GLB (renderlab.render.mesh_io), relative to "
+                             "the scenario file")
+    units: Literal["m", "km", "cm"] | None = Field(None, description="mesh: length unit of the file (default m)")
+    normals: Literal["flat", "smooth"] | None = Field(None, description="mesh: facet or area-weighted vertex normals "
+                                                      "(default flat)")
+    law: Literal["lambert", "lommel_seeliger", "mcewen", "hapke"] = Field("lambert", description="Photometric law")
+    law_params: dict[str, Finite] = Field({}, description="Parameters of the law by name (mcewen, hapke: fields of "
+                                          "renderlab.photometry.McEwenParams / HapkeParams; angles in rad)")
+    albedo: Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)] = Field(0.3, description="Albedo of the law")
+    albedo_map: str | None = Field(None, description="Image file (relative to the scenario file) that scales albedo "
+                                   "over the body's texture coordinates")
 
     @model_validator(mode="after")
     def _shape_fields(self):
@@ -65,8 +70,11 @@ class BodyConfig(_Strict):
 
 
 class AnalyticWorld(_Strict):
-    kind: Literal["analytic"] = "analytic"
-    bodies: list[BodyConfig] = Field(min_length=1)
+    """Analytic world: spheres, boxes, planes and triangle meshes with photometric laws (render frame)."""
+
+    kind: Literal["analytic"] = Field("analytic", description="World kind: bodies listed in [[world.bodies]]")
+    bodies: list[BodyConfig] = Field(min_length=1, description="The bodies of the scene ([[world.bodies]]), "
+                                     "names unique")
 
     @model_validator(mode="after")
     def _unique_names(self):
@@ -79,8 +87,9 @@ class AnalyticWorld(_Strict):
 class SunConfig(_Strict):
     """The sun as a directional source. ``direction`` points from the scene *toward* the sun."""
 
-    direction: Vec3 = [0.3, -0.4, 0.8]
-    irradiance_w_m2: Positive = 1361.0
+    direction: Vec3 = Field([0.3, -0.4, 0.8], description="Direction from the scene toward the sun, render "
+                            "frame (any non-zero length)")
+    irradiance_w_m2: Positive = Field(1361.0, description="Solar irradiance at the scene [W/m²]")
 
     @model_validator(mode="after")
     def _nonzero(self):
@@ -90,16 +99,19 @@ class SunConfig(_Strict):
 
 
 class RenderConfig(_Strict):
-    renderer: Literal["mitsuba", "cycles"] = "mitsuba"
-    variant: Literal["llvm_ad_mono", "llvm_ad_rgb", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb"] = (
-        "llvm_ad_mono"
-    )
-    spp: Annotated[int, Field(gt=0, le=65536)] = 16
-    max_depth: Annotated[int, Field(ge=2, le=64)] = 2  # 2 = direct sunlight only (single bounce)
-    pixel_filter: Literal["box", "center"] = "box"  # center: one sample at the pixel centre (validation)
-    near_clip_m: Positive = 1e-3
-    far_clip_m: Positive = 1e7
-    seed: Annotated[int, Field(ge=0)] = 0
+    """Renderer settings: backend, Mitsuba variant, samples, bounces, clipping and the render seed."""
+
+    renderer: Literal["mitsuba", "cycles"] = Field("mitsuba", description="Render backend")
+    variant: Literal["llvm_ad_mono", "llvm_ad_rgb", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb"] = Field(
+        "llvm_ad_mono", description="Mitsuba variant (mono: one radiance channel Y; rgb: R, G, B)")
+    spp: Annotated[int, Field(gt=0, le=65536)] = Field(16, description="Samples per pixel")
+    max_depth: Annotated[int, Field(ge=2, le=64)] = Field(2, description="Longest light path in bounces; 2 = direct "
+                                                          "sunlight only (single bounce)")
+    pixel_filter: Literal["box", "center"] = Field("box", description="Pixel footprint: box = samples spread over "
+                                                   "the pixel; center = one sample at the pixel centre (validation)")
+    near_clip_m: Positive = Field(1e-3, description="Near clip distance [m]")
+    far_clip_m: Positive = Field(1e7, description="Far clip distance, above near_clip_m [m]")
+    seed: Annotated[int, Field(ge=0)] = Field(0, description="Seed of the sample pattern and the sensor noise")
 
     @model_validator(mode="after")
     def _clips(self):
@@ -112,8 +124,10 @@ class SensorConfig(_Strict):
     """Sensor settings; keys other than ``auto_exposure`` are :class:`renderlab.sensor.SensorOptions` fields."""
 
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
-    auto_exposure: bool = True
-    auto_exposure_fraction: Annotated[float, Field(gt=0, le=1)] = 0.8
+    auto_exposure: bool = Field(True, description="Pick the exposure time per frame so the brightest pixels reach "
+                                "auto_exposure_fraction of full scale")
+    auto_exposure_fraction: Annotated[float, Field(gt=0, le=1)] = Field(0.8, description="Target of the "
+                                                                        "auto-exposure, fraction of full scale")
 
     def options_dict(self) -> dict[str, Any]:
         return dict(self.model_extra or {})
@@ -173,16 +187,18 @@ class Scenario(_Strict):
     plug-in's own) are registered in :data:`renderlab.plugins.scenario_sections` and added as optional fields
     by :func:`scenario_model`; :func:`scenario_from_dict` validates with that model."""
 
-    name: str = "scenario"
-    description: str = ""
-    world: World
-    sun: SunConfig = SunConfig()
-    camera: CameraConfig = CameraConfig()
-    trajectory: Trajectory = TrajectoryConfig()
-    sensor: SensorConfig = SensorConfig()
-    render: RenderConfig = RenderConfig()
-    perturbations: PerturbationConfig = PerturbationConfig()
-    campaign: CampaignConfig = CampaignConfig()
+    name: str = Field("scenario", description="Scenario name (truth-set manifest, campaign and report titles)")
+    description: str = Field("", description="One line on what the scenario shows (renderlab scenes lists it)")
+    world: World = Field(description="The world: [world] with its kind (analytic, ev5, earth, microsat)")
+    sun: SunConfig = Field(SunConfig(), description="The sun, a directional source ([sun])")
+    camera: CameraConfig = Field(CameraConfig(), description="The camera model ([camera])")
+    trajectory: Trajectory = Field(TrajectoryConfig(), description="The camera path ([trajectory]) with its kind")
+    sensor: SensorConfig = Field(SensorConfig(), description="The sensor ([sensor]; renderlab.sensor.SensorOptions "
+                                 "keys)")
+    render: RenderConfig = Field(RenderConfig(), description="Renderer settings ([render])")
+    perturbations: PerturbationConfig = Field(PerturbationConfig(), description="Monte Carlo dispersions of a "
+                                              "campaign run ([perturbations])")
+    campaign: CampaignConfig = Field(CampaignConfig(), description="What a campaign runs ([campaign])")
 
     @model_validator(mode="after")
     def _world_fits_trajectory(self):
@@ -203,7 +219,9 @@ def scenario_model() -> type[Scenario]:
 
     names = tuple(plugins.scenario_sections.names())
     if _MODEL_CACHE.get("names") != names:
-        fields = {n: (plugins.scenario_sections.get(n) | None, None) for n in names}
+        fields = {n: (cls | None, Field(None, description=f"Study section [{n}] (optional): "
+                                        f"{(cls.__doc__ or n).strip().splitlines()[0].rstrip('.')}"))
+                  for n, cls in ((n, plugins.scenario_sections.get(n)) for n in names)}
         _MODEL_CACHE["names"] = names
         _MODEL_CACHE["model"] = pydantic.create_model("Scenario", __base__=Scenario, **fields)
     return _MODEL_CACHE["model"]
@@ -229,8 +247,24 @@ def _format_error(err: pydantic.ValidationError, source: str) -> str:
     e = err.errors()[0]
     loc = ".".join(str(p) for p in e["loc"] if not str(p).startswith(("function-", "kind=")))
     msg = e["msg"].removeprefix("Value error, ")
-    if e["type"] == "extra_forbidden":
-        return f"{source}: unknown key '{loc}'"
+    if e["type"] == "extra_forbidden":  # "did you mean": the closest field of the model at that location
+        import difflib
+        import typing
+
+        def models(tp):
+            if isinstance(tp, type) and issubclass(tp, pydantic.BaseModel):
+                return [tp]
+            return [m for a in typing.get_args(tp) for m in models(a)]
+        found = [scenario_model()]
+        for part in map(str, e["loc"][:-1]):
+            if part.startswith("kind="):
+                found = [m for m in found if "kind" in m.model_fields
+                         and part[5:] in typing.get_args(m.model_fields["kind"].annotation)] or found
+            elif not part.isdigit() and not part.startswith("function-"):
+                found = [s for m in found if part in m.model_fields for s in models(m.model_fields[part].annotation)]
+        close = difflib.get_close_matches(str(e["loc"][-1]), [n for m in found for n in m.model_fields], n=1,
+                                          cutoff=0.7)
+        return f"{source}: unknown key '{loc}'" + (f"; did you mean '{close[0]}'?" if close else "")
     if e["type"] == "missing":
         return f"{source}: missing key '{loc}'"
     got = e.get("input")

@@ -6,7 +6,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, field_validator
 
 from renderlab.config_types import NonNegative, Positive, Seed, Strict
 
@@ -25,23 +25,32 @@ class EarthWorld(Strict):
     four times ``coast_db_error_scale_m``; see :mod:`renderlab.worlds.earth.coast_db` for the measured correlation).
     """
 
-    kind: Literal["earth"] = "earth"
-    seed: Seed = 0
-    land_albedo: Albedo = 0.25
-    water_albedo: Albedo = 0.06
-    texture_oversample: Annotated[float, Field(ge=2, le=16, allow_inf_nan=False)] = 2.0
-    antialias: Annotated[int, Field(ge=1, le=8)] = 4
-    tile_grid: Annotated[int, Field(ge=4, le=1024)] = 64
-    tile_margin_px: NonNegative = 8.0
-    cloud_cover: Fraction = 0.0
-    cloud_altitude_m: Positive = 3000.0
-    cloud_albedo: Albedo = 0.7
-    cloud_scale_m: Positive = 20e3
-    cloud_grid: Annotated[int, Field(ge=8, le=2048)] = 384
-    coast_db_tolerance_m: NonNegative = 150.0
-    coast_db_error_m: NonNegative = 300.0
-    coast_db_error_scale_m: Positive = 100e3
-    coast_db_margin_deg: NonNegative = 0.5
+    kind: Literal["earth"] = Field("earth", description="World kind: WGS-84 Earth with GSHHG coastlines")
+    seed: Seed = Field(0, description="Seed of the clouds, the coastline map error and the pointing error")
+    land_albedo: Albedo = Field(0.25, description="Lambert albedo of land")
+    water_albedo: Albedo = Field(0.06, description="Lambert albedo of water")
+    texture_oversample: Annotated[float, Field(ge=2, le=16, allow_inf_nan=False)] = Field(
+        2.0, description="Texture cells per ground sample distance of the tile's land/water raster")
+    antialias: Annotated[int, Field(ge=1, le=8)] = Field(4, description="Sub-cells per texture cell and axis of the "
+                                                         "land coverage (antialias² per cell)")
+    tile_grid: Annotated[int, Field(ge=4, le=1024)] = Field(64, description="Ground tile mesh cells per image axis "
+                                                            "(the tile follows the ellipsoid)")
+    tile_margin_px: NonNegative = Field(8.0, description="Margin of the ground tile beyond the image border [px]")
+    cloud_cover: Fraction = Field(0.0, description="Cloud cover; > 0 adds a cloud layer (its own body id, casting "
+                                  "shadows) [fraction]")
+    cloud_altitude_m: Positive = Field(3000.0, description="Altitude of the cloud layer [m]")
+    cloud_albedo: Albedo = Field(0.7, description="Lambert albedo of the clouds")
+    cloud_scale_m: Positive = Field(20e3, description="Smallest wave scale of the cloud field [m]")
+    cloud_grid: Annotated[int, Field(ge=8, le=2048)] = Field(384, description="Cloud layer mesh cells per image "
+                                                             "axis")
+    coast_db_tolerance_m: NonNegative = Field(150.0, description="Onboard coastline database: GSHHG simplified to "
+                                              "this tolerance [m]")
+    coast_db_error_m: NonNegative = Field(300.0, description="Smooth random map error of the database, 1σ per axis "
+                                          "[m]")
+    coast_db_error_scale_m: Positive = Field(100e3, description="Map error wave scales from half to four times this "
+                                             "(renderlab.worlds.earth.coast_db) [m]")
+    coast_db_margin_deg: NonNegative = Field(0.5, description="Database region: the frames' footprints grown by "
+                                             "this margin [deg]")
 
 
 class LEOTrajectory(Strict):
@@ -66,29 +75,30 @@ class LEOTrajectory(Strict):
         ``area_to_mass_m2_kg`` is the spacecraft's cross-section over mass. ``j2`` is ignored.
     """
 
-    kind: Literal["leo"] = "leo"
-    epoch_utc: str = "2024-06-21T15:00:00Z"
-    altitude_km: Annotated[float, Field(ge=150, le=40000, allow_inf_nan=False)] = 1000.0
-    inclination_deg: Annotated[float, Field(ge=0, le=180, allow_inf_nan=False)] = 45.0
-    eccentricity: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = 0.0
-    raan_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
-    argp_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
-    true_anomaly_deg: Annotated[float, Field(allow_inf_nan=False)] = 0.0
-    j2: bool = False
-    truth_model: Literal["j2_rk4", "zonal_dop853"] = "j2_rk4"
-    zonal_degree: Annotated[int, Field(ge=2, le=6)] = 6
-    drag: bool = False
-    srp: bool = False
-    third_body: bool = False
-    drag_cd: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 2.2
-    srp_cr: Annotated[float, Field(ge=0, le=3, allow_inf_nan=False)] = 1.3
-    area_to_mass_m2_kg: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = 0.01
-    frames: Annotated[int, Field(gt=0, le=100000)] = 1
-    dt_s: Positive = 30.0
-    start_s: NonNegative = 0.0
-    fov_deg: Annotated[float, Field(gt=0, lt=120, allow_inf_nan=False)] | None = 30.0
-    pointing_error_deg: NonNegative = 0.0
-    star_tracker_sigma_arcsec: NonNegative = 5.0
+    kind: Literal["leo"] = Field("leo", description="Trajectory kind: a LEO orbit, nadir-pointing camera")
+    epoch_utc: str = Field("2024-06-21T15:00:00Z", description="ISO UTC epoch where the elements hold (Z suffix)")
+    altitude_km: Annotated[float, Field(ge=150, le=40000, allow_inf_nan=False)] = Field(
+        1000.0, description="Altitude above the equatorial radius (semi-major axis − R) [km]")
+    inclination_deg: Annotated[float, Field(ge=0, le=180, allow_inf_nan=False)] = Field(
+        45.0, description="Inclination [deg]")
+    eccentricity: Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)] = Field(
+        0.0, description="Eccentricity")
+    raan_deg: Annotated[float, Field(allow_inf_nan=False)] = Field(0.0, description="Right ascension of the "
+                                                                   "ascending node [deg]")
+    argp_deg: Annotated[float, Field(allow_inf_nan=False)] = Field(0.0, description="Argument of perigee [deg]")
+    true_anomaly_deg: Annotated[float, Field(allow_inf_nan=False)] = Field(0.0, description="True anomaly at "
+                                                                           "epoch_utc [deg]")
+    j2: bool = Field(False, description="truth_model j2_rk4: RK4 two-body + J2 truth; false: Kepler two-body")
+    frames: Annotated[int, Field(gt=0, le=100000)] = Field(1, description="Number of frames")
+    dt_s: Positive = Field(30.0, description="Time between frames [s]")
+    start_s: NonNegative = Field(0.0, description="Time of frame 0 after epoch_utc [s]")
+    fov_deg: Annotated[float, Field(gt=0, lt=120, allow_inf_nan=False)] | None = Field(
+        30.0, description="If set, replaces the camera's fx, fy, cx, cy by a centred square-pixel pinhole whose "
+        "image width spans it [deg]")
+    pointing_error_deg: NonNegative = Field(0.0, description="True attitude's random offset from nadir, 1σ per "
+                                            "axis, seeded by world.seed [deg]")
+    star_tracker_sigma_arcsec: NonNegative = Field(5.0, description="Noise of the attitude the star tracker "
+                                                   "reports, 1σ [arcsec]")
 
     @field_validator("epoch_utc", mode="before")
     @classmethod
@@ -109,12 +119,3 @@ class LEOTrajectory(Strict):
             raise ValueError(f"not an ISO 8601 UTC time like 2024-06-21T15:00:00Z: {v!r}") from None
         return v
 
-    @model_validator(mode="after")
-    def _truth_options(self):
-        """Force-model options only mean something for ``truth_model = "zonal_dop853"``: refuse them otherwise."""
-        extra = {"zonal_degree", "drag", "srp", "third_body", "drag_cd", "srp_cr", "area_to_mass_m2_kg"}
-        given = sorted(n for n in extra & self.model_fields_set
-                       if getattr(self, n) != type(self).model_fields[n].default)
-        if self.truth_model == "j2_rk4" and given:
-            raise ValueError(f"{', '.join(given)} need(s) truth_model = 'zonal_dop853' (truth_model is 'j2_rk4')")
-        return self
