@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -26,8 +27,8 @@ import pytest
 from renderlab.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
-RENDERLAB = REPO / ".venv" / "bin" / "renderlab"
-PYTHON = REPO / ".venv" / "bin" / "python"
+RENDERLAB = Path(sys.executable).parent / "renderlab"  # the console script of the environment running the tests
+PYTHON = Path(sys.executable)
 SCENE = REPO / "scenes" / "analytic_sphere_box.toml"
 PREFIX = "renderlab: error: "
 
@@ -96,8 +97,10 @@ SCENARIO_CASES = {
     "missing_albedo_map": (edit("albedo = 0.5", 'albedo = 0.5\nalbedo_map = "missing_albedo.png"'), [],
                            "missing_albedo.png"),
     "unreadable_albedo_map": (edit("albedo = 0.5", 'albedo = 0.5\nalbedo_map = "fake.png"'), [], "fake.png"),
-    "mesh_wrong_extension": (edit(BOX, 'shape = "mesh"\nfile = "rock.stl"\ncenter_m = [1.5, -0.6, 0.6]'), [],
-                             "only OBJ and PLY"),
+    "mesh_wrong_extension": (edit(BOX, 'shape = "mesh"\nfile = "rock.xyz"\ncenter_m = [1.5, -0.6, 0.6]'), [],
+                             "rock.xyz"),
+    "mesh_without_faces": (edit(BOX, 'shape = "mesh"\nfile = "rock.stl"\ncenter_m = [1.5, -0.6, 0.6]'), [],
+                           "rock.stl has no faces"),
     "mesh_missing": (edit(BOX, 'shape = "mesh"\nfile = "nowhere.obj"\ncenter_m = [1.5, -0.6, 0.6]'), [],
                      "mesh not found"),
     "cycles_direct_light_only": (edit("max_depth = 2", "max_depth = 3"), ["--renderer", "cycles"],
@@ -123,6 +126,7 @@ CORRUPT_MESH = ("corrupt_mesh", edit(BOX, 'shape = "mesh"\nfile = "broken.obj"\n
 
 def _write_assets(d: Path) -> None:
     (d / "rock.stl").write_text("solid rock\nendsolid rock\n")
+    (d / "rock.xyz").write_text("0 0 0\n1 0 0\n0 1 0\n")
     (d / "fake.png").write_bytes(b"this is not a PNG")
     (d / "broken.obj").write_text("v 1 2\nf 1 2 3\n")
 
