@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One-command set-up on a fresh Debian machine: LLVM 19 for Mitsuba's LLVM variants, a Python 3.11
-# virtual environment in .venv, and renderlab installed into it (editable) with its test extras.
+# virtual environment in .venv, and renderlab installed into it (editable) with all its extras and the tests, at the
+# versions of requirements.lock.
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -28,8 +29,13 @@ fi
 if [ ! -x .venv/bin/python ]; then
   "$PY" -m venv .venv
 fi
-.venv/bin/python -m pip install -q --upgrade pip
-.venv/bin/python -m pip install -q -e ".[test]"
+# Exact versions from requirements.lock (pyproject.toml has ranges): a reproducible install, and numpy stays < 2
+# (bpy 5.0.1 needs numpy 1.26). setuptools in the venv builds the wheel offline (tests/test_packaging.py).
+LOCK=requirements.lock
+.venv/bin/python -m pip install -q -c "$LOCK" --upgrade pip setuptools
+# everything: the core and every extra (cycles, earth, cluster, spice; see renderlab/extras.py) and the tests;
+# `pip install renderlab` elsewhere gets the core only
+.venv/bin/python -m pip install -q -c "$LOCK" -e ".[all,test]"
 # the worked third-party plug-in (examples/ncc_baseline): installed like any user package, found by entry point
-.venv/bin/python -m pip install -q --no-deps -e examples/ncc_baseline
+.venv/bin/python -m pip install -q -c "$LOCK" --no-deps -e examples/ncc_baseline
 echo "setup: done. Run .venv/bin/renderlab --help"

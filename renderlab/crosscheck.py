@@ -324,8 +324,10 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
     import pyarrow.parquet as pq
 
     from renderlab.errors import UserError
+    from renderlab.extras import require
     from renderlab.pipeline import render_truthset
 
+    require("bpy", "cycles", load=False)  # before out_dir is made
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
         raise UserError(f"--out {out_dir} exists and is not a folder")

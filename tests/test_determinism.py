@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ import pytest
 from renderlab.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
-RENDERLAB = REPO / ".venv" / "bin" / "renderlab"
+RENDERLAB = Path(sys.executable).parent / "renderlab"  # the console script of the environment running the tests
 SCENE = REPO / "scenes" / "analytic_sphere_box.toml"
 TINY_SET = ["camera.width=24", "camera.height=18", "camera.fx=26", "camera.fy=25", "camera.cx=11.5",
             "camera.cy=8.5", "render.spp=2"]

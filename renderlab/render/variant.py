@@ -2,8 +2,9 @@
 
 Mitsuba 3.9 / Dr.Jit 1.5 LLVM variants crash on LLVM 15 ("Cannot select: fmaximum"); with
 Debian's ``libllvm19`` they work. :func:`init_mitsuba` points Dr.Jit at LLVM 19 (unless the
-user already set ``DRJIT_LIBLLVM_PATH``), selects the requested variant and falls back to the
-matching ``scalar_*`` variant with a warning when the LLVM backend is not usable.
+user already set ``DRJIT_LIBLLVM_PATH``), selects the requested variant and falls back with a warning:
+a CUDA variant without a GPU to the LLVM variant of the same colour, an LLVM variant without a usable
+LLVM to ``scalar_rgb``.
 The import of mitsuba happens here, inside the function, so ``renderlab --help`` stays instant.
 """
 
@@ -25,7 +26,8 @@ KNOWN_VARIANTS = ("llvm_ad_mono", "llvm_ad_rgb", "scalar_rgb", "cuda_ad_mono", "
 # The PyPI wheel has no scalar_mono: mono scenes fall back to scalar_rgb, and the backend averages
 # the (equal, for grey albedo and sun) channels back to one.
 
-_active: str | None = None
+#: requested variant → the variant in use for it in this process (itself or its fallback)
+_resolved: dict[str, str] = {}
 
 
 def find_llvm19() -> str | None:
@@ -37,8 +39,27 @@ def find_llvm19() -> str | None:
     return hits[0] if hits else None
 
 
+def fallbacks(variant: str) -> list[str]:
+    """The variants tried after ``variant``, in order: CUDA → the LLVM variant of the same colour → ``scalar_rgb``."""
+    colour = variant.rsplit("_", 1)[-1]
+    chain = [f"llvm_ad_{colour}"] if variant.startswith("cuda") else []
+    return chain + (["scalar_rgb"] if variant != "scalar_rgb" else [])
+
+
+def _why(variant: str, exc: Exception) -> str:
+    """Why ``variant`` failed and what would fix it (one line)."""
+    what = " ".join(str(exc).split()) or type(exc).__name__
+    if variant.startswith("cuda"):
+        return f"no usable CUDA GPU or driver ({what})"
+    return f"{what}; install Debian's libllvm19 (./setup.sh does) or set DRJIT_LIBLLVM_PATH"
+
+
 def init_mitsuba(variant: str = "llvm_ad_mono"):
-    """Import mitsuba, select ``variant`` (falling back to scalar with a warning) and return the module.
+    """Import mitsuba, select ``variant`` (falling back with a warning) and return the module.
+
+    A CUDA variant without a usable GPU falls back to the LLVM variant of the same colour (CPU, vectorised);
+    an LLVM variant without a usable LLVM to ``scalar_rgb`` (about 10x slower). The choice is made once per
+    process and requested variant, so the warning is issued once.
 
     Parameters
     ----------
@@ -50,29 +71,28 @@ def init_mitsuba(variant: str = "llvm_ad_mono"):
     module
         The ``mitsuba`` module with the variant set. ``mitsuba.variant()`` tells which one is active.
     """
-    global _active
     if variant not in KNOWN_VARIANTS:
         raise UserError(f"render.variant must be one of {', '.join(KNOWN_VARIANTS)}, got {variant!r}")
-    if variant.startswith("llvm") and "DRJIT_LIBLLVM_PATH" not in os.environ:
+    if variant != "scalar_rgb" and "DRJIT_LIBLLVM_PATH" not in os.environ:  # CUDA may fall back to LLVM
         lib = find_llvm19()
         if lib:
             os.environ["DRJIT_LIBLLVM_PATH"] = lib
     import mitsuba as mi
 
-    if _active == variant:
-        mi.set_variant(variant)
+    if variant in _resolved:
+        mi.set_variant(_resolved[variant])
         return mi
-    try:
-        mi.set_variant(variant)
-    except Exception as exc:  # the LLVM/CUDA backend is missing or broken on this machine
-        fallback = "scalar_rgb"
-        warnings.warn(
-            f"Mitsuba variant {variant} is not usable here ({exc}); falling back to {fallback}, "
-            "which is about 10x slower. Install Debian's libllvm19 (./setup.sh does).",
-            RuntimeWarning,
-            stacklevel=2,
-        )
-        mi.set_variant(fallback)
-        variant = fallback
-    _active = variant
-    return mi
+    errors = []
+    for candidate in [variant, *fallbacks(variant)]:
+        try:
+            mi.set_variant(candidate)
+        except Exception as exc:  # the CUDA/LLVM backend is missing or broken on this machine
+            errors.append(f"{candidate}: {_why(candidate, exc)}")
+            continue
+        if errors:
+            slow = " (about 10x slower)" if candidate.startswith("scalar") else " (CPU)"
+            warnings.warn(f"Mitsuba variant {variant} is not usable here ({'; '.join(errors)}); "
+                          f"falling back to {candidate}{slow}", RuntimeWarning, stacklevel=2)
+        _resolved[variant] = candidate
+        return mi
+    raise UserError(f"no Mitsuba variant is usable here: {'; '.join(errors)}")

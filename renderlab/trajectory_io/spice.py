@@ -132,7 +132,9 @@ def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame:
         Missing kernel, no LSK, unknown body or frame, an epoch outside the kernels' coverage (names the epoch
         and the coverage).
     """
-    import spiceypy as sp
+    from renderlab.extras import require
+
+    sp = require("spiceypy", "spice")
     from spiceypy.utils.exceptions import SpiceyError
 
     paths = [Path(k) for k in kernels]

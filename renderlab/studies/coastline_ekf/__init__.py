@@ -8,5 +8,5 @@ from renderlab.contracts.study import Study, lazy
 STUDY = Study(name="coastline_ekf", run=lazy("renderlab.studies.coastline_ekf.study:run"), worlds=("earth",),
               description="coastline-matching EKF in LEO (Straub & Christian), geometric or image in the loop",
               report_sections=lazy("renderlab.studies.coastline_ekf.study:report_sections"),
-              own_tables=("coastline_filter",),
+              own_tables=("coastline_filter",), check=lazy("renderlab.worlds.earth:check_installed"),
               demo=lazy("renderlab.studies.coastline_ekf.study:run_demo_coastline"))

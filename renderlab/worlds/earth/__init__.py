@@ -9,7 +9,17 @@ Earth rotation), :mod:`.sun` (Almanac ephemeris), :mod:`.gshhg` (polygons + STRt
 from __future__ import annotations
 
 
+def check_installed(scenario=None) -> None:
+    """A one-line UserError naming the 'earth' extra when shapely or roaring-landmask is not installed (the plan
+    and the coastline study call it before anything is made)."""
+    from renderlab.extras import require
+
+    require("shapely", "earth", load=False)
+    require("roaring_landmask", "earth", load=False)
+
+
 def make_plan(scenario, base_dir):
+    check_installed()
     from renderlab.worlds.earth.plan import EarthPlan
 
     return EarthPlan.from_scenario(scenario)

@@ -121,7 +121,10 @@ def load_gshhg() -> GSHHG:
     """The process-wide GSHHG (parsed on first call, ≈ 6 s; the indexes on first use)."""
     with _LOCK:
         if "g" not in _CACHE:
-            import shapely
+            from renderlab.extras import require
+
+            shapely = require("shapely", "earth")
+            require("roaring_landmask", "earth")
             from roaring_landmask import LandmaskProvider, Shapes
 
             _CACHE["g"] = GSHHG(shapely.get_parts(shapely.from_wkb(Shapes.wkb(LandmaskProvider.Gshhg))))
