@@ -196,4 +196,7 @@ def make_executor(workers: int | None = None, scheduler: str | None = None, conn
     or the cluster at ``scheduler``)."""
     if workers == 0 and scheduler is None:
         return InProcessExecutor()
+    from renderlab.extras import require
+
+    require("distributed", "cluster", hint="--workers 0 runs the campaign in this process")
     return DaskExecutor(workers=workers, scheduler=scheduler, connect_timeout_s=connect_timeout_s)

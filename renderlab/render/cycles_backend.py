@@ -248,14 +248,9 @@ class CyclesBackend:
         if settings.max_depth != 2:
             raise UserError("cycles backend renders direct sunlight only: render.max_depth must be 2, "
                             f"got {settings.max_depth}")
-        try:
-            import importlib.util
+        from renderlab.extras import require
 
-            found = importlib.util.find_spec("bpy") is not None
-        except (ImportError, ValueError):
-            found = False
-        if not found:
-            raise UserError("renderer 'cycles' needs the bpy package (pip install bpy==5.0.1, Python 3.11)")
+        require("bpy", "cycles", load=False)  # the worker imports it (seconds)
         self.settings = settings
         self.variant = "cycles-cpu-osl"
         self.rgb = settings.variant.endswith("rgb")
