@@ -18,7 +18,8 @@ from pathlib import Path
 from renderlab.errors import UserError
 
 HEADLINE_ROWS = 8
-_HEADLINE_NUMBERS = ("n_rows", "runs", "mean", "std", "rms", "median", "mc_3sig_r_m", "anees_mean")
+_HEADLINE_NUMBERS = ("n_rows", "runs", "bias_px", "robust_sigma_px", "std_px", "gross_rate", "mean", "std",
+                     "rms", "median", "mc_3sig_r_m", "anees_mean")
 
 
 def add_parser(subparsers) -> None:
@@ -168,8 +169,8 @@ def headline_lines(summary: Path) -> list[str]:
         except ValueError:
             return False
     cols = list(rows[0])
-    labels = [c for c in cols if not number(rows[0][c] or "x")][:3]
-    numbers = [c for c in _HEADLINE_NUMBERS if c in cols][:4] or [c for c in cols if c not in labels][:4]
+    labels = [c for c in cols if not number(rows[0][c] or "x")][:4]
+    numbers = [c for c in _HEADLINE_NUMBERS if c in cols][:5] or [c for c in cols if c not in labels][:5]
     keep = labels + numbers
 
     def cell(v: str) -> str:
