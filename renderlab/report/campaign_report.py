@@ -44,7 +44,7 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
     try:
         sections, summary, headline = _write_all(tables, stage, manifest, confidence)
         sections += _study_sections(manifest["plan"]["study"], tables, stage)
-        regen = f"renderlab report {_rel(campaign_dir, out_dir)} --out {out_dir.name}"
+        regen = _regenerate_command(campaign_dir, out_dir)
         page = _page(manifest, statuses, sections, headline, regen)
         (stage / "index.html").write_text(page, encoding="utf-8")
         if summary:
@@ -62,6 +62,24 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return out_dir / "index.html"
+
+
+def _regenerate_command(campaign_dir: Path, out_dir: Path) -> str:
+    """The command that remakes this report: a published study folder's default report needs only the folder."""
+    from renderlab.campaign.publish import is_published
+
+    if is_published(campaign_dir) and out_dir.resolve() == (campaign_dir / "report").resolve():
+        return f"renderlab report {campaign_dir.as_posix()}"
+    return f"renderlab report {_rel(campaign_dir, out_dir)} --out {out_dir.name}"
+
+
+def _value_text(v) -> str:
+    """A scenario value for people: lists comma-separated, tables as ``key = value``, no Python reprs."""
+    if isinstance(v, dict):
+        return ", ".join(f"{k} = {_value_text(x)}" for k, x in v.items())
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_value_text(x) for x in v)
+    return f"{v:g}" if isinstance(v, float) else str(v)
 
 
 def _rel(campaign_dir: Path, out_dir: Path) -> str:
@@ -135,9 +153,9 @@ def _headline(summary: list[dict]) -> str:
 
 def _header_tables(manifest: dict) -> list[str]:
     plan = manifest["plan"]
-    pert = [{"key": k, "value": str(v)} for k, v in sorted((plan["scenario"].get("perturbations") or {}).items())
+    pert = [{"key": k, "value": _value_text(v)} for k, v in sorted((plan["scenario"].get("perturbations") or {}).items())
             if v not in (0, 0.0, [0.0] * 3, [0, 0, 0], {}, None)]
-    ver = [{"key": k, "value": str(v)} for k, v in sorted((manifest.get("versions") or {}).items())]
+    ver = [{"key": k, "value": _value_text(v)} for k, v in sorted((manifest.get("versions") or {}).items())]
     out = []
     if pert:
         out.append("<h3>Perturbations (1σ, units in the key name)</h3>"

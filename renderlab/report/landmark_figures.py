@@ -53,7 +53,7 @@ def fig12(table, stem: Path, mask=None, title: str = "") -> list[str]:
         out = int(np.sum((np.abs(x) > lim) | (np.abs(y) > lim)))
         n = int(s.sum())
         ax.scatter(np.clip(x, -lim, lim), np.clip(y, -lim, lim), s=4 if n > 500 else 14,
-                   alpha=float(np.clip(60.0 / max(n, 1), 0.12, 0.9)), color=c, lw=0)
+                   alpha=float(np.clip(60.0 / max(n, 1), 0.12, 0.9)), color=c, lw=0, rasterized=True)
         head = f"{m}: {n} results"
         if n >= 3:
             centre, cov = robust_cov(x, y)

@@ -45,6 +45,11 @@ def has_result(table) -> np.ndarray:
     return _col(table, "has_result", bool) & np.isfinite(_col(table, "err_s")) & np.isfinite(_col(table, "err_l"))
 
 
+def has_truth(table) -> np.ndarray:
+    """Rows whose truth pixel is known (the scored population; a landmark without truth is not a failure)."""
+    return np.isfinite(_col(table, "truth_s")) & np.isfinite(_col(table, "truth_l"))
+
+
 def robust_sigma(x) -> float:
     x = np.asarray(x, float)
     x = x[np.isfinite(x)]
@@ -71,9 +76,10 @@ def _iv(prefix: str, iv) -> dict:
 
 def method_summary(table, mask=None, *, gross_px: float = 1.0, confidence: float = 0.95, seed: int = 0,
                    subset: str = "all", cluster_keys: tuple[str, ...] = DEFAULT_CLUSTERS) -> list[dict]:
-    """Rows per (method, axis): counts, bias, robust σ, std, gross-error rate (|err| > ``gross_px`` on that axis
-    among results) and no-result rate, each with a cluster-bootstrap interval (module docstring)."""
-    mask = np.ones(table.num_rows, bool) if mask is None else np.asarray(mask, bool)
+    """Rows per (method, axis) among the rows with a truth: counts, bias, robust σ, std, gross-error rate (|err| >
+    ``gross_px`` on that axis among results) and no-result rate, each with a cluster-bootstrap interval (module
+    docstring)."""
+    mask = (np.ones(table.num_rows, bool) if mask is None else np.asarray(mask, bool)) & has_truth(table)
     meth, cl, ok = _col(table, "method", object), cluster_ids(table, cluster_keys), has_result(table)
     cname = cluster_name(cluster_keys)
     rows = []
@@ -103,8 +109,9 @@ def method_summary(table, mask=None, *, gross_px: float = 1.0, confidence: float
 
 
 def reason_counts(table, mask=None, subset: str = "all") -> list[dict]:
-    """Rows per (method, reason): count and share of the method's rows (``ok`` included)."""
-    mask = np.ones(table.num_rows, bool) if mask is None else np.asarray(mask, bool)
+    """Rows per (method, reason) among the rows with a truth: count and share of the method's rows (``ok``
+    included)."""
+    mask = (np.ones(table.num_rows, bool) if mask is None else np.asarray(mask, bool)) & has_truth(table)
     meth, reason = _col(table, "method", object), _col(table, "reason", object)
     rows = []
     for m in sorted(set(meth[mask])):

@@ -77,6 +77,15 @@ seed = 7
 """
 
 
+def demo_methods_section() -> str:
+    """``[retina_vs_spc] methods``: Retina, SPC and the NCC baseline plug-in when it is installed (``setup.sh``
+    installs ``examples/ncc_baseline``; a plain wheel install has only the lab's own two methods)."""
+    from renderlab import plugins
+
+    methods = ["retina", "spc"] + (["ncc_baseline"] if "ncc_baseline" in plugins.landmark_methods else [])
+    return "\n[retina_vs_spc]\nmethods = [" + ", ".join(f'"{m}"' for m in methods) + "]\n"
+
+
 def run_demo_campaign(out_dir, progress: bool = True, runs: int = DEMO_RUNS) -> Path:
     """Run the demo campaign into ``out_dir`` (``scenario.toml``, ``campaign/``, ``report/``).
 
@@ -98,7 +107,7 @@ def run_demo_campaign(out_dir, progress: bool = True, runs: int = DEMO_RUNS) -> 
         raise UserError(f"--out {out} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     scenario = out / "scenario.toml"
-    scenario.write_text(DEMO_SCENARIO, encoding="utf-8")
+    scenario.write_text(DEMO_SCENARIO + demo_methods_section(), encoding="utf-8")
     campaign = out / "campaign"
     result = run_campaign_file(scenario, campaign, runs, workers=0, resume=campaign.exists(), progress=progress)
     if result.failed:
