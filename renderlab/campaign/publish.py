@@ -52,6 +52,9 @@ def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
         (stage / TABLES).mkdir(parents=True)
         for name, t in sorted(tables.items()):
             pq.write_table(t, str(stage / TABLES / f"{name}.parquet"), compression="zstd", compression_level=9)
+        if isinstance(manifest.get("scenario_dir"), str):  # relative to the published folder, no absolute path
+            scen = (src / manifest["scenario_dir"]).resolve()
+            manifest = {**manifest, "scenario_dir": Path(os.path.relpath(scen, out.resolve())).as_posix()}
         (stage / "campaign.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
         slim = [{k: s.get(k) for k in ("run", "status", "error", "seconds", "tables") if k in s} for s in statuses]
         (stage / STATUSES).write_text(json.dumps(slim, indent=1) + "\n", encoding="utf-8")
