@@ -41,11 +41,11 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "coastline_ekf": "renderlab.studies.coastline_ekf:STUDY",
         "unknown_satellite": "renderlab.studies.unknown_satellite:STUDY",
     }),
-    "worlds": ("renderlab.worlds", {
-        "analytic": "renderlab.worlds.analytic:make_plan",
-        "ev5": "renderlab.worlds.ev5:make_plan",
-        "earth": "renderlab.worlds.earth:make_plan",
-        "microsat": "renderlab.worlds.microsat:make_plan",
+    "worlds": ("renderlab.worlds", {  # renderlab.contracts.world.WorldKind objects
+        "analytic": "renderlab.scenario.kinds:ANALYTIC",
+        "ev5": "renderlab.scenario.kinds:EV5",
+        "earth": "renderlab.scenario.kinds:EARTH",
+        "microsat": "renderlab.scenario.kinds:MICROSAT",
     }),
     "scenario_sections": ("renderlab.scenario_sections", {
         "coastline": "renderlab.studies.coastline_ekf.config:CoastlineStudyConfig",

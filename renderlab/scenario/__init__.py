@@ -202,7 +202,9 @@ class Scenario(_Strict):
 
     @model_validator(mode="after")
     def _world_fits_trajectory(self):
-        allowed = WORLD_TRAJECTORIES[self.world.kind]
+        from renderlab.scenario.kinds import world_trajectories
+
+        allowed = WORLD_TRAJECTORIES.get(self.world.kind) or world_trajectories()[self.world.kind]
         if self.trajectory.kind not in allowed:
             raise ValueError(f"trajectory.kind '{self.trajectory.kind}' does not fit world.kind '{self.world.kind}' "
                              f"(use {' or '.join(repr(k) for k in allowed)})")
@@ -218,10 +220,19 @@ def scenario_model() -> type[Scenario]:
     from renderlab import plugins
 
     names = tuple(plugins.scenario_sections.names())
-    if _MODEL_CACHE.get("names") != names:
+    worlds = tuple(plugins.worlds.names())
+    if _MODEL_CACHE.get("names") != (names, worlds):
         fields = {n: (cls | None, Field(None, description=f"Study section [{n}] (optional): "
                                         f"{(cls.__doc__ or n).strip().splitlines()[0].rstrip('.')}"))
                   for n, cls in ((n, plugins.scenario_sections.get(n)) for n in names)}
+        if set(worlds) != set(WORLD_TRAJECTORIES):  # a plug-in world: [world] and [trajectory] from the registry
+            from renderlab.scenario.kinds import registered_kinds, trajectory_union, world_union
+
+            kinds = registered_kinds()
+            fields["world"] = (world_union(kinds), Field(description=Scenario.model_fields["world"].description))
+            fields["trajectory"] = (trajectory_union(kinds), Field(TrajectoryConfig(),
+                                    description=Scenario.model_fields["trajectory"].description))
+        names = (names, worlds)
         _MODEL_CACHE["names"] = names
         _MODEL_CACHE["model"] = pydantic.create_model("Scenario", __base__=Scenario, **fields)
     return _MODEL_CACHE["model"]

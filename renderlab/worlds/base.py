@@ -84,5 +84,5 @@ def make_plan(scenario, base_dir: Path) -> WorldPlan:
     (:data:`renderlab.plugins.worlds`)."""
     from renderlab import plugins
 
-    factory = plugins.worlds.get(scenario.world.kind, where="world.kind: ")
-    return factory(scenario, Path(base_dir))
+    world = plugins.worlds.get(scenario.world.kind, where="world.kind: ")
+    return world.plan(scenario, Path(base_dir))
