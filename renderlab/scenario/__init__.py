@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import pydantic
-from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
+from pydantic import ConfigDict, Discriminator, Field, Tag, field_validator, model_validator
 
 from renderlab.scenario.camera import CameraConfig, resolve_camera
 from renderlab.scenario.campaign import CampaignConfig, PerturbationConfig
@@ -101,7 +101,8 @@ class SunConfig(_Strict):
 class RenderConfig(_Strict):
     """Renderer settings: backend, Mitsuba variant, samples, bounces, clipping and the render seed."""
 
-    renderer: Literal["mitsuba", "cycles"] = Field("mitsuba", description="Render backend")
+    renderer: str = Field("mitsuba", description="Render backend: a registered renderer (mitsuba, cycles, or a "
+                          "plug-in's, entry-point group renderlab.renderers)")
     variant: Literal["llvm_ad_mono", "llvm_ad_rgb", "scalar_rgb", "cuda_ad_mono", "cuda_ad_rgb"] = Field(
         "llvm_ad_mono", description="Mitsuba variant (mono: one radiance channel Y; rgb: R, G, B)")
     spp: Annotated[int, Field(gt=0, le=65536)] = Field(16, description="Samples per pixel")
@@ -112,6 +113,15 @@ class RenderConfig(_Strict):
     near_clip_m: Positive = Field(1e-3, description="Near clip distance [m]")
     far_clip_m: Positive = Field(1e7, description="Far clip distance, above near_clip_m [m]")
     seed: Annotated[int, Field(ge=0)] = Field(0, description="Seed of the sample pattern and the sensor noise")
+
+    @field_validator("renderer")
+    @classmethod
+    def _registered_renderer(cls, name: str) -> str:
+        from renderlab import plugins
+
+        if name not in plugins.renderers:
+            raise ValueError(str(plugins.renderers.unknown(name)))
+        return name
 
     @model_validator(mode="after")
     def _clips(self):
