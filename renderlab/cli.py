@@ -1,8 +1,19 @@
 # PYTHON_ARGCOMPLETE_OK
 """The ``renderlab`` command.
 
-User errors (bad scenario, bad arguments, missing or unwritable files) print one line
-``renderlab: error: ...`` on stderr and exit with code 2; nothing is left half-written.
+User errors (bad scenario, bad arguments, missing or unwritable files, a full disk) print one line
+``renderlab: error: ...`` on stderr and exit with code 2; nothing is left half-written. Before anything
+runs or is created, the whole request is checked: paths (non-empty, no NUL, components of at most 255
+bytes), the scenario file (a regular file of sane size, TOML nested at most as deep as Python can parse),
+``--set`` keys (plain names and list indices), numbers (finite) and the cost of the request
+(:mod:`renderlab.cost`; ``--allow-large`` lifts its limits). SIGINT, SIGTERM and SIGHUP clean up and exit
+with 130, 143 and 129 (:mod:`renderlab.signals`).
+
+Caches: every cache of a run lives under one lab cache folder, ``$RENDERLAB_CACHE`` (default
+``~/.cache/renderlab``): Dr.Jit kernels, matplotlib, Blender's user folders, the XDG cache and config
+folders (Blender's thumbnails, astropy's cache and config), Dask's scratch space and a per-run temporary
+folder (``TMPDIR`` of the run, removed at exit), set before any heavy import; a variable the user has set is
+kept. Nothing else is written to ``$HOME``.
 Heavy packages (mitsuba, bpy, dask) are imported inside the commands, so ``--help`` is instant.
 """
 
@@ -10,12 +21,24 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import os
+import secrets
+import shutil
 import sys
 from pathlib import Path
 
 from renderlab import __version__
+from renderlab.cost import check_path, load_checked
 from renderlab.errors import UserError
+
+#: environment variable → folder under the lab cache (set only when the user has not set it)
+CACHE_ENV = {"DRJIT_CACHE_DIR": "drjit", "MPLCONFIGDIR": "matplotlib", "BLENDER_USER_CONFIG": "blender/config",
+             "BLENDER_USER_SCRIPTS": "blender/scripts", "BLENDER_USER_DATAFILES": "blender/datafiles",
+             "BLENDER_USER_EXTENSIONS": "blender/extensions", "DASK_TEMPORARY_DIRECTORY": "dask-scratch",
+             "XDG_CACHE_HOME": "xdg-cache", "XDG_CONFIG_HOME": "xdg-config"}
+#: folders made inside those (astropy uses ``$XDG_*_HOME/astropy`` only when it exists, else ``~/.astropy``)
+CACHE_SUBFOLDERS = ("xdg-cache/astropy", "xdg-config/astropy")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -103,6 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="override a scenario key (TOML value), e.g. --set camera.width=128; repeatable")
     r.add_argument("--overwrite", action="store_true", help="replace DIR (and the --save-blend file) if it exists")
+    r.add_argument("--allow-large", action="store_true",
+                   help="run past the cost limits (pixels × spp × frames, memory, disk; see renderlab.cost)")
     r.add_argument("--save-blend", metavar="FILE.blend",
                    help="also save the first frame's Blender scene (Cycles only), to open in Blender's GUI")
     r.add_argument("--dry-run", action="store_true",
@@ -118,15 +143,56 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def cmd_render(args) -> int:
-    from renderlab.pipeline import render_truthset
-    from renderlab.scenario import load_scenario
+# ----------------------------------------------------------------------------------------- request checks
+#: command → its path arguments (positional ones by their metavar)
+PATH_ARGS = {"render": ("scenario", "out"), "crosscheck": ("scenario", "out"), "campaign": ("scenario", "out"),
+             "measure": ("truthset", "out"), "report": ("campaign", "out"), "publish": ("campaign", "out"),
+             "visibility": ("out",), "demo": ("out",)}
 
-    scenario, base = load_scenario(args.scenario, args.overrides)
+
+def _check_args(args) -> None:
+    """Paths and numbers of any command, before it runs."""
+    for name in PATH_ARGS.get(args.command, ()):
+        value = getattr(args, name, None)
+        if value is not None:
+            check_path(value, "--out" if name == "out" else name.upper())
+    for name, value in vars(args).items():
+        if isinstance(value, float) and not math.isfinite(value):
+            raise UserError(f"--{name.replace('_', '-')} must be a finite number, got {value}")
+        if name == "seed" and isinstance(value, int) and not isinstance(value, bool) and value < 0:
+            raise UserError(f"--seed must be a non-negative integer, got {value}")
+
+
+def _check_overwrite_target(out: Path, scenario: Path) -> None:
+    """``--overwrite`` never replaces the current folder, the scenario's folder or one holding them."""
+    target = out.resolve()
+    for keep in (Path.cwd().resolve(), scenario.resolve().parent):
+        if keep == target or target in keep.parents:
+            raise UserError(f"--overwrite would replace {target}, which holds {keep}; choose another --out")
+
+
+def sweep_out(out, *, own: bool = False) -> None:
+    """Remove leftover staging folders of ``out`` (earlier crashes; ``own``: this process's, after an interrupt)."""
+    from renderlab.signals import sweep_staging
+
+    out = Path(os.path.abspath(out))
+    sweep_staging(out.parent, out.name, own=own)
+
+
+# ----------------------------------------------------------------------------------------- commands
+def cmd_render(args) -> int:
+    from renderlab import cost
+
+    scenario, base = load_checked(args.scenario, args.overrides)
+    if args.overwrite:
+        _check_overwrite_target(Path(args.out), Path(args.scenario))
     if getattr(args, "dry_run", False):
         from renderlab.commands.dryrun import render_dry_run
 
         return render_dry_run(scenario, args)
+    cost.check_scenario(scenario, frames=args.frames, out=args.out, allow_large=args.allow_large,
+                        what=f"render of {Path(args.scenario).name}")
+    from renderlab.pipeline import render_truthset
     from renderlab.render.cycles_backend import check_blend_target, saving_blend
 
     blend = None
@@ -153,28 +219,106 @@ def cmd_demo(args) -> int:
     return 0
 
 
+# ----------------------------------------------------------------------------------------- environment
+def cache_root(environ=None) -> Path:
+    """The lab cache folder: ``$RENDERLAB_CACHE`` or ``~/.cache/renderlab``."""
+    environ = os.environ if environ is None else environ
+    return Path(environ.get("RENDERLAB_CACHE") or Path("~/.cache/renderlab").expanduser()).absolute()
+
+
+@contextlib.contextmanager
+def lab_environment():
+    """Point every cache at the lab cache folder and give the run its own temporary folder (removed at exit,
+    with those of earlier runs whose process is gone); the environment is restored afterwards."""
+    import tempfile
+
+    from renderlab.signals import sweep_staging
+
+    root = cache_root()
+    saved = {k: os.environ.get(k) for k in (*CACHE_ENV, "TMPDIR")}
+    saved_tempdir = tempfile.tempdir
+    tmp = root / "tmp" / f".run.staging-{os.getpid()}-{secrets.token_hex(4)}"
+    try:
+        for key, sub in CACHE_ENV.items():
+            if not os.environ.get(key):
+                (root / sub).mkdir(parents=True, exist_ok=True)  # some readers ignore a missing folder, noisily
+                os.environ[key] = str(root / sub)
+        for sub in CACHE_SUBFOLDERS:
+            (root / sub).mkdir(parents=True, exist_ok=True)
+        tmp.mkdir(parents=True, exist_ok=True)
+        sweep_staging(tmp.parent, "run")
+        os.environ["TMPDIR"] = str(tmp)  # Python's tempfile (when not yet used), Blender, Dask workers
+    except OSError:  # an unwritable cache folder: keep the system's temporary folder
+        tmp = None
+    try:
+        yield root
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        tempfile.tempdir = saved_tempdir
+
+
+def _os_error_line(exc: OSError) -> str:
+    """One line for an OSError that reached the command (a full or read-only disk, a missing permission)."""
+    import errno
+
+    what = exc.strerror or type(exc).__name__
+    name = getattr(exc, "filename", None)
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS):
+        return f"cannot write {name or 'the output'}: {what} (the disk is full or read-only)"
+    return f"{what}: {name}" if name else what
+
+
+def _dispatch(args, parser) -> int:
+    if args.command is None:
+        parser.print_help()
+        raise UserError(f"a command is required ({', '.join(['render', 'demo', *_extra_commands()])}); see renderlab --help")
+    _check_args(args)
+    if getattr(args, "out", None):
+        sweep_out(args.out)
+    handlers = {"render": cmd_render, "demo": cmd_demo}
+    if args.command in handlers:
+        return handlers[args.command](args)
+    return _extra_commands()[args.command].run(args)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; every failure the user or the machine causes is one line on stderr."""
+    from renderlab import signals
+
     if argv is None and os.environ.get("_ARGCOMPLETE"):  # shell completion: answers and exits, before any set-up
         with contextlib.suppress(ImportError):
             import argcomplete
 
             argcomplete.autocomplete(build_parser())
-    parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-        if args.command is None:
-            parser.print_help()
-            raise UserError(f"a command is required ({', '.join(['render', 'demo', *_extra_commands()])}); see renderlab --help")
-        handlers = {"render": cmd_render, "demo": cmd_demo}
-        if args.command in handlers:
-            return handlers[args.command](args)
-        return _extra_commands()[args.command].run(args)
-    except UserError as err:
-        print(f"renderlab: error: {err}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("renderlab: interrupted", file=sys.stderr)
-        return 130
+    with signals.handled_signals(), lab_environment():
+        args = None
+        try:
+            parser = build_parser()
+            args = parser.parse_args(argv)
+            return _dispatch(args, parser)
+        except UserError as err:
+            print(f"renderlab: error: {err}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt as exc:  # also SIGTERM and SIGHUP (renderlab.signals.Terminated)
+            if args is not None and getattr(args, "out", None):
+                sweep_out(args.out, own=True)
+            print(f"renderlab: {signals.describe(exc)}", file=sys.stderr)
+            return signals.exit_code(exc)
+        except RecursionError:
+            print("renderlab: error: input nested too deeply", file=sys.stderr)
+            return 2
+        except MemoryError:
+            print("renderlab: error: out of memory (the request is too large for this machine)", file=sys.stderr)
+            return 2
+        except OSError as exc:
+            print(f"renderlab: error: {' '.join(_os_error_line(exc).split())}", file=sys.stderr)
+            return 2
 
 
 if __name__ == "__main__":

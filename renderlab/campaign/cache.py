@@ -5,7 +5,8 @@ render settings including the seed) and the number of frames. Its cache key is t
 canonical JSON plus the truth-set format and a fingerprint of the code that makes truth (the sources of
 ``renderlab.render``, ``worlds``, ``geometry``, ``dynamics``, the sensor, photometry, truth-set and scenario
 modules, and the installed Mitsuba/Dr.Jit/bpy versions), so a render cached by older truth code is never
-reused after that code changes; the set lives in ``<cache_root>/<key>/`` and is written
+reused after that code changes, and the content hashes of the files it references (albedo maps, meshes,
+shape models: a changed file is a new key even under the same name); the set lives in ``<cache_root>/<key>/`` and is written
 atomically by :class:`renderlab.truthset.TruthSetWriter`, so concurrent workers rendering the same key
 both end with one complete set.
 """
@@ -51,13 +52,58 @@ def truth_code_fingerprint() -> str:
     return fingerprint_truth_sources(Path(__file__).resolve().parents[1])
 
 
-def truth_key(scenario_dict: dict, frames: int | None = None) -> str:
+#: scenario keys that name files (relative to the scenario's folder), besides any ``*_file``/``*_map``/``*_path``
+FILE_KEYS = ("file", "albedo_map", "shape_file", "calibration_file", "oem", "aem", "kernels")
+_FILE_SUFFIXES = ("_file", "_files", "_map", "_path")
+
+
+def referenced_files(data, where: str = "") -> list[tuple[str, str]]:
+    """``(dotted key, path text)`` of every file a scenario dict names (:data:`FILE_KEYS` and keys ending in
+    ``_file``, ``_map``, ``_path``; lists of paths too), in key order."""
+    out = []
+    items = data.items() if isinstance(data, dict) else enumerate(data) if isinstance(data, list) else ()
+    for k, v in items:
+        key = f"{where}.{k}" if where else str(k)
+        named = isinstance(k, str) and (k in FILE_KEYS or k.endswith(_FILE_SUFFIXES))
+        if named and isinstance(v, str) and v:
+            out.append((key, v))
+        elif named and isinstance(v, list) and v and all(isinstance(x, str) for x in v):
+            out += [(f"{key}.{i}", x) for i, x in enumerate(v) if x]
+        elif isinstance(v, (dict, list)):
+            out += referenced_files(v, key)
+    return out
+
+
+def file_sha256(path: Path) -> str:
+    """``sha256:<hex>`` of a file's content (read in 1 MiB blocks), or ``missing``/``unreadable``."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except FileNotFoundError:
+        return "missing"
+    except OSError:
+        return "unreadable"
+    return "sha256:" + h.hexdigest()
+
+
+def file_hashes(scenario_dict: dict, base_dir) -> dict[str, str]:
+    """``{dotted key: sha256 of the content}`` of every file the scenario references (resolved against
+    ``base_dir``, the scenario's folder): what ``--resume`` and the truth cache compare, not the names."""
+    return {key: file_sha256(Path(base_dir) / rel) for key, rel in referenced_files(scenario_dict)}
+
+
+def truth_key(scenario_dict: dict, frames: int | None = None, files: dict | None = None) -> str:
     """Cache key of a render: hash of the scenario data (which includes camera pose and seed), the frame
-    count, the truth-set format and :func:`truth_code_fingerprint`."""
+    count, the truth-set format, :func:`truth_code_fingerprint` and the content hashes of the files the
+    scenario references (``files``, from :func:`file_hashes`; left out when there are none)."""
     from renderlab.truthset import FORMAT
 
-    text = json.dumps({"format": FORMAT, "scenario": scenario_dict, "frames": frames,
-                       "code": truth_code_fingerprint()}, sort_keys=True, separators=(",", ":"))
+    key = {"format": FORMAT, "scenario": scenario_dict, "frames": frames, "code": truth_code_fingerprint()}
+    if files:
+        key["files"] = files
+    text = json.dumps(key, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
@@ -69,7 +115,8 @@ def cached_truthset(scenario, base_dir: Path, cache_root: Path, *, frames: int |
     """Path of the truth set of ``scenario`` (rendered now if not cached) and whether it was a hit."""
     from renderlab.pipeline import render_truthset
 
-    key = truth_key(scenario.to_dict(), frames)
+    data = scenario.to_dict()
+    key = truth_key(data, frames, file_hashes(data, base_dir))
     path = Path(cache_root) / key
     if _complete(path):
         return path, True

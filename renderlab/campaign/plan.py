@@ -57,10 +57,19 @@ class CampaignPlan:
         return self.scenario.name
 
     def plan_dict(self) -> dict:
-        """The part of the manifest that must match for ``--resume``."""
-        return {"study": self.study, "runs": self.runs,
-                "seed": {"entropy": self.seed, "run_seed": "SeedSequence(entropy, spawn_key=(run,))"},
-                "scenario": self.scenario.to_dict()}
+        """The part of the manifest that must match for ``--resume``: study, runs, seed, scenario and the
+        content hash of every file the scenario references (``files``, when it references any), so a changed
+        albedo map or mesh under the same name is a different plan."""
+        from renderlab.campaign.cache import file_hashes
+
+        scenario = self.scenario.to_dict()
+        out = {"study": self.study, "runs": self.runs,
+               "seed": {"entropy": self.seed, "run_seed": "SeedSequence(entropy, spawn_key=(run,))"},
+               "scenario": scenario}
+        files = file_hashes(scenario, self.base_dir)
+        if files:
+            out["files"] = files
+        return out
 
     def digest(self) -> str:
         text = json.dumps(self.plan_dict(), sort_keys=True, separators=(",", ":"))

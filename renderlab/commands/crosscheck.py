@@ -25,14 +25,20 @@ def add_parser(sub) -> None:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                    help="override a scenario key (TOML value), e.g. --set camera.width=128; repeatable")
     p.add_argument("--keep-truthsets", action="store_true", help="keep both truth sets in DIR/truthsets/")
+    p.add_argument("--allow-large", action="store_true",
+                   help="run past the cost limits (pixels × spp × frames of both renders, memory, disk)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args) -> int:
-    from renderlab.crosscheck import TARGETS, run_crosscheck
-    from renderlab.scenario import load_scenario
+    from renderlab import cost
+    from renderlab.cost import load_checked
 
-    scenario, base = load_scenario(args.scenario, args.overrides)
+    scenario, base = load_checked(args.scenario, args.overrides)
+    cost.check_scenario(scenario, frames=args.frames, renders=2, out=args.out, allow_large=args.allow_large,
+                        what=f"crosscheck of {Path(args.scenario).name}")
+    from renderlab.crosscheck import TARGETS, run_crosscheck
+
     rows = run_crosscheck(scenario, base, Path(args.out), frames=args.frames,
                           keep_truthsets=args.keep_truthsets, progress=not args.quiet)
     import numpy as np

@@ -30,23 +30,30 @@ def add_parser(sub) -> None:
     p.add_argument("--daylight", action="store_true", help="count only coast lit by the sun")
     p.add_argument("--cloud-cover", type=float, default=0.0, help="cloud cover fraction in [0, 1)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the cloud field (with --cloud-cover)")
+    p.add_argument("--allow-large", action="store_true",
+                   help="run past the cost limit (images per track × inclinations × FOVs; see renderlab.cost)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def run(args) -> int:
+def _check(args) -> tuple[list[float], list[float]]:
+    """Every argument, before anything is read or created (numbers finite, ranges, the sweep's cost)."""
+    import math
+
+    from renderlab import cost
     from renderlab.worlds.earth import wgs84
-    from renderlab.worlds.earth.gshhg import load_gshhg
-    from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, visibility_sweep
 
     incs, fovs = _floats(args.inclinations), _floats(args.fovs)
-    if not all(0 <= i <= 180 for i in incs):
+    if not all(math.isfinite(i) and 0 <= i <= 180 for i in incs):
         raise UserError("--inclinations must be within 0..180 degrees")
-    if not all(0 < f < 120 for f in fovs):
+    if not all(math.isfinite(f) and 0 < f < 120 for f in fovs):
         raise UserError("--fovs must be within (0, 120) degrees")
-    if not (150 <= args.altitude_km <= 40000) or args.hours <= 0 or args.cadence_s <= 0:
-        raise UserError("--altitude-km must be 150..40000, --hours and --cadence-s positive")
+    if not (150 <= args.altitude_km <= 40000):
+        raise UserError(f"--altitude-km must be 150..40000, got {args.altitude_km}")
     if not (0 <= args.cloud_cover < 1):
         raise UserError(f"--cloud-cover must be in [0, 1), got {args.cloud_cover}")
+    if args.seed < 0:
+        raise UserError(f"--seed must be a non-negative integer, got {args.seed}")
+    cost.check_visibility(args.hours, args.cadence_s, len(incs), len(fovs), allow_large=args.allow_large)
     try:
         wgs84.parse_epoch(args.epoch)
     except ValueError:
@@ -54,20 +61,53 @@ def run(args) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a folder")
+    return incs, fovs
+
+
+def run(args) -> int:
+    from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, visibility_sweep
+    from renderlab.worlds.earth.gshhg import load_gshhg
+
+    incs, fovs = _check(args)
+    out = Path(args.out)
     opt = VisibilityOptions(altitude_m=args.altitude_km * 1e3, hours=args.hours, cadence_s=args.cadence_s,
                             epoch_utc=args.epoch, daylight_only=args.daylight, cloud_cover=args.cloud_cover,
                             seed=args.seed)
     rows = visibility_sweep(incs, fovs, opt, load_gshhg(), progress=not args.quiet)
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
+    try:
+        _write_atomic(out / "visibility.csv", lambda p: _write_csv(rows, p))
+        _write_atomic(out / "visibility_contour.png", lambda p: _plot(rows, p, opt))
+    except BaseException:
+        if created and not any(out.iterdir()):
+            out.rmdir()
+        raise
+    print(f"renderlab: wrote {out / 'visibility.csv'} and {out / 'visibility_contour.png'}")
+    return 0
+
+
+def _write_csv(rows, path) -> None:
     import csv
 
-    with open(out / "visibility.csv", "w", newline="") as fh:
+    with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    _plot(rows, out / "visibility_contour.png", opt)
-    print(f"renderlab: wrote {out / 'visibility.csv'} and {out / 'visibility_contour.png'}")
-    return 0
+
+
+def _write_atomic(path: Path, write) -> None:
+    """``write(tmp)`` then rename ``tmp`` to ``path``: a full disk never leaves half a file."""
+    import os
+    import secrets
+
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
 
 
 def _plot(rows, path, opt) -> None:
@@ -101,5 +141,5 @@ def _plot(rows, path, opt) -> None:
     extra = (" daylight" if opt.daylight_only else "") + (f" clouds {opt.cloud_cover:.2f}" if opt.cloud_cover else "")
     ax.set_title(f"{opt.altitude_m / 1e3:.0f} km, {opt.hours:g} h from {opt.epoch_utc}, every {opt.cadence_s:g} s{extra}",
                  fontsize=9)
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, format="png")
     plt.close(fig)
