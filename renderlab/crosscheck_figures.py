@@ -31,7 +31,7 @@ def _colorbar(fig, ax, handle, label: str, target: float | None, vmax: float) ->
         cb.ax.axhline(target, color="k", lw=1.0, ls="--")
         label += "; dashed: target"
     elif target is not None:
-        label += f"; target = {target / vmax:.0f} × max"
+        label += f"; target = {target / vmax:.2g} × max"
     cb.set_label(label, fontsize=7)
     cb.ax.tick_params(labelsize=7)
 
