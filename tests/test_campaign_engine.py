@@ -175,7 +175,7 @@ MALFORMED = [
     (["--runs", "2", "--set", "perturbations.position_cov_m2=[[1,2,0],[2,1,0],[0,0,1]]"], "positive semi-definite"),
     (["--runs", "2", "--set", "perturbations.focal_length_sigma_frac=-0.1"], "focal_length_sigma_frac"),
     (["--runs", "2", "--workers", "1", "--scheduler", "tcp://127.0.0.1:9"], "not allowed with argument"),
-    (["--runs", "2", "--set", "campaign.study=json:nothing_here"], "json has no function nothing_here"),
+    (["--runs", "2", "--set", "campaign.study=json:nothing_here"], "unknown study 'json:nothing_here'"),
 ]
 
 
