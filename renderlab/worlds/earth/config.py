@@ -6,7 +6,7 @@ from __future__ import annotations
 from datetime import datetime, timezone
 from typing import Annotated, Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from renderlab.config_types import NonNegative, Positive, Seed, Strict
 
@@ -89,6 +89,20 @@ class LEOTrajectory(Strict):
     true_anomaly_deg: Annotated[float, Field(allow_inf_nan=False)] = Field(0.0, description="True anomaly at "
                                                                            "epoch_utc [deg]")
     j2: bool = Field(False, description="truth_model j2_rk4: RK4 two-body + J2 truth; false: Kepler two-body")
+    truth_model: Literal["j2_rk4", "zonal_dop853"] = Field("j2_rk4", description="Truth propagator: j2_rk4 "
+                                                           "(the filter's class of model) or zonal_dop853 "
+                                                           "(renderlab.dynamics.truth_orbit)")
+    zonal_degree: Annotated[int, Field(ge=2, le=6)] = Field(6, description="zonal_dop853: highest zonal degree "
+                                                            "(EGM2008 J2..J6)")
+    drag: bool = Field(False, description="zonal_dop853: exponential-atmosphere drag")
+    srp: bool = Field(False, description="zonal_dop853: cannonball solar radiation pressure")
+    third_body: bool = Field(False, description="zonal_dop853: Sun and Moon attraction")
+    drag_cd: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = Field(2.2, description="zonal_dop853: "
+                                                                                 "drag coefficient")
+    srp_cr: Annotated[float, Field(ge=0, le=3, allow_inf_nan=False)] = Field(1.3, description="zonal_dop853: SRP "
+                                                                               "reflectivity coefficient")
+    area_to_mass_m2_kg: Annotated[float, Field(gt=0, le=10, allow_inf_nan=False)] = Field(
+        0.01, description="zonal_dop853: cross-section over mass (drag and SRP) [m²/kg]")
     frames: Annotated[int, Field(gt=0, le=100000)] = Field(1, description="Number of frames")
     dt_s: Positive = Field(30.0, description="Time between frames [s]")
     start_s: NonNegative = Field(0.0, description="Time of frame 0 after epoch_utc [s]")
@@ -119,3 +133,12 @@ class LEOTrajectory(Strict):
             raise ValueError(f"not an ISO 8601 UTC time like 2024-06-21T15:00:00Z: {v!r}") from None
         return v
 
+    @model_validator(mode="after")
+    def _truth_options(self):
+        """Force-model options only mean something for ``truth_model = "zonal_dop853"``: refuse them otherwise."""
+        extra = {"zonal_degree", "drag", "srp", "third_body", "drag_cd", "srp_cr", "area_to_mass_m2_kg"}
+        given = sorted(n for n in extra & self.model_fields_set
+                       if getattr(self, n) != type(self).model_fields[n].default)
+        if self.truth_model == "j2_rk4" and given:
+            raise ValueError(f"{', '.join(given)} need(s) truth_model = 'zonal_dop853' (truth_model is 'j2_rk4')")
+        return self
