@@ -120,7 +120,8 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render a scenario into a truth set")
     r.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file (see scenes/)")
     r.add_argument("--out", required=True, metavar="DIR", help="truth set folder to create")
-    r.add_argument("--renderer", choices=["mitsuba", "cycles"], help="override render.renderer")
+    r.add_argument("--renderer", metavar="NAME", help="override render.renderer: a registered renderer (mitsuba, "
+                   "cycles, or a plug-in's)")
     r.add_argument("--frames", type=_pos_int, metavar="N", help="render only the first N frames")
     r.add_argument("--seed", type=_nonneg_int, metavar="S", help="override render.seed")
     r.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
@@ -181,8 +182,10 @@ def sweep_out(out, *, own: bool = False) -> None:
 
 # ----------------------------------------------------------------------------------------- commands
 def cmd_render(args) -> int:
-    from renderlab import cost
+    from renderlab import cost, plugins
 
+    if args.renderer is not None:
+        plugins.renderers.get(args.renderer, where="--renderer: ")  # a registered name, checked before anything
     scenario, base = load_checked(args.scenario, args.overrides)
     if args.overwrite:
         _check_overwrite_target(Path(args.out), Path(args.scenario))
