@@ -200,3 +200,20 @@ def test_options_validation():
         MeasureOptions(sigma_pos_m=(1.0, math.nan, 1.0))
     with pytest.raises(UserError, match="peak"):
         MeasureOptions(peak="centroid")
+
+
+def test_same_seed_gives_byte_identical_measure_files_with_separate_timings(truthset, tmp_path):
+    path, _ = truthset
+    if not (path / "landmarks.parquet").is_file():
+        pytest.skip("no catalog writer")
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"m{k}.parquet"
+        assert _cli("measure", str(path), "--method", "retina", "--out", str(out), "--seed", "3", "--quiet",
+                    "--timings", "separate") == 0
+        outs.append(out)
+    assert outs[0].read_bytes() == outs[1].read_bytes()
+    import pyarrow.parquet as pq
+
+    side = pq.read_table(tmp_path / "m0.timings.parquet").to_pydict()
+    assert set(side["column"]) == {"t_ms"} and all(v >= 0 for v in side["value"])

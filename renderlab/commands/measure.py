@@ -34,6 +34,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--psf-sigma-px", type=float, default=0.0, help="Retina's PSF sigma, px (default 0)")
     p.add_argument("--campaign", default="", help="campaign name written in every row")
     p.add_argument("--overwrite", action="store_true", help="replace FILE if it exists")
+    p.add_argument("--timings", choices=["inline", "separate"], default="inline",
+                   help="separate: timing columns (t_ms) NaN in FILE and their values in FILE's .timings.parquet "
+                        "sibling, so the same seed gives a byte-identical FILE")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -73,10 +76,23 @@ def run(args) -> int:
         raise UserError(f"output {out} exists (use --overwrite to replace it)")
     table = measure_truthset(ts, maplets, args.method, opts, np.random.default_rng(args.seed), progress=not args.quiet,
                              allow_reference=True)
-    write_table(table, out, overwrite=args.overwrite)
+    write_table(*_split(table, out, args), overwrite=args.overwrite)
     print(f"renderlab: {table.num_rows} {method.name} measurements -> {out}")
     print(f"renderlab: {summary_line(table)}")
     return 0
+
+
+def _split(table, out, args):
+    """(table, out) to write; with ``--timings separate`` the timings go to ``<out>.timings.parquet`` first."""
+    if getattr(args, "timings", "inline") != "separate":
+        return table, out
+    from renderlab.campaign.executors import split_timings
+    from renderlab.measurement.runner import write_table
+
+    tables, side = split_timings({"measurements": table})
+    if side is not None:
+        write_table(side, out.with_name(out.stem + ".timings.parquet"), overwrite=args.overwrite)
+    return tables["measurements"], out
 
 
 def summary_line(table) -> str:

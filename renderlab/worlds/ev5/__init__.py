@@ -87,6 +87,18 @@ def build_model(world, base_dir: Path) -> EV5Model:
     return EV5Model(cut, site, maplets, tiers, spin, law, float(world.albedo), stats)
 
 
+def _rounded(value, digits: int = 10):
+    """Floats to ``digits`` significant digits, recursively: the last digits of multithreaded reductions (the
+    global-shape statistics) depend on the thread count, and ``site.json`` must be byte-identical for a seed."""
+    if isinstance(value, float):
+        return float(f"{value:.{digits}g}")
+    if isinstance(value, dict):
+        return {k: _rounded(v, digits) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_rounded(v, digits) for v in value]
+    return value
+
+
 def make_plan(scenario, base_dir: Path):
     """World plan of an EV5 descent scenario (module docstring)."""
     from renderlab.geometry.camera import CameraModel
@@ -129,7 +141,7 @@ def make_plan(scenario, base_dir: Path):
                     "target_boulder_diameter_m": site.target_diameter_m,
                     "n_boulders": site.n_boulders, "n_craters": site.n_craters,
                     "global_shape": model.full_shape_stats, "global_body_id": GLOBAL_ID}
-            writer.add_file("site.json", (json.dumps(info, indent=1) + "\n").encode())
+            writer.add_file("site.json", (json.dumps(_rounded(info), indent=1) + "\n").encode())
 
         def frame_rows(self, spec, rendered):
             return {"landmark_truth": landmark_rows(spec.index, spec, rendered, model.maplets, model.tiers,
