@@ -9,6 +9,7 @@ band for the inconsistency a J2 truth causes in a two-body filter without proces
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -177,3 +178,23 @@ def test_report_section_flags_the_published_image_in_the_loop_inconsistency(repo
     for f in ("errors", "consistency"):
         for ext in ("png", "svg"):
             assert (tmp_path / f"coastline_filter_coastline_{f}.{ext}").stat().st_size > 10_000
+
+
+def test_truth_model_from_the_scenario_reaches_the_geometric_study():
+    """trajectory.truth_model = "zonal_dop853" makes the study's truth J2–J6 (DOP853) while the filter stays
+    two-body: the truth orbit departs from the two-body one by kilometres within an orbit."""
+    import numpy as np
+
+    from renderlab.scenario import load_scenario
+    from renderlab.studies.coastline_ekf.geometric import truth_geometry
+    from renderlab.studies.coastline_ekf.study import geometric_options
+
+    repo = Path(__file__).resolve().parents[1]
+    sc, _ = load_scenario(repo / "scenes" / "coastline_ekf.toml", ["trajectory.truth_model=zonal_dop853"])
+    o = geometric_options(sc)
+    assert o.truth_model == "zonal_dop853" and o.zonal_degree == 6
+    sc0, _ = load_scenario(repo / "scenes" / "coastline_ekf.toml")
+    o0 = geometric_options(sc0)
+    assert not hasattr(o0, "truth_model")
+    d = np.linalg.norm(truth_geometry(o).x_true[:, :3] - truth_geometry(o0).x_true[:, :3], axis=1)
+    assert d[0] < 1e-6 and d.max() > 1e3

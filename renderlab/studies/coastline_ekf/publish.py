@@ -39,6 +39,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--points-per-image", type=int, default=16)
     p.add_argument("--chunk", type=int, default=250, help="runs per vectorised batch (memory)")
     p.add_argument("--keep-runs", action="store_true")
+    p.add_argument("--truth-model", choices=["j2_rk4", "zonal_dop853"], default="j2_rk4",
+                   help="truth propagator: the filter's class of model (default) or DOP853 with zonals J2..J6")
+    p.add_argument("--zonal-degree", type=int, default=6, help="zonal_dop853: highest zonal degree")
     return p
 
 
@@ -53,6 +56,10 @@ def publish_orbit(case: str, args) -> dict:
     o = paper_orbit(case, cadence_s=args.cadence_s, sigma_theta_rad=args.sigma_theta_mrad * 1e-3,
                     points_per_image=args.points_per_image)
     o = replace(o, duration_s=args.revolutions * o.period_s).validate()
+    if getattr(args, "truth_model", "j2_rk4") != "j2_rk4":
+        from renderlab.studies.coastline_ekf.truth_options import with_truth
+
+        o = with_truth(o, truth_model=args.truth_model, zonal_degree=args.zonal_degree)
     t0 = time.perf_counter()
     geo = truth_geometry(o)
     t_geo = time.perf_counter() - t0

@@ -70,7 +70,7 @@ def geometric_options(scenario):
     check_perturbations(p)
     if tr.eccentricity != 0:
         raise UserError("study coastline_ekf: trajectory.eccentricity must be 0 (the paper's circular orbits)")
-    return CoastlineGeometricOptions(
+    opts = CoastlineGeometricOptions(
         altitude_m=tr.altitude_km * 1e3, inclination_rad=math.radians(tr.inclination_deg),
         raan_rad=math.radians(tr.raan_deg), argp_rad=math.radians(tr.argp_deg),
         nu0_rad=math.radians(tr.true_anomaly_deg), gmst0_rad=gmst_at_epoch(tr.epoch_utc), truth_j2=tr.j2,
@@ -80,6 +80,11 @@ def geometric_options(scenario):
         sigma_r0_m=tuple(float(v) for v in p.apriori_position_sigma_m),
         sigma_v0_mps=tuple(float(v) for v in p.apriori_velocity_sigma_mps),
         q_acc_m2_s3=c.process_noise_m2_s3, filter_step_s=c.filter_step_s, t0_s=tr.start_s).validate()
+    if getattr(tr, "truth_model", "j2_rk4") == "j2_rk4":
+        return opts
+    from renderlab.studies.coastline_ekf.truth_options import TRUTH_FIELDS, with_truth
+
+    return with_truth(opts, **{k: getattr(tr, k) for k in TRUTH_FIELDS})
 
 
 def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
