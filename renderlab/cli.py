@@ -91,6 +91,7 @@ EXTRA_COMMANDS = {
     "campaign": "renderlab.commands.campaign",
     "report": "renderlab.commands.report",
     "publish": "renderlab.commands.report",
+    "export": "renderlab.commands.export",
     "scenes": "renderlab.commands.scenes",
     "show": "renderlab.commands.show",
     "info": "renderlab.commands.info",
