@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import secrets
-import shutil
 from pathlib import Path
 
 from renderlab.errors import UserError
@@ -40,16 +38,9 @@ def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
     from renderlab.campaign import store
 
     src, out = Path(campaign_dir), Path(out_dir)
-    manifest = store.read_manifest(src)
-    tables = store.load_tables(src)
-    statuses = store.run_statuses(src)
-    if not tables:
-        raise UserError(f"campaign {src} has no finished runs to publish")
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out} exists and is not a directory")
-    stage = out.parent / f".{out.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
-    try:
-        (stage / TABLES).mkdir(parents=True)
+    manifest, tables, statuses = store.finished_campaign(src, "publish")
+    with store.staged_folder(out, "the published study") as stage:
+        (stage / TABLES).mkdir()
         for name, t in sorted(tables.items()):
             pq.write_table(t, str(stage / TABLES / f"{name}.parquet"), compression="zstd", compression_level=9)
         if isinstance(manifest.get("scenario_dir"), str):  # relative to the published folder, no absolute path
@@ -58,15 +49,6 @@ def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
         (stage / "campaign.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
         slim = [{k: s.get(k) for k in ("run", "status", "error", "seconds", "tables") if k in s} for s in statuses]
         (stage / STATUSES).write_text(json.dumps(slim, indent=1) + "\n", encoding="utf-8")
-        out.mkdir(parents=True, exist_ok=True)
-        if (out / TABLES).is_dir():
-            shutil.rmtree(out / TABLES)
-        for f in sorted(stage.iterdir()):
-            os.replace(f, out / f.name)
-    except OSError as exc:
-        raise UserError(f"cannot publish into {out}: {exc.strerror or exc}") from None
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return out
 
 

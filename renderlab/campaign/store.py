@@ -16,6 +16,7 @@ says ``ok`` and re-executes the rest (errors included). Runs are indexed, so non
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import secrets
@@ -193,3 +194,37 @@ def run_statuses(campaign_dir: Path) -> list[dict]:
     if publish.is_published(campaign_dir):
         return publish.published_statuses(campaign_dir)
     return [run_status(campaign_dir, i) or {"run": i, "status": "missing"} for i in range(int(m["plan"]["runs"]))]
+
+
+def finished_campaign(campaign_dir: Path, purpose: str) -> tuple[dict, dict, list[dict]]:
+    """(manifest, tables, run statuses) of a campaign or published study folder that has finished runs;
+    UserError (``no finished runs to <purpose>``) otherwise."""
+    manifest = read_manifest(campaign_dir)
+    tables = load_tables(campaign_dir)
+    if not tables:
+        raise UserError(f"campaign {campaign_dir} has no finished runs to {purpose}")
+    return manifest, tables, run_statuses(campaign_dir)
+
+
+@contextlib.contextmanager
+def staged_folder(out_dir: Path, what: str):
+    """Yield a hidden sibling staging folder of ``out_dir``; when the block ends normally every entry moves into
+    ``out_dir`` (an entry of the same name is replaced; other files of ``out_dir`` are kept). The stage is always
+    removed, and an ``OSError`` becomes one UserError line naming ``what``."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UserError(f"--out {out_dir} exists and is not a directory")
+    stage = out_dir.parent / f".{out_dir.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
+    try:
+        stage.mkdir(parents=True)
+        yield stage
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for f in sorted(stage.iterdir()):
+            target = out_dir / f.name
+            if target.is_dir() and not target.is_symlink():
+                shutil.rmtree(target)
+            os.replace(f, target)
+    except OSError as exc:
+        raise UserError(f"cannot write {what} into {out_dir}: {exc.strerror or exc}") from None
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

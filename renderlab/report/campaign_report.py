@@ -11,11 +11,8 @@ from __future__ import annotations
 
 import html
 import os
-import secrets
-import shutil
 from pathlib import Path
 
-from renderlab.errors import UserError
 from renderlab.report.csvio import write_csv  # noqa: F401  (re-exported for studies)
 from renderlab.report.html_table import table as html_table
 from renderlab.report.style import ci
@@ -28,20 +25,8 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
     from renderlab.campaign import store
 
     campaign_dir, out_dir = Path(campaign_dir), Path(out_dir)
-    manifest = store.read_manifest(campaign_dir)
-    tables = store.load_tables(campaign_dir)
-    statuses = store.run_statuses(campaign_dir)
-    if not tables:
-        raise UserError(f"campaign {campaign_dir} has no finished runs to report")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UserError(f"--out {out_dir} exists and is not a directory")
-    try:
-        out_dir.parent.mkdir(parents=True, exist_ok=True)
-        stage = out_dir.parent / f".{out_dir.name}.staging-{os.getpid()}-{secrets.token_hex(4)}"
-        stage.mkdir()
-    except OSError as exc:
-        raise UserError(f"cannot write the report into {out_dir}: {exc.strerror or exc}") from None
-    try:
+    manifest, tables, statuses = store.finished_campaign(campaign_dir, "report")
+    with store.staged_folder(out_dir, "the report") as stage:
         sections, summary, headline = _write_all(tables, stage, manifest, confidence)
         sections += _study_sections(manifest["plan"]["study"], tables, stage)
         regen = _regenerate_command(campaign_dir, out_dir)
@@ -54,13 +39,6 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
             f"folder that holds this report)\n\n    {regen}\n\nStudy `{manifest['plan']['study']}`, "
             f"{manifest['plan']['runs']} runs, seed {manifest['plan']['seed']['entropy']}. Open `index.html`.\n",
             encoding="utf-8")
-        out_dir.mkdir(exist_ok=True)
-        for f in sorted(stage.iterdir()):
-            os.replace(f, out_dir / f.name)
-    except OSError as exc:
-        raise UserError(f"cannot write the report into {out_dir}: {exc.strerror or exc}") from None
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
     return out_dir / "index.html"
 
 
