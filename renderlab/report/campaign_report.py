@@ -146,15 +146,24 @@ def _header_tables(manifest: dict) -> list[str]:
     return out
 
 
-def _page(manifest, statuses, sections, headline: str, regen: str) -> str:
+def _environment():
     import jinja2
 
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATE_DIR)), autoescape=True)
+
+
+def render_blocks(blocks: list[dict]) -> str:
+    """HTML of a section's blocks (``{"kind": "text" | "h3" | "table" | "figure" | "links", ...}``), the way the
+    report page renders them; for studies' own sections."""
+    return _environment().get_template("blocks.html.j2").render(blocks=blocks)
+
+
+def _page(manifest, statuses, sections, headline: str, regen: str) -> str:
     plan = manifest["plan"]
     counts: dict[str, int] = {}
     for s in statuses:
         counts[s["status"]] = counts.get(s["status"], 0) + 1
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATE_DIR)), autoescape=True)
-    return env.get_template("report.html.j2").render(
+    return _environment().get_template("report.html.j2").render(
         title=f"Campaign {manifest['name']}",
         subtitle=(f"Study {plan['study']}, {plan['runs']} runs ("
                   + ", ".join(f"{v} {k}" for k, v in sorted(counts.items()))

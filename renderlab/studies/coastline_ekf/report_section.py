@@ -26,13 +26,6 @@ _ROWS = [("r", "m", "radial position", 1, "m"), ("i", "m", "in-track position", 
          ("c", "m", "cross-track position", 1, "m"), ("vr", "mps", "radial velocity", 1e3, "mm/s"),
          ("vi", "mps", "in-track velocity", 1e3, "mm/s"), ("vc", "mps", "cross-track velocity", 1e3, "mm/s")]
 
-_BLOCKS = """{% for b in blocks %}{% if b.kind == "text" %}<p class="note">{{ b.html | safe }}</p>
-{% elif b.kind == "h3" %}<h3>{{ b.text }}</h3>
-{% elif b.kind == "table" %}{{ b.html | safe }}
-{% elif b.kind == "figure" %}<figure><img src="{{ b.png }}" alt="{{ b.alt }}">
-<figcaption class="note">{{ b.caption }} (<a href="{{ b.svg }}">SVG</a>)</figcaption></figure>
-{% elif b.kind == "links" %}<p class="note">Table: {% for n in b.files %}<a href="{{ n }}">{{ n }}</a>{% endfor %}</p>
-{% endif %}{% endfor %}"""
 
 MAP_ERROR = ("The study's own README (<code>results/coastline_ekf/image_in_the_loop/README.md</code>) traces an "
              "ANEES above its band in the image mode to the onboard map error that the filter does not model: the "
@@ -53,9 +46,9 @@ def is_coastline_table(table) -> bool:
 
 
 def _render(blocks: list[dict]) -> str:
-    import jinja2
+    from renderlab.report.campaign_report import render_blocks
 
-    return jinja2.Environment(autoescape=True).from_string(_BLOCKS).render(blocks=blocks)
+    return render_blocks(blocks)
 
 
 def _write_steady_state(path: Path, ss: dict) -> None:

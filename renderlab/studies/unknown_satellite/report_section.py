@@ -29,13 +29,6 @@ COLUMNS = [("label", "score"), ("unit", "unit"), ("median", "median"), ("p10", "
            ("p90", "90th percentile"), ("mean", "mean"), ("std", "std"), ("runs", "runs")]
 LARGE_ATTITUDE_DEG = 5.0
 
-_BLOCKS = """{% for b in blocks %}{% if b.kind == "text" %}<p class="note">{{ b.html | safe }}</p>
-{% elif b.kind == "h3" %}<h3>{{ b.text }}</h3>
-{% elif b.kind == "table" %}{{ b.html | safe }}
-{% elif b.kind == "figure" %}<figure><img src="{{ b.png }}" alt="{{ b.alt }}">
-<figcaption class="note">{{ b.caption }} (<a href="{{ b.svg }}">SVG</a>)</figcaption></figure>
-{% elif b.kind == "links" %}<p class="note">Table: {% for n in b.files %}<a href="{{ n }}">{{ n }}</a>{% endfor %}</p>
-{% endif %}{% endfor %}"""
 
 
 def _col(t, name, dtype=float):
@@ -115,7 +108,7 @@ def _flag_table(rows: list[dict]) -> list[dict]:
 def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     """The section (title, HTML) of a campaign's tables; writes ``unknown_satellite_summary.csv`` (and
     ``summary.csv`` where the generic report wrote none) and the figures into ``out_dir``."""
-    import jinja2
+    from renderlab.report.campaign_report import render_blocks
 
     if "scores" not in tables:
         return []
@@ -135,5 +128,5 @@ def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     blocks += [{"kind": "figure", "png": f["png"], "svg": f["svg"], "alt": f["name"], "caption": f["caption"]}
                for f in campaign_figures(tables, out_dir)]
     blocks.append({"kind": "links", "files": ["unknown_satellite_summary.csv"]})
-    body = jinja2.Environment(autoescape=True).from_string(_BLOCKS).render(blocks=blocks)
+    body = render_blocks(blocks)
     return [(TITLE, body)]
