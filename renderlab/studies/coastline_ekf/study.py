@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 
 from renderlab.errors import UserError
 

@@ -23,7 +23,6 @@ convergence of Figs 5-7), ``perturbations`` (the run's draws). The report adds a
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
