@@ -19,7 +19,6 @@ An unknown name is a :class:`~renderlab.errors.UserError` listing the registered
 from __future__ import annotations
 
 import difflib
-import importlib
 from importlib.metadata import entry_points
 from typing import Any
 
@@ -66,16 +65,14 @@ def _load_target(target: str, what: str) -> Any:
     mod_name, sep, attr = target.partition(":")
     if not sep or not mod_name or not attr:
         raise UserError(f"{what}: {target!r} is not of the form module:attr")
+    from renderlab.contracts.refs import load
+
     try:
-        module = importlib.import_module(mod_name)
+        return load(target)
     except ImportError as exc:
         raise UserError(f"{what}: cannot import {mod_name} ({exc})") from None
-    obj = module
-    for part in attr.split("."):
-        obj = getattr(obj, part, None)
-        if obj is None:
-            raise UserError(f"{what}: {mod_name} has no attribute {attr}")
-    return obj
+    except AttributeError:
+        raise UserError(f"{what}: {mod_name} has no attribute {attr}") from None
 
 
 class Registry:

@@ -9,21 +9,10 @@ estimators and returns tables of the kinds in :mod:`renderlab.contracts.schemas`
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 from typing import Any, Callable
 
-
-def lazy(target: str) -> Callable:
-    """A callable that imports ``"module:function"`` on first call (keeps study registration light)."""
-    mod_name, _, fn_name = target.partition(":")
-
-    def call(*args, **kwargs):
-        return getattr(importlib.import_module(mod_name), fn_name)(*args, **kwargs)
-
-    call.__name__ = fn_name
-    call.__qualname__ = target
-    return call
+from renderlab.contracts.refs import lazy  # noqa: F401  (re-exported: studies register with it)
 
 
 @dataclass(frozen=True)

@@ -10,20 +10,10 @@ plug-in's own model and no lab file is edited. Model classes and functions may b
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-
-def load(target: Any) -> Any:
-    """``"module:attr"`` → the object (anything else is returned as it is)."""
-    if not isinstance(target, str):
-        return target
-    mod_name, _, attr = target.partition(":")
-    obj = importlib.import_module(mod_name)
-    for part in attr.split("."):
-        obj = getattr(obj, part)
-    return obj
+from renderlab.contracts.refs import load
 
 
 @dataclass(frozen=True)
