@@ -32,6 +32,8 @@ def make_backend(scenario: Scenario, scene, renderer: str):
     from renderlab import plugins
 
     backend_cls = plugins.renderers.get(renderer, where="render.renderer: ")
+    if getattr(scene, "tiled", None) and not getattr(backend_cls, "supports_tiles", False):
+        scene = scene.untiled()  # a renderer without per-frame tiles gets the full-resolution surface
     try:
         return backend_cls(scene, settings)
     except RuntimeError as exc:  # Mitsuba reports an unreadable mesh as 'At dictionary node "bodyK": ...'

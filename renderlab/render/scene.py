@@ -104,11 +104,22 @@ class SceneDescription:
     site). Far from the origin float32 loses detail, and Mitsuba offsets every shadow-ray origin by
     (1 + max|p|)·8.9e-5 m: about 2 cm at the 200 m of EV5-fixed coordinates, enough for shadow rays to
     pass over 5 cm relief at grazing sun (measured: results/crosscheck/README.md).
+    ``tiled`` surfaces go to a backend with ``supports_tiles`` as they are, to any other as
+    :meth:`untiled` (``renderlab.pipeline.make_backend``).
     """
 
     bodies: list[BodySpec]
     render_frame: dict = field(default_factory=lambda: {"name": "SCENE"})
     origin_m: np.ndarray | None = None
+    #: bodies given as tiles chosen per frame (:class:`renderlab.contracts.tiled.TiledSurface`)
+    tiled: list = field(default_factory=list)
+
+    def untiled(self) -> "SceneDescription":
+        """The same scene with every tiled surface as one full-resolution static body."""
+        if not self.tiled:
+            return self
+        return SceneDescription([*self.bodies, *(t.full_body() for t in self.tiled)], self.render_frame,
+                                self.origin_m)
 
 
 @dataclass(frozen=True)
