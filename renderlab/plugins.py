@@ -28,6 +28,7 @@ from renderlab.errors import UserError
 BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
     "landmark_methods": ("renderlab.landmark_methods", {
         "retina": "renderlab.measurement.builtin_methods:RetinaMethod",
+        "retina_refined": "renderlab.measurement.builtin_methods:RetinaRefinedMethod",
         "spc": "renderlab.measurement.builtin_methods:SpcMethod",
     }),
     "filters": ("renderlab.filters", {

@@ -100,10 +100,12 @@ def test_both_methods_same_frames_same_apriori_and_truth_from_truth_table(campai
         rows = {}
         for k, meth in enumerate(m["method"]):
             rows.setdefault(meth, {})[(m["frame"][k], m["item"][k])] = k
-        assert set(rows) == {"retina", "spc", "ncc_baseline"}  # the baseline plug-in is in every comparison
-        assert rows["retina"].keys() == rows["spc"].keys() == rows["ncc_baseline"].keys() and len(rows["retina"]) > 10
+        # the default methods: the paper's Retina, Retina with the refined peak step, SPC, the baseline plug-in
+        assert set(rows) == {"retina", "retina_refined", "spc", "ncc_baseline"}
+        assert rows["retina"].keys() == rows["retina_refined"].keys() == rows["spc"].keys() == rows["ncc_baseline"].keys()
+        assert len(rows["retina"]) > 10
         for key, kr in rows["retina"].items():
-            for other in ("spc", "ncc_baseline"):
+            for other in ("retina_refined", "spc", "ncc_baseline"):
                 ks = rows[other][key]
                 for c in ("apriori_dpos_x_m", "apriori_dpos_z_m", "apriori_drot_y_rad", "pred_s", "pred_l"):
                     assert m[c][kr] == pytest.approx(m[c][ks], abs=1e-9), c
@@ -176,7 +178,7 @@ def test_report_has_every_method_with_cluster_intervals_and_the_declared_subset(
     d, meas, _ = campaign
     rows = list(csv.DictReader((d / "report" / "summary.csv").open()))
     got = {(r["subset"], r["method"], r["axis"]) for r in rows}
-    assert {(sub, m, a) for sub in ("all", "well_measured") for m in ("retina", "spc", "ncc_baseline")
+    assert {(sub, m, a) for sub in ("all", "well_measured") for m in ("retina", "retina_refined", "spc", "ncc_baseline")
             for a in "sl"} <= got
     for r in rows:
         if int(r["n_result"]) >= 2 and int(r["n_clusters"]) >= 2:

@@ -1,5 +1,7 @@
 """The lab's own landmark methods behind the :class:`~renderlab.contracts.landmark.LandmarkMethod` contract:
-Retina (:mod:`estimators.retina`) and the SPC-style method (:mod:`estimators.spc`).
+Retina (:mod:`estimators.retina`), Retina with the refined peak step (``retina_refined``: the 2-D Gaussian fit
+``gaussian_2d`` of :mod:`estimators.retina.peaks` instead of the paper's 3×3 step) and the SPC-style method
+(:mod:`estimators.spc`).
 
 The estimators stay self-contained (numpy/numba, their own result type with a bit mask of
 :mod:`estimators.flags`); these adapters translate that mask into the contract's ``reason`` (first applicable
@@ -46,6 +48,8 @@ class RetinaMethod:
     sub-pixel peak (the paper's 3×3 step by default), final output phase."""
 
     name = "retina"
+    #: the peak finder used when ``options.peak`` is None (the paper's step, to reproduce the paper)
+    default_peak = "retina_3x3"
 
     def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
         from estimators.retina import RetinaOptions, TemplateOptions
@@ -53,7 +57,7 @@ class RetinaMethod:
         self.options = RetinaOptions(template=TemplateOptions(supersample=options.supersample,
                                                               psf_sigma_px=options.psf_sigma_px,
                                                               L_table=tuple(options.L_table)),
-                                     peak=options.peak or "retina_3x3", min_correlation=options.min_correlation)
+                                     peak=options.peak or self.default_peak, min_correlation=options.min_correlation)
         self.peak = self.options.peak
         self._meshes: dict[int, tuple] = {}
 
@@ -73,6 +77,15 @@ class RetinaMethod:
         res = measure_frame(frame.image, meshes, frame.camera, _pose(frame), frame.sun_body,
                             [int(r) for r in frame.search_px], self.options, frame.valid)
         return [result_from_estimator(r) for r in res]
+
+
+class RetinaRefinedMethod(RetinaMethod):
+    """Retina with the refined sub-pixel step: a 2-D Gaussian (quadric on log C, full covariance) on the 3×3
+    neighbourhood of the eq. 9 peak (``gaussian_2d``), chosen from the pixel-locking and noise-vs-CRLB curves of
+    ``benchmarks/bench_retina_peak_step.py``; everything else as :class:`RetinaMethod`."""
+
+    name = "retina_refined"
+    default_peak = "gaussian_2d"
 
 
 class SpcMethod:

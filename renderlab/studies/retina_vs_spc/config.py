@@ -1,8 +1,8 @@
 """Scenario section ``[retina_vs_spc]`` of the landmark-method comparison (Wright et al., Fig. 12). Light: pydantic.
 
 ``methods`` are registered landmark-method names (:data:`renderlab.plugins.landmark_methods`: the lab's
-``retina`` and ``spc``, the example plug-in ``ncc_baseline``, or any installed package's entry point); a
-scenario never names a Python module. Every method sees the same image, a-priori draw and beliefs.
+``retina``, ``retina_refined`` (Retina with the refined peak step) and ``spc``, the example plug-in
+``ncc_baseline``, or any installed package's entry point); a scenario never names a Python module. Every method sees the same image, a-priori draw and beliefs.
 
 ``well_measured`` is the pre-declared subset the findings are stated for (declared before looking at the
 errors): GSD ratio (image GSD / maplet spacing) in ``[gsd_ratio_min, gsd_ratio_max]``, truth shadow fraction
@@ -38,8 +38,8 @@ class RetinaVsSpcConfig(Strict):
 
     methods: Annotated[list[Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]],
                        Field(min_length=1, max_length=16)] = Field(
-        ["retina", "spc", "ncc_baseline"], description="Registered landmark-method names, unique; every method sees "
-        "the same image, a-priori draw and beliefs")
+        ["retina", "retina_refined", "spc", "ncc_baseline"], description="Registered landmark-method names, unique; "
+        "every method sees the same image, a-priori draw and beliefs")
     well_measured: WellMeasuredSubset = Field(WellMeasuredSubset(), description="The pre-declared well-measured "
                                               "subset the findings are stated for")
     gross_error_px: NonNegative = Field(1.0, description="|err| above this (per axis) counts as a gross error [px]")
