@@ -150,10 +150,12 @@ def set_variant(variant: str):
     return mi
 
 
-def native_scene(mi, scenario, scene, frame, spp: int, bsdf: str, crop: tuple | None = None):
+def native_scene(mi, scenario, scene, frame, spp: int, bsdf: str, crop: tuple | None = None,
+                 pixel_format: str = "rgb"):
     """A plain Mitsuba scene (perspective sensor) showing the frame's view of ``scene``.
 
-    ``crop = (first row, rows)`` renders only those rows of the film (``hdrfilm`` crop window)."""
+    ``crop = (first row, rows)`` renders only those rows of the film (``hdrfilm`` crop window);
+    ``pixel_format`` of the film (``luminance`` for a mono variant)."""
     from renderlab.render.mitsuba_backend import _transform4
     from renderlab.render.mitsuba_bsdf import bsdf_dict, register_bsdfs
 
@@ -186,7 +188,7 @@ def native_scene(mi, scenario, scene, frame, spp: int, bsdf: str, crop: tuple | 
             "to_world": T(to_world.tolist()),
             "sampler": {"type": "independent", "sample_count": spp},
             "film": {"type": "hdrfilm", "width": W, "height": H, "rfilter": {"type": "box"},
-                     "pixel_format": "rgb"},
+                     "pixel_format": pixel_format},
         },
     }
     if crop is not None:

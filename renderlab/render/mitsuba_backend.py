@@ -32,32 +32,20 @@ from __future__ import annotations
 import numpy as np
 
 from renderlab.render.mesh_io import mesh_body
+from renderlab.render.mitsuba_rays import R2_ALPHA, CameraRays, FramePose, aligned_f32, pass_sizes
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 from renderlab.render.variant import init_mitsuba
 
-R2_ALPHA = np.array([1.0 / 1.324717957244746, 1.0 / 1.324717957244746**2])
 
 
 def subpixel_offsets(spp: int, n_pixels: int, rng: np.random.Generator) -> np.ndarray:
-    """(spp, n_pixels, 2) offsets in [−½, ½)²: R2 sequence with a per-pixel random shift."""
+    """(spp, n_pixels, 2) offsets in [−½, ½)²: R2 sequence with a per-pixel random shift (the numpy path)."""
     base = (0.5 + np.arange(spp)[:, None] * R2_ALPHA[None, :]) % 1.0
     shift = rng.random((n_pixels, 2))
     return (base[:, None, :] + shift[None, :, :]) % 1.0 - 0.5
 
 
-def _aligned_f32(a: np.ndarray) -> np.ndarray:
-    """A contiguous float32 copy of ``a`` on a 64-byte boundary.
-
-    Dr.Jit wraps numpy memory without copying and bakes its alignment into the kernel: an unaligned
-    array gives a different kernel (an LLVM compile, ~0.3 s) on every call. Aligned inputs keep
-    the kernel cache hot.
-    """
-    a = np.asarray(a, dtype=np.float32).ravel()
-    buf = np.empty(a.size + 16, dtype=np.float32)
-    start = (-buf.ctypes.data % 64) // 4
-    out = buf[start:start + a.size]
-    out[:] = a
-    return out
+_aligned_f32 = aligned_f32
 
 
 def _transform4(R: np.ndarray, t: np.ndarray, scale) -> list[list[float]]:
@@ -71,6 +59,11 @@ class MitsubaBackend:
     """Render frames of one scene with Mitsuba 3 (scene loaded once, updated in place)."""
 
     name = "mitsuba"
+    #: tiled surfaces (levels of detail) are chosen per frame (renderlab.render.mitsuba_tiles)
+    supports_tiles = True
+    #: ``"drjit"``: primary rays generated in the kernel (JIT variants, the default); ``"numpy"``: the former
+    #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks
+    ray_path = "drjit"
 
     def __init__(self, scene: SceneDescription, settings: RenderSettings):
         mi = init_mitsuba(settings.variant)
@@ -97,6 +90,16 @@ class MitsubaBackend:
             keys[key] = body.body_id
             body = mesh_body(body)  # a mesh file → in-memory arrays (renderlab.render.mesh_io)
             desc[key] = self._trimesh(body, key) if body.shape == "trimesh" else {**self._shape_dict(body), "id": key}
+        self._load(desc, keys)
+        self._tiles = None
+        if scene.tiled:  # the frame's tiles join the static bodies before each frame (_set_sun)
+            from renderlab.render.mitsuba_tiles import TileScenes
+
+            self._tiles = TileScenes(self, desc, keys, scene.tiled)
+
+    def _load(self, desc: dict, keys: dict) -> None:
+        """Load the scene ``desc`` (shape key → body id in ``keys``): parameters, id table, integrator."""
+        mi, dr = self.mi, self.dr
         # optimize=False: no merging of meshes that share a BSDF (each body keeps its own id)
         self.scene = mi.load_dict(desc, optimize=False)
         self.params = mi.traverse(self.scene)
@@ -105,7 +108,7 @@ class MitsubaBackend:
             self._scalar_reg = reg
         else:
             reg = np.array(dr.reinterpret_array(mi.UInt32, self.scene.shapes_dr()), dtype=np.int64)
-        self._id_lut = np.full(int(reg.max()) + 2, -1, dtype=np.int32)
+        self._id_lut = np.full(int(reg.max()) + 2 if len(reg) else 2, -1, dtype=np.int32)
         for rid, shape in zip(reg, self.scene.shapes()):
             self._id_lut[rid] = keys[shape.id()]
         self._integrator = self.scene.integrator()
@@ -171,6 +174,9 @@ class MitsubaBackend:
 
     # ---------------------------------------------------------------- per frame
     def _set_sun(self, frame: FrameSpec) -> None:
+        """Per frame, before any ray: the tiles in view (when the scene has tiled surfaces), then the sun."""
+        if self._tiles is not None:
+            self._tiles.update(frame)
         mi = self.mi
         s = np.asarray(frame.sun.direction_render, float)
         s = s / np.linalg.norm(s)
@@ -243,21 +249,82 @@ class MitsubaBackend:
             sampler.advance()
         return out
 
-    def _truth_aovs(self, frame: FrameSpec, centres: np.ndarray):
-        valid, P, N, reg = self._intersect(frame, centres)
+    def _truth_aovs(self, frame: FrameSpec, hits):
+        """Position (render origin added back), normal, float64 range and body id from centre-ray hits."""
+        valid, P, N, reg = hits
         ids = np.where(valid, self._id_lut[np.clip(reg, 0, len(self._id_lut) - 1)], -1).astype(np.int32)
         P[~valid] = np.nan
         N[~valid] = np.nan
         rng_m = np.linalg.norm(P - (np.asarray(frame.pose.position_m, float) - self.origin)[None, :], axis=1)
         return P + self.origin, N, rng_m, ids
 
+    def _camera_rays(self, camera) -> CameraRays:
+        """The ray generator of ``camera`` (its float64 direction grid is built and uploaded once)."""
+        cr = getattr(self, "_cam_rays", None)
+        if cr is None or cr.camera != camera:
+            cr = self._cam_rays = CameraRays(self.mi, self.dr, camera)
+        return cr
+
+    def _radiance_pass(self, cr: CameraRays, pose: FramePose, shift, j0: int, m: int, seed: int):
+        """Per-pixel sums of samples j0 … j0+m−1 of every pixel (shift None: one sample at each centre)."""
+        mi, dr = self.mi, self.dr
+        n = cr.W * cr.H * m
+        idx = dr.arange(mi.UInt32, n)
+        pix = idx // m
+        if shift is None:
+            d = cr.centre_directions(pix)
+        else:
+            d = cr.sample_directions(pix, cr.offsets(pix, idx - pix * m + dr.opaque(mi.UInt32, j0), shift))
+        sampler = mi.load_dict({"type": "independent"})
+        sampler.seed(dr.opaque(mi.UInt32, seed), n)
+        spec, _, _ = self._integrator.sample(self.scene, sampler, cr.world_rays(d, pose))
+        return dr.block_sum(spec, m) if m > 1 else spec
+
+    def _render_drjit(self, frame: FrameSpec, seed: int) -> RenderedFrame:
+        """Rays from Dr.Jit arithmetic in the kernel; the truth AOVs and the first radiance pass in one eval."""
+        mi, dr = self.mi, self.dr
+        cam = frame.camera
+        W, H = cam.width, cam.height
+        self._set_sun(frame)
+        cr = self._camera_rays(cam)
+        pose = FramePose(mi, dr, frame.pose.rotation.as_matrix(),
+                         np.asarray(frame.pose.position_m, float) - self.origin,
+                         self.settings.near_clip_m, self.settings.far_clip_m)
+        si = self.scene.ray_intersect(cr.world_rays(cr.centre_directions(dr.arange(mi.UInt32, W * H)), pose))
+        truth = [si.is_valid(), si.p, si.sh_frame.n, dr.reinterpret_array(mi.UInt32, si.shape)]
+        ss = np.random.SeedSequence(seed)
+        if self.settings.pixel_filter == "center":
+            shift, passes = None, [1]
+        else:  # the per-pixel Cranley-Patterson shifts of the numpy path (same draw)
+            shift = mi.Float(aligned_f32(np.random.default_rng(ss.spawn(1)[0]).random((W * H, 2))))
+            passes = pass_sizes(self.settings.spp, W * H)
+        seeds = ss.generate_state(len(passes), dtype=np.uint32)
+        channels = 3 if self.rgb else 1
+        acc = np.zeros((channels, W * H))
+        for k, m in enumerate(passes):
+            total = self._radiance_pass(cr, pose, shift, sum(passes[:k]), m, int(seeds[k]))
+            dr.eval(total, *(truth if k == 0 else ()))  # the truth AOVs with the first pass
+            acc += np.array(total, dtype=np.float64).reshape(channels, W * H)
+        valid, P, N, reg = (np.array(truth[0], dtype=bool), np.array(truth[1], dtype=np.float64).T,
+                            np.array(truth[2], dtype=np.float64).T, np.array(truth[3], dtype=np.int64))
+        return self._frame(frame, acc / sum(passes), (valid, P, N, reg))
+
     def render(self, frame: FrameSpec, seed: int) -> RenderedFrame:
-        """Render one frame. ``seed`` fixes the sub-pixel pattern and Mitsuba's sampler."""
+        """Render one frame. ``seed`` fixes the sub-pixel pattern and Mitsuba's sampler.
+
+        JIT variants generate the rays in the kernel (:mod:`renderlab.render.mitsuba_rays`) unless
+        ``ray_path = "numpy"``; scalar variants always take the numpy path.
+        """
+        if self.scalar or self.ray_path == "numpy":
+            return self._render_numpy(frame, seed)
+        return self._render_drjit(frame, seed)
+
+    def _render_numpy(self, frame: FrameSpec, seed: int) -> RenderedFrame:
+        """The former path: float64 numpy rays per sample (CameraModel.unproject), one wavefront per sample."""
         cam = frame.camera
         W, H = cam.width, cam.height
         self._set_sun(frame)
         centres = cam.pixel_grid().reshape(-1, 2)
-        P, N, rng_m, ids = self._truth_aovs(frame, centres)
 
         ss = np.random.SeedSequence(seed)
         if self.settings.pixel_filter == "center":
@@ -268,7 +335,13 @@ class MitsubaBackend:
         acc = np.zeros((3 if self.rgb else 1, W * H), dtype=np.float64)
         for j in range(len(offsets)):
             acc += self._radiance(frame, centres + offsets[j], int(sampler_seeds[j]))
-        radiance = (acc / len(offsets)).astype(np.float32)
+        return self._frame(frame, acc / len(offsets), self._intersect(frame, centres))
+
+    def _frame(self, frame: FrameSpec, radiance: np.ndarray, hits) -> RenderedFrame:
+        """The RenderedFrame of mean radiance (channels, N) and centre-ray hits (valid, P, N, registry id)."""
+        W, H = frame.camera.width, frame.camera.height
+        P, N, rng_m, ids = self._truth_aovs(frame, hits)
+        radiance = radiance.astype(np.float32)
         if self.rgb and self.mono_out:
             radiance = radiance.mean(axis=0, keepdims=True)
         radiance = radiance[0].reshape(H, W) if len(radiance) == 1 else radiance.T.reshape(H, W, 3)
