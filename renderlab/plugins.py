@@ -34,6 +34,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
     "filters": ("renderlab.filters", {
         "coastline_ekf": "renderlab.measurement.builtin_filters:CoastlineEKF",
         "coastline_sqrt_ekf": "renderlab.measurement.builtin_filters:CoastlineSqrtEKF",
+        "descent_ekf": "renderlab.measurement.descent_filter:DescentNavFilter",
     }),
     "studies": ("renderlab.studies", {
         "analytic_pointing": "renderlab.studies.analytic_pointing:STUDY",

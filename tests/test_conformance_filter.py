@@ -24,7 +24,10 @@ from renderlab.measurement.builtin_filters import CoastlineEKF, CoastlineSqrtEKF
 from renderlab.measurement.conformance_filter import check_filter, make_case, measurement, run_filter
 
 SEED = 0
-FILTER_NAMES = plugins.filters.names()
+#: filters whose model is not the case's Earth two-body one; each is checked on its model-matched options elsewhere
+#: (descent_ekf, an asteroid-fixed-frame filter: tests/test_descent_nav.py with GM = Earth's, no rotation)
+OWN_MATCHED_CASE = ("descent_ekf",)
+FILTER_NAMES = [n for n in plugins.filters.names() if n not in OWN_MATCHED_CASE]
 
 
 @pytest.fixture(scope="module")
