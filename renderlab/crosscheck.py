@@ -269,27 +269,11 @@ def compare_truthsets(path_m: Path, path_c: Path) -> tuple[list[FrameAgreement],
 
 
 def markdown_table(rows: list[FrameAgreement], title: str) -> str:
-    """A Markdown table of the agreement rows with the issue's targets."""
-    head = ["frame", "lit px", "lit in one only", "rad. median", "rad. p99", "geo median px", "geo max px", "Δrange/range median / max",
-            "reproj M/C max px",
-            "landmarks", "lmk max px", "shadow-edge px", "shadow median px", "shadow p99 px",
-            "oracle: M off / C off / both ok", "edge vs oracle p99 M / C px"]
-    lines = [f"# {title}", "",
-             f"Targets: median radiometric ≤ {TARGETS['rad_median_rel']:.0%}, geometric ≤ {TARGETS['geo_max_px']} px, "
-             f"shadow edges ≤ {TARGETS['shadow_p99_px']} px.", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    f = lambda v, fmt: "–" if not np.isfinite(v) else format(v, fmt)  # noqa: E731
-    for r in rows:
-        lines.append("| " + " | ".join([
-            str(r.frame), str(r.n_lit), str(r.n_lit_one_only), f(r.rad_median_rel * 100, ".4f") + " %", f(r.rad_p99_rel * 100, ".2f") + " %",
-            f(r.geo_median_px, ".5f"), f(r.geo_max_px, ".4f"),
-            f(r.range_rel_median, ".1e") + " / " + f(r.range_rel_max, ".1e"),
-            f(r.reproj_mitsuba_max_px, ".4f") + " / " + f(r.reproj_cycles_max_px, ".4f"),
-            str(r.n_landmarks), f(r.lmk_max_px, ".4f"), str(r.n_shadow_edge),
-            f(r.shadow_median_px, ".3f"), f(r.shadow_p99_px, ".3f"),
-            "–" if r.oracle_mitsuba_off < 0 else f"{r.oracle_mitsuba_off} / {r.oracle_cycles_off} / {r.oracle_both_ok}",
-            f(r.edge_vs_oracle_mitsuba_p99_px, ".3f") + " / " + f(r.edge_vs_oracle_cycles_p99_px, ".3f")]) + " |")
-    return "\n".join(lines) + "\n"
+    """The Markdown page of the agreement rows: the targets with PASS/FAIL, then one row per frame
+    (:func:`renderlab.crosscheck_figures.markdown_table`)."""
+    from renderlab.crosscheck_figures import markdown_table as table
+
+    return table(rows, title, TARGETS)
 
 
 def figure(rows: list[FrameAgreement], images: list[dict], path: Path, max_frames: int = 6) -> list[str]:
@@ -318,8 +302,10 @@ def _referee_all(scenario, base_dir, rows, images) -> None:
 
 def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | None = None,
                    keep_truthsets: bool = False, progress: bool = True) -> list[FrameAgreement]:
-    """Render ``scenario`` with both renderers and write ``crosscheck.parquet``, ``crosscheck.md`` and
-    ``crosscheck.png`` / ``.svg`` into ``out_dir`` (truth sets in ``out_dir/truthsets/`` if ``keep_truthsets``)."""
+    """Render ``scenario`` with both renderers and write ``crosscheck.parquet`` (one row per frame),
+    ``crosscheck_images.parquet`` (the drawn frames' images), and from those two tables alone ``crosscheck.md`` and
+    ``crosscheck.png`` / ``.svg`` into ``out_dir`` (truth sets in ``out_dir/truthsets/`` if ``keep_truthsets``);
+    ``renderlab report out_dir`` remakes the last two (:func:`renderlab.crosscheck_figures.write_report`)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -341,9 +327,12 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
         rows, images = compare_truthsets(paths["mitsuba"], paths["cycles"])
     if scenario.render.pixel_filter == "box":  # the oracle gives box-filtered pixels
         _referee_all(scenario, base_dir, rows, images)
+    from renderlab.crosscheck_figures import TABLE, TITLE_KEY, write_images, write_report
+
     cols = list(FrameAgreement.__dataclass_fields__)
     table = pa.table({c: [getattr(r, c) for r in rows] for c in cols})
-    pq.write_table(table, out_dir / "crosscheck.parquet")
-    (out_dir / "crosscheck.md").write_text(markdown_table(rows, f"Mitsuba vs Cycles: {scenario.name}"))
-    figure(rows, images, out_dir / "crosscheck.png")
+    table = table.replace_schema_metadata({TITLE_KEY: f"Mitsuba vs Cycles: {scenario.name}"})
+    pq.write_table(table, out_dir / TABLE)
+    write_images(rows, images, out_dir)
+    write_report(out_dir, out_dir)  # crosscheck.md and the figure from the two tables just written
     return rows

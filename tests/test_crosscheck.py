@@ -122,6 +122,31 @@ def test_crosscheck_command_on_tiny_analytic_scene(tmp_path):
     assert all(n > 0 for n in t["n_oracle"]) and t["oracle_mitsuba_off"] == [0, 0] and t["oracle_cycles_off"] == [0, 0]
     assert max(t["edge_vs_oracle_mitsuba_p99_px"] + t["edge_vs_oracle_cycles_p99_px"]) <= TARGETS["shadow_p99_px"]
     assert not (out / "truthsets").exists()
+    # the page and figure come from the folder's two tables alone: renderlab report remakes them elsewhere, and
+    # the page's verdicts follow the numbers of the table
+    md = (out / "crosscheck.md").read_text()
+    assert md.startswith("# Mitsuba vs Cycles: analytic_sphere_box") and md.count("**PASS**") == 6 + 2
+    assert "| hit-point gap at the landmark truth pixels, max | ≤ 0.05 px | – | – px | n/a (no pixels) |" in md
+    assert main(["report", str(out), "--out", str(tmp_path / "again")]) == 0
+    assert (tmp_path / "again" / "crosscheck.md").read_text() == md
+    assert (tmp_path / "again" / "crosscheck.svg").read_text().startswith("<?xml")
+    images = pq.read_table(out / "crosscheck_images.parquet")
+    assert images.column("frame").to_pylist() == [0, 1] and len(images.column("gap_px")[0]) == 96 * 72
+
+
+def test_report_of_a_crosscheck_folder_refuses_a_missing_images_table(tmp_path, capsys):
+    """A crosscheck folder without its images table: one line naming it, and nothing written."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from renderlab.cli import main
+    from renderlab.crosscheck import FrameAgreement
+
+    row = {k: 0 for k in FrameAgreement.__dataclass_fields__}
+    pq.write_table(pa.table({k: [v] for k, v in row.items()}), tmp_path / "crosscheck.parquet")
+    assert main(["report", str(tmp_path)]) == 2
+    assert "no crosscheck_images.parquet" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["crosscheck.parquet"]
 
 
 def test_crosscheck_on_a_tiny_ev5_frame_at_20_m(tmp_path):
