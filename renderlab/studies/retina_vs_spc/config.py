@@ -43,6 +43,8 @@ class RetinaVsSpcConfig(Strict):
     well_measured: WellMeasuredSubset = Field(WellMeasuredSubset(), description="The pre-declared well-measured "
                                               "subset the findings are stated for")
     gross_error_px: NonNegative = Field(1.0, description="|err| above this (per axis) counts as a gross error [px]")
+    sensor_noise: bool = Field(True, description="Re-expose every run's frames with new Poisson + read noise; "
+                               "false: the noise-free expected DN, rounded (an error budget's switch)")
 
     @model_validator(mode="after")
     def _unique(self):

@@ -15,7 +15,9 @@ noise:
 * landmark resolution: the maplets are rebuilt from the site DEM at ``spacing·(1+δs)`` (same centres and
   frames, fresh mapping error), so the GSD ratio of the run is ``gsd_ratio/(1+δs)``;
 * sensor noise: the DN image is re-exposed from the cached radiance with the run's own Poisson + read noise
-  (:func:`renderlab.sensor.expose`), so noise statistics are over independent realisations.
+  (:func:`renderlab.sensor.expose`), so noise statistics are over independent realisations;
+  ``[retina_vs_spc] sensor_noise = false`` measures the noise-free expected DN instead (rounded to integers,
+  :func:`renderlab.sensor.expected_dn`; the switch of an error budget).
 
 Truth perturbations (``position_sigma_m``, ``position_cov_m2``, ``velocity_sigma_mps``,
 ``attitude_sigma_deg``) would change the rendered image per run; this study renders the nominal descent only
@@ -84,9 +86,24 @@ class BelievedTruthSet(ReexposedTruthSet):
 
     no_radiance = "truth set {path}: retina_vs_spc needs a mono (radiance) truth set"
 
-    def __init__(self, ts, draw, sensor_options, noise_seeds):
+    def __init__(self, ts, draw, sensor_options, noise_seeds, *, noise: bool = True):
         super().__init__(ts, sensor_options, noise_seeds, cache=True)
         self.frames = [believed_record(rec, draw) for rec in ts.frames]
+        self.noise = bool(noise)
+
+    def load(self, i: int):
+        """Frame ``i`` re-exposed with the run's noise, or (``noise`` false) its expected DN, rounded."""
+        if self.noise:
+            return super().load(i)
+        import dataclasses
+
+        from renderlab.sensor import expected_dn
+
+        fr = self._ts.load(i)
+        if fr.radiance is None:
+            raise UserError(self.no_radiance.format(path=self.path, i=i))
+        dn = np.rint(expected_dn(np.asarray(fr.radiance, np.float64), self.sensor_options(i)))
+        return dataclasses.replace(fr, dn=dn.astype(np.uint16))
 
 
 @functools.lru_cache(maxsize=2)
@@ -189,7 +206,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     if draw.spacing_scale != 1.0:
         maplets = respaced_maplets(maplets, scenario.world, base_dir, draw.spacing_scale, np.random.default_rng(ss_map))
     noise_seeds = [int(s.generate_state(1)[0]) for s in ss_noise.spawn(len(ts))]
-    believed = BelievedTruthSet(ts, draw, SensorOptions(**scenario.sensor.options_dict()), noise_seeds)
+    believed = BelievedTruthSet(ts, draw, SensorOptions(**scenario.sensor.options_dict()), noise_seeds,
+                                noise=section(scenario).sensor_noise)
     sig_p, sig_r = apriori_sigmas(p)
     opts = MeasureOptions(sigma_pos_m=sig_p, sigma_att_rad=sig_r, campaign=scenario.name, run=int(run_index))
     apriori_state = ss_apriori.generate_state(4)
