@@ -1,18 +1,22 @@
 """Mitsuba 3 backend: a :class:`SceneDescription` → radiance and truth AOVs of one frame.
 
 The lab casts its own primary rays instead of using a Mitsuba sensor, so the image follows the
-lab's camera model *exactly* — any 2×2 pixel map K (fx ≠ fy, skew, off-centre principal point,
-Retina eq. 4) and Brown or Owen distortion — with no resampling: every sample's (s, l) goes
-through :meth:`CameraModel.unproject` in float64 and becomes a Mitsuba ray. Mitsuba's integrator
-(``path``; ``max_depth = 2`` is direct sunlight only) evaluates the radiance along it.
+lab's camera model — any 2×2 pixel map K (fx ≠ fy, skew, off-centre principal point, Retina eq. 4)
+and any distortion model — with no resampling. JIT variants (LLVM, CUDA) generate every sample's ray
+in the kernel (:mod:`renderlab.render.mitsuba_rays`: a float64 :meth:`CameraModel.unproject` of the
+pixel-centre grid once per camera, bilinear inside the pixel; exact for pinholes, ≤ 3e-3 px with
+distortion) in one wavefront of W·H·spp samples, like ``mi.render``. ``ray_path = "numpy"`` keeps
+the former path (every sample's (s, l) through :meth:`CameraModel.unproject` in numpy, one wavefront
+per sample) for the benchmarks. Mitsuba's integrator (``path``; ``max_depth = 2`` is direct sunlight
+only) evaluates the radiance along the rays.
 
 * Box pixel filter: sample j of pixel (s, l) is at (s, l) + frac(r2_j + u_pix) − ½, with r2_j the
   R2 low-discrepancy sequence and u_pix one uniform shift per pixel (Cranley–Patterson rotation).
   Each sample is uniform over the pixel square, so the mean is the exact box-filtered radiance.
   ``pixel_filter = "center"`` takes one sample at the pixel centre instead (point sampling, for
   validation against closed forms).
-* Scalar variants (the fallback when LLVM is unusable) trace the same rays one at a time from
-  Python: identical semantics, much slower (see ``benchmarks/``).
+* Scalar variants (the fallback when LLVM is unusable) trace the numpy path's rays one at a time
+  from Python: identical semantics, much slower (see ``benchmarks/``).
 * Truth AOVs come from one ray through each pixel *centre*: position (hit point, render frame),
   shading normal, body id, and range = ‖P − camera‖ computed in float64 from the position.
 * Clip planes are planar, like a camera's: a ray starts at depth ``near_clip_m`` and ends at
@@ -32,7 +36,8 @@ from __future__ import annotations
 import numpy as np
 
 from renderlab.render.mesh_io import mesh_body
-from renderlab.render.mitsuba_rays import R2_ALPHA, CameraRays, FramePose, aligned_f32, pass_sizes
+from renderlab.render.mitsuba_rays import (MAX_SAMPLES_PER_PASS, R2_ALPHA, CameraRays, FramePose, aligned_f32,
+                                           pass_sizes)
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 from renderlab.render.variant import init_mitsuba
 
@@ -64,6 +69,8 @@ class MitsubaBackend:
     #: ``"drjit"``: primary rays generated in the kernel (JIT variants, the default); ``"numpy"``: the former
     #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks
     ray_path = "drjit"
+    #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
+    samples_per_pass = MAX_SAMPLES_PER_PASS
 
     def __init__(self, scene: SceneDescription, settings: RenderSettings):
         mi = init_mitsuba(settings.variant)
@@ -297,7 +304,7 @@ class MitsubaBackend:
             shift, passes = None, [1]
         else:  # the per-pixel Cranley-Patterson shifts of the numpy path (same draw)
             shift = mi.Float(aligned_f32(np.random.default_rng(ss.spawn(1)[0]).random((W * H, 2))))
-            passes = pass_sizes(self.settings.spp, W * H)
+            passes = pass_sizes(self.settings.spp, W * H, self.samples_per_pass)
         seeds = ss.generate_state(len(passes), dtype=np.uint32)
         channels = 3 if self.rgb else 1
         acc = np.zeros((channels, W * H))
