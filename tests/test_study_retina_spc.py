@@ -196,14 +196,6 @@ def test_report_has_every_method_with_cluster_intervals_and_the_declared_subset(
     assert all(m in html for m in ("retina", "spc", "ncc_baseline")) and "Well-measured subset" in html
 
 
-def test_truth_perturbation_is_refused_with_one_line(tmp_path, capsys):
-    scen = tmp_path / "bad.toml"
-    scen.write_text(TINY.replace("[perturbations]\n", "[perturbations]\nposition_sigma_m = [1.0, 0.0, 0.0]\n"))
-    assert main(["campaign", str(scen), "--runs", "2", "--out", str(tmp_path / "c"), "--workers", "0", "--quiet"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "position_sigma_m" in err[0] and "Traceback" not in err[0]
-
-
 class ShiftedNcc:
     """A user's own method typed on the command line (not installed, no entry point): the NCC baseline under
     another name."""

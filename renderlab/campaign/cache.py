@@ -9,6 +9,15 @@ reused after that code changes, and the content hashes of the files it reference
 shape models: a changed file is a new key even under the same name); the set lives in ``<cache_root>/<key>/`` and is written
 atomically by :class:`renderlab.truthset.TruthSetWriter`, so concurrent workers rendering the same key
 both end with one complete set.
+
+Runs whose *true* poses differ (truth trajectory/pointing perturbations) render their own frames:
+:func:`cached_frames_truthset` keys a render by the scenario **and the content of its frame specs** (index,
+time, position, attitude quaternion, camera, Sun of every frame, :func:`frame_record`), so a re-run, or
+another method on the same run, finds it. Those renders use one :class:`LoadedWorld` per process (the
+world plan built once, the renderer's scene loaded once and reused for every pose: only the sensor pose
+changes between calls), and the per-frame render seeds of :func:`renderlab.pipeline.render_truthset`
+(frame k of the plan: the k-th child of ``SeedSequence(render.seed)``), so the nominal poses give the
+nominal truth set's images.
 """
 
 from __future__ import annotations
@@ -18,6 +27,8 @@ import hashlib
 import json
 from importlib import metadata
 from pathlib import Path
+
+import numpy as np
 
 from renderlab.errors import UserError
 
@@ -94,15 +105,19 @@ def file_hashes(scenario_dict: dict, base_dir) -> dict[str, str]:
     return {key: file_sha256(Path(base_dir) / rel) for key, rel in referenced_files(scenario_dict)}
 
 
-def truth_key(scenario_dict: dict, frames: int | None = None, files: dict | None = None) -> str:
+def truth_key(scenario_dict: dict, frames: int | None = None, files: dict | None = None,
+              frame_records: list | None = None) -> str:
     """Cache key of a render: hash of the scenario data (which includes camera pose and seed), the frame
     count, the truth-set format, :func:`truth_code_fingerprint` and the content hashes of the files the
-    scenario references (``files``, from :func:`file_hashes`; left out when there are none)."""
+    scenario references (``files``, from :func:`file_hashes`; left out when there are none), and, for a
+    render of given frames (:func:`cached_frames_truthset`), their :func:`frame_record` contents."""
     from renderlab.truthset import FORMAT
 
     key = {"format": FORMAT, "scenario": scenario_dict, "frames": frames, "code": truth_code_fingerprint()}
     if files:
         key["files"] = files
+    if frame_records is not None:
+        key["frame_specs"] = frame_records
     text = json.dumps(key, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
@@ -127,3 +142,121 @@ def cached_truthset(scenario, base_dir: Path, cache_root: Path, *, frames: int |
             return path, True
         raise
     return path, False
+
+
+# ------------------------------------------------------------------ renders of given frame specs (perturbed truth)
+def frame_record(spec) -> dict:
+    """The content of one frame spec (what the renderer sees of it), JSON-able with exact floats."""
+    from renderlab.geometry.rotations import quat_xyzw
+
+    return {"index": int(spec.index), "time_s": float(spec.pose.time_s),
+            "position_m": [float(v) for v in spec.pose.position_m],
+            "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)],
+            "camera": spec.camera.to_dict(), "sun": spec.sun.to_dict()}
+
+
+class LoadedWorld:
+    """A scenario's world plan, built once, and the renderer of its current scene, loaded once and
+    reused for every frame spec rendered from it (only the camera pose changes between frames)."""
+
+    def __init__(self, scenario, base_dir: Path):
+        from renderlab.worlds.base import make_plan
+
+        self.scenario, self.plan = scenario, make_plan(scenario, Path(base_dir))
+        self._key, self.scene, self.backend, self.loads = object(), None, None, 0
+
+    def render_seed(self, index: int) -> np.random.SeedSequence:
+        """Frame ``index``'s seed, as :func:`renderlab.pipeline.render_truthset` spawns it (a fresh
+        ``SeedSequence`` each call: ``spawn`` is stateful)."""
+        k = [s.index for s in self.plan.frames].index(index)
+        return np.random.SeedSequence(int(self.scenario.render.seed), spawn_key=(k,))
+
+    def backend_for(self, spec):
+        """(backend, scene) for ``spec``; the scene is loaded only when its :meth:`WorldPlan.scene_key` changes."""
+        from renderlab.pipeline import make_backend
+
+        key = self.plan.scene_key(spec)
+        if self.backend is None or key != self._key:
+            self.scene = self.plan.scene(key)
+            self.backend, self._key = make_backend(self.scenario, self.scene, self.scenario.render.renderer), key
+            self.loads += 1
+        return self.backend, self.scene
+
+
+_WORLDS: dict[str, LoadedWorld] = {}  # this process's loaded world (one at a time: worlds are large)
+
+
+def loaded_world(scenario, base_dir: Path) -> LoadedWorld:
+    """This process's :class:`LoadedWorld` of ``scenario`` (built on first use, kept for later runs)."""
+    data = scenario.to_dict()
+    key = truth_key(data, None, file_hashes(data, base_dir))
+    if key not in _WORLDS:
+        _WORLDS.clear()
+        _WORLDS[key] = LoadedWorld(scenario, Path(base_dir))
+    return _WORLDS[key]
+
+
+def cached_frames_truthset(scenario, base_dir: Path, cache_root: Path, specs: list, *,
+                           note: dict | None = None) -> tuple[Path, bool]:
+    """Path of the truth set of ``scenario`` rendered at the frame specs ``specs`` (e.g. perturbed true
+    poses; rendered now if not cached, keyed by :func:`frame_record` of each) and whether it was a hit.
+    ``note`` (JSON-able) goes into the manifest as ``frame_specs_note`` (e.g. the perturbation drawn)."""
+    data = scenario.to_dict()
+    key = truth_key(data, None, file_hashes(data, base_dir), [frame_record(s) for s in specs])
+    path = Path(cache_root) / key
+    if _complete(path):
+        return path, True
+    try:
+        render_frames(loaded_world(scenario, base_dir), path, specs, note=note)
+    except UserError:
+        if _complete(path):  # another worker finished the same render first
+            return path, True
+        raise
+    return path, False
+
+
+def render_frames(world: LoadedWorld, out_dir: Path, specs: list, *, note: dict | None = None) -> Path:
+    """Render ``specs`` from ``world`` into a truth set at ``out_dir`` (written atomically): the loop of
+    :func:`renderlab.pipeline.render_truthset` (same seeds, auto-exposure on the first frame, sensor, files,
+    the plan's metadata and truth tables) with the world's loaded renderer."""
+    from renderlab.geometry.rotations import quat_xyzw
+    from renderlab.pipeline import _contact_sheet_png, _rows_to_table
+    from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
+    from renderlab.truthset import TruthSetWriter
+
+    sc, plan = world.scenario, world.plan
+    head = {"scenario": sc.to_dict(), "seed": int(sc.render.seed), "render_frame": plan.render_frame,
+            "frame_specs_note": note or {}}
+    opts = SensorOptions(**sc.sensor.options_dict())
+    writer, rows = None, {}
+    try:
+        for spec in specs:
+            backend, scene = world.backend_for(spec)
+            if writer is None:
+                info = {"name": backend.name, "version": backend.version, "variant": backend.variant}
+                writer = TruthSetWriter(out_dir, {**head, "renderer": info}).__enter__()
+                plan.write_static(writer)
+            render_ss, sensor_ss = world.render_seed(spec.index).spawn(2)
+            out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
+            lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)
+            if spec is specs[0] and sc.sensor.auto_exposure:
+                opts = with_exposure(opts, exposure_for_peak(lum, opts, fraction=sc.sensor.auto_exposure_fraction))
+            sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
+            meta = {"camera": spec.camera.to_dict(),
+                    "pose": {"position_m": [float(v) for v in spec.pose.position_m],
+                             "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)]},
+                    "sun": spec.sun.to_dict(), **plan.frame_meta(spec, scene),
+                    "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
+                               "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)}}
+            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn, meta, dn_bits=opts.bits)
+            for name, new_rows in plan.frame_rows(spec, out).items():
+                rows.setdefault(name, []).extend(new_rows)
+        for name, table_rows in rows.items():
+            writer.add_table(name, _rows_to_table(table_rows))
+        writer.add_file("contact_sheet.png", _contact_sheet_png(writer))
+    except BaseException as exc:
+        if writer is not None:
+            writer.__exit__(type(exc), exc, exc.__traceback__)
+        raise
+    writer.__exit__(None, None, None)
+    return Path(out_dir)

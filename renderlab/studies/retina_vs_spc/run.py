@@ -1,9 +1,12 @@
 """Study ``retina_vs_spc``: Retina and the SPC-style method on the same EV5 frames (Wright et al., Fig. 12).
 
-The truth render depends only on the nominal scenario, so it is rendered once and served by the truth
-cache (:mod:`renderlab.campaign.cache`, keyed by the scenario without its ``perturbations`` and
-``campaign`` sections). What differs between runs is what the onboard system *believes* and the sensor
-noise:
+Without truth perturbations the truth render depends only on the nominal scenario, so it is rendered once
+and served by the truth cache (:mod:`renderlab.campaign.cache`, keyed by the scenario without its
+``perturbations`` and ``campaign`` sections). With them (``position_sigma_m``, ``position_cov_m2``,
+``velocity_sigma_mps``, ``attitude_sigma_deg``) each run renders its own truth at its perturbed true poses,
+cached by the content of those poses, the world loaded once per worker process
+(:mod:`renderlab.studies.retina_vs_spc.truth`). What else differs between runs is what the onboard system
+*believes* and the sensor noise:
 
 * a-priori pose per frame: position δt ~ N(0, diag σ_t²) (``apriori_position_sigma_m``, or the position
   block of ``apriori_cov``) and attitude δθ ~ N(0, σ_θ²) per camera axis (``apriori_attitude_sigma_deg``),
@@ -19,11 +22,10 @@ noise:
   ``[retina_vs_spc] sensor_noise = false`` measures the noise-free expected DN instead (rounded to integers,
   :func:`renderlab.sensor.expected_dn`; the switch of an error budget).
 
-Truth perturbations (``position_sigma_m``, ``position_cov_m2``, ``velocity_sigma_mps``,
-``attitude_sigma_deg``) would change the rendered image per run; this study renders the nominal descent only
-and refuses them with a clear error. Both methods see the same image, the same a-priori draw and the same
-believed camera/Sun/maplets. Truth (s, l) is ``landmark_truth.parquet`` (the true centre projected with the
-true camera, pose; occlusion-aware), independent of the beliefs.
+The a-priori pose is drawn around the run's (perturbed) true pose. All methods see the same image, the same
+a-priori draw and the same believed camera/Sun/maplets. Truth (s, l) is ``landmark_truth.parquet`` of the
+run's truth set (the true centre projected with the true camera and the run's true pose; occlusion-aware),
+independent of the beliefs.
 
 Breakdown columns: ``phase_deg``, ``gsd_ratio`` (image GSD / maplet spacing), ``shadow_fraction`` (truth
 table), ``range_m`` (camera to landmark centre), ``albedo_contrast`` (Michelson contrast (p95−p5)/(p95+p5)
@@ -42,22 +44,11 @@ import numpy as np
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
 
-TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
-
-
 def truth_scenario_dict(sc_dict: dict) -> dict:
     """The nominal scenario (what is rendered): the campaign-only sections removed."""
     from renderlab.scenario import truth_dict
 
     return truth_dict(sc_dict)
-
-
-def check_perturbations(p) -> None:
-    """Refuse the truth perturbations this study does not render (module docstring)."""
-    on = [n for n in TRUTH_PERTURBATIONS if getattr(p, n) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
-    if on:
-        raise UserError(f"study retina_vs_spc renders the nominal descent once; truth perturbation "
-                        f"perturbations.{on[0]} is not supported (use the apriori_* dispersions)")
 
 
 def apriori_sigmas(p) -> tuple[tuple, tuple]:
@@ -172,12 +163,11 @@ def section(scenario):
 
 
 def check(scenario) -> None:
-    """Validate before anything runs: world kind, perturbations, every method name registered."""
+    """Validate before anything runs: world kind, every method name registered."""
     from renderlab import plugins
 
     if scenario.world.kind != "ev5":
         raise UserError(f"study retina_vs_spc needs world.kind 'ev5', got '{scenario.world.kind}'")
-    check_perturbations(scenario.perturbations)
     for name in section(scenario).methods:
         plugins.landmark_methods.get(name, where="retina_vs_spc.methods: ")
 
@@ -186,11 +176,11 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``."""
     import pyarrow as pa
 
-    from renderlab.campaign.cache import cached_truthset
     from renderlab.campaign.perturb import draw_perturbation
     from renderlab.measurement.runner import MeasureOptions, measure_truthset
     from renderlab.scenario import scenario_from_dict
     from renderlab.sensor import SensorOptions
+    from renderlab.studies.retina_vs_spc.truth import run_truthset
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
@@ -198,9 +188,9 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     p = scenario.perturbations
     ss_pert, ss_apriori, ss_noise, ss_map = seed_sequence.spawn(4)
     draw = draw_perturbation(p, ss_pert)
-    # the a-priori pose is drawn per frame inside measure_truthset (same seed for both methods)
+    # the a-priori pose is drawn per frame inside measure_truthset around the (perturbed) true pose
     truth_sc = scenario_from_dict(truth_scenario_dict(scenario.to_dict()), "retina_vs_spc truth scenario")
-    path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
+    path, _ = run_truthset(truth_sc, base_dir, Path(workdir) / "truth_cache", p, draw)
     ts = TruthSet.open(path)
     maplets = read_catalog(path)
     if draw.spacing_scale != 1.0:
