@@ -41,6 +41,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "retina_vs_spc": "renderlab.studies.retina_vs_spc:STUDY",
         "coastline_ekf": "renderlab.studies.coastline_ekf:STUDY",
         "unknown_satellite": "renderlab.studies.unknown_satellite:STUDY",
+        "descent_navigation": "renderlab.studies.descent_navigation:STUDY",
     }),
     "worlds": ("renderlab.worlds", {  # renderlab.contracts.world.WorldKind objects
         "analytic": "renderlab.scenario.kinds:ANALYTIC",
@@ -52,6 +53,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "coastline": "renderlab.studies.coastline_ekf.config:CoastlineStudyConfig",
         "unknown_satellite": "renderlab.studies.unknown_satellite.config:UnknownSatelliteStudyConfig",
         "retina_vs_spc": "renderlab.studies.retina_vs_spc.config:RetinaVsSpcConfig",
+        "descent_navigation": "renderlab.studies.descent_navigation.config:DescentNavigationConfig",
     }),
     "renderers": ("renderlab.renderers", {
         "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",

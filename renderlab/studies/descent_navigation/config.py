@@ -1,0 +1,67 @@
+"""Scenario section ``[descent_navigation]`` of the closed-loop descent-navigation study. Light: pydantic.
+
+The truth's gravity (point mass ``gm_true_m3_s2`` + J2 ``j2_true`` about the spin pole at reference radius
+``r_ref_m``) is *not* the filter's (point mass ``gm_filter_m3_s2``, no J2): the filter's process noise
+``q_acc_m2_s3`` has to cover the difference. EV5's mass is not measured; the defaults assume a 400 m body
+(Busch et al. 2011) of bulk density 1.3 g/cm³ (C-type): GM = 2.9 m³/s², an oblate top-shape J2 of 0.05, and an
+onboard GM 10 % high. ``sigma_px`` is the pixel noise the filter declares for every method (overridden per method by
+``sigma_px_by_method``); it is the same knob for every method so that a method's bias or excess noise shows up as
+filter inconsistency (NEES/NIS outside their bands) instead of being tuned away.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from pydantic import Field, model_validator
+
+from renderlab.config_types import Finite, NonNegative, Positive, Strict
+
+Unit = Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)]
+
+
+class DescentNavigationConfig(Strict):
+    """Options of study ``descent_navigation`` (module docstring)."""
+
+    methods: Annotated[list[Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]],
+                       Field(min_length=1, max_length=16)] = Field(
+        ["retina", "spc", "ncc_baseline"], description="Registered landmark-method names, unique; each drives its own "
+        "copy of the filter on the same images, star-tracker and accelerometer draws and initial estimate")
+    sigma_px: Positive = Field(0.3, description="Declared landmark pixel noise of the filter, per axis [px]")
+    sigma_px_by_method: dict[str, Positive] = Field({}, description="Per-method override of sigma_px [px]")
+    star_tracker_sigma_arcsec: NonNegative = Field(10.0, description="Star-tracker attitude error 1 sigma per "
+                                                   "camera axis, drawn per image [arcsec]")
+    initial_position_sigma_m: Positive = Field(1.0, description="Initial position error 1 sigma per axis [m]")
+    initial_velocity_sigma_mps: Positive = Field(0.01, description="Initial velocity error 1 sigma per axis [m/s]")
+    accel_rate_hz: Positive = Field(1.0, description="Accelerometer sample rate (input held over each sample) [Hz]")
+    accel_sigma_mps2: NonNegative = Field(2e-5, description="Accelerometer noise per sample, 1 sigma per axis [m/s^2]")
+    gm_true_m3_s2: NonNegative = Field(2.9, description="Truth point-mass GM [m^3/s^2]")
+    j2_true: Finite = Field(0.05, description="Truth J2 about the spin pole (body +z) [-]")
+    r_ref_m: Positive = Field(200.0, description="Reference radius of the truth J2 [m]")
+    gm_filter_m3_s2: NonNegative = Field(3.19, description="Onboard (filter) point-mass GM [m^3/s^2]")
+    q_acc_m2_s3: NonNegative = Field(1e-10, description="Filter process noise PSD of unmodelled acceleration "
+                                     "[m^2/s^3]")
+    gate_probability: Unit = Field(1.0 - 1e-6, description="Per-landmark chi2 gate probability of the filter [-]")
+    reject_flagged: bool = Field(True, description="Reject landmarks the method flagged as outliers")
+    max_landmarks: Annotated[int, Field(ge=1, le=200)] = Field(8, description="Landmarks attempted per image at "
+                                                               "most (GSD ratio closest to 1 first)")
+    gsd_ratio_range: tuple[Positive, Positive] = Field((0.4, 2.5), description="GSD ratio (image GSD / maplet "
+                                                       "spacing) of the landmarks attempted [-]")
+    n_sigma: Positive = Field(3.0, description="Search distance in sigma of the filter's projected covariance")
+    min_search_px: Annotated[int, Field(ge=1)] = Field(2, description="Smallest search distance [px]")
+    max_search_px: Annotated[int, Field(ge=1)] = Field(32, description="Largest search distance [px]")
+    track_loss_frames: Annotated[int, Field(ge=1)] = Field(2, description="Track lost: this many consecutive images "
+                                                           "without an accepted landmark")
+
+    @model_validator(mode="after")
+    def _check(self):
+        if len(set(self.methods)) != len(self.methods):
+            raise ValueError(f"methods must be unique, got {self.methods}")
+        if self.max_search_px < self.min_search_px:
+            raise ValueError("max_search_px must be >= min_search_px")
+        if self.gsd_ratio_range[1] <= self.gsd_ratio_range[0]:
+            raise ValueError("gsd_ratio_range must be increasing")
+        return self
+
+    def sigma_for(self, method: str) -> float:
+        return float(self.sigma_px_by_method.get(method, self.sigma_px))

@@ -1,0 +1,165 @@
+"""One landmark method driving the descent filter closed-loop over the images of one run.
+
+Per image k (time t_k): the filter is propagated from the previous image with the accelerometer's readings (one
+per ``1/accel_rate_hz``, eq. D5 of :mod:`estimators.descent_nav.dynamics`); the landmark method gets the a-priori
+pose (position = the filter's, attitude = the star tracker's) and per landmark the search distance n_σ·√λ_max of the
+projected covariance (the filter's position block and the star tracker's σ; Wright et al. eq. 1–4 projection);
+the landmarks it measures ((s, l) = pred + (Δs, Δl)) update the filter (kind ``"pixel"``, R of eq. M3, the
+method's outlier flags in ``context["flagged"]``), whose χ² gate rejects what does not fit.
+Landmarks attempted: those the a-priori pose predicts inside the image whose GSD ratio (predicted range / fx /
+maplet spacing) lies in ``gsd_ratio_range``, at most ``max_landmarks`` per image, GSD ratio closest to 1 first.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from renderlab.contracts.navigation import FilterMeasurement
+from renderlab.errors import UserError
+
+
+@dataclass
+class RunInputs:
+    """What every method of one run shares: images, truth, draws."""
+
+    ts: object                 # the re-exposed truth set
+    truth: object              # TrueDescent
+    maplets: list
+    centres: np.ndarray
+    spacing: np.ndarray
+    R_site: np.ndarray         # body ← site (east, north, up)
+    times: np.ndarray          # (K,) image times
+    R_true: np.ndarray         # (K, 3, 3) true body ← camera
+    pos_true: np.ndarray       # (K, 3) true camera position (the manifest's)
+    cameras: list              # (K,) the camera model of each image
+    R_star: np.ndarray         # (K, 3, 3) star tracker's body ← camera
+    accel: list                # per image interval: [(t0, t1, u_meas)]
+    x0: np.ndarray
+    P0: np.ndarray
+    sigma_st_rad: float
+    campaign: str
+    run: int
+
+
+def select_landmarks(cam, pose, centres, spacing, cfg) -> np.ndarray:
+    """Indices of the landmarks to attempt (module docstring), deterministic."""
+    xc = pose.to_camera(centres)
+    sl = cam.project(xc)
+    ok = cam.in_image(sl) & (xc[:, 2] > 0)
+    ratio = np.where(ok, xc[:, 2] / cam.fx / spacing, np.nan)
+    lo, hi = cfg.gsd_ratio_range
+    cand = np.flatnonzero(ok & (ratio >= lo) & (ratio <= hi))
+    order = np.lexsort((cand, np.abs(np.log(ratio[cand]))))
+    return cand[order][: cfg.max_landmarks]
+
+
+def _error_cols(x, P, x_true, R_site) -> dict:
+    """Errors and 1σ in the site frame (east, north, up), NEES."""
+    B = np.zeros((6, 6))
+    B[:3, :3] = B[3:, 3:] = R_site.T
+    e = B @ (x - x_true)
+    sig = np.sqrt(np.diag(B @ P @ B.T))
+    d = x - x_true
+    out = {"nees": float(d @ np.linalg.solve(P, d))}
+    for k, name in enumerate(("e_m", "n_m", "u_m", "ve_mps", "vn_mps", "vu_mps")):
+        out[f"err_{name}"], out[f"sig_{name}"] = float(e[k]), float(sig[k])
+    return out
+
+
+def _landmark_rows(inp, method, k, sel, results, upd, cam, true_pose) -> list[dict]:
+    rows = []
+    truth_px = cam.project(true_pose.to_camera(inp.centres[sel])) if len(sel) else np.zeros((0, 2))
+    j = 0
+    for idx, res, tp in zip(sel, results, truth_px):
+        ok = res.has_result
+        ms, ml = (res.meas_s, res.meas_l) if ok else (math.nan, math.nan)
+        kept = gated = False
+        d2 = math.nan
+        if ok and upd is not None:
+            kept, gated, d2 = bool(upd.kept[j]), bool(upd.gated[j]), float(upd.d2[j])
+        j += int(ok)
+        rows.append({"campaign": inp.campaign, "run": inp.run, "method": method, "frame": k,
+                     "item": int(inp.maplets[idx].landmark_id), "pred_s": float(res.pred_s),
+                     "pred_l": float(res.pred_l), "meas_s": ms, "meas_l": ml, "truth_s": float(tp[0]),
+                     "truth_l": float(tp[1]), "err_s": ms - float(tp[0]), "err_l": ml - float(tp[1]),
+                     "has_result": bool(ok), "reason": res.reason, "outlier": bool(res.outlier), "kept": kept,
+                     "gated": gated, "gate_d2": d2, "search_px": int(res.search_px), "t_ms": float(res.t_ms)})
+    return rows
+
+
+def _measure(impl, inp, k, filt, cfg, mopts):
+    """(selected indices, results, FilterMeasurement or None) of image k at the filter's a-priori pose."""
+    from estimators.descent_nav import pixel_covariance
+    from renderlab.contracts.landmark import CameraPose
+    from renderlab.measurement.runner import _frame_record, run_method_on_image
+
+    fr = _frame_record(inp.ts, k)
+    x, P = filt.x, filt.P
+    pose = CameraPose(inp.R_star[k], x[:3])
+    sel = select_landmarks(fr.camera, pose, inp.centres, inp.spacing, cfg)
+    if sel.size == 0:
+        return sel, [], None
+    cov_r = np.eye(3) * inp.sigma_st_rad**2
+    _, results = run_method_on_image(impl, inp.ts.load(k).dn, fr.adc_max, fr.camera, pose, fr.sun,
+                                     [inp.maplets[i] for i in sel], inp.centres[sel], P[:3, :3], cov_r, mopts, k)
+    good = [i for i, r in enumerate(results) if r.has_result]
+    if not good:
+        return sel, results, None
+    pts = inp.centres[sel[good]]
+    z = np.array([[results[i].meas_s, results[i].meas_l] for i in good]).reshape(-1)
+    R = pixel_covariance(fr.camera, pts, x[:3], inp.R_star[k], cfg.sigma_for(impl.name), inp.sigma_st_rad)
+    ctx = {"points_body_m": pts, "R_body_from_cam": inp.R_star[k], "camera": fr.camera,
+           "flagged": np.array([results[i].outlier for i in good], bool)}
+    return sel, results, FilterMeasurement("pixel", z, R, ctx)
+
+
+def _propagate(filt, intervals) -> None:
+    for t0, t1, u in intervals:
+        filt.set_input(u)
+        filt.propagate(t1)
+
+
+def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list[dict]]:
+    """(filter rows, landmark rows) of one method over the run's images (module docstring)."""
+    from renderlab.contracts.landmark import CameraPose
+
+    filt.initialize(float(inp.times[0]), inp.x0, inp.P0)
+    base = {"campaign": inp.campaign, "run": inp.run, "method": impl.name}
+    frows = [{**base, "frame": -1, "t_s": float(inp.times[0]), "has_result": False, "reason": "prior",
+              **_error_cols(filt.x, filt.P, inp.truth.state(inp.times[0]), inp.R_site), "nis": math.nan, "dof": 0,
+              "n_attempted": 0, "n_results": 0, "n_flagged": 0, "n_gated": 0, "n_kept": 0, "search_px_mean": math.nan,
+              "track_lost": False}]
+    lrows, misses, lost, diverged = [], 0, False, False
+    for k, t in enumerate(inp.times):
+        row = {**base, "frame": k, "t_s": float(t)}
+        if diverged:
+            frows.append({**frows[-1], **row, "reason": "diverged"})
+            continue
+        _propagate(filt, inp.accel[k])
+        sel, results, meas = _measure(impl, inp, k, filt, cfg, mopts)
+        upd = None
+        try:
+            if meas is not None:
+                filt.update(float(t), meas)
+                upd = filt.last
+        except UserError:
+            diverged = True
+        kept = int(upd.kept.sum()) if upd is not None else 0
+        misses = misses + 1 if kept == 0 else 0
+        lost = lost or misses >= cfg.track_loss_frames
+        reason = "diverged" if diverged else ("ok" if kept else ("all_gated" if upd is not None else "no_measurement"))
+        errs = _error_cols(filt.x, filt.P, inp.truth.state(t), inp.R_site) if not diverged else \
+            {c: math.nan for c in frows[0] if c.startswith(("err_", "sig_")) or c == "nees"}
+        frows.append({**row, "has_result": bool(kept), "reason": reason, **errs,
+                      "nis": float(upd.nis) if kept else math.nan, "dof": int(upd.dof) if upd is not None else 0,
+                      "n_attempted": int(len(sel)), "n_results": int(sum(r.has_result for r in results)),
+                      "n_flagged": int(upd.flagged.sum()) if upd is not None else 0,
+                      "n_gated": int(upd.gated.sum()) if upd is not None else 0, "n_kept": kept,
+                      "search_px_mean": float(np.mean([r.search_px for r in results])) if results else math.nan,
+                      "track_lost": bool(lost)})
+        lrows += _landmark_rows(inp, impl.name, k, sel, results, upd, inp.cameras[k],
+                                CameraPose(inp.R_true[k], inp.pos_true[k]))
+    return frows, lrows

@@ -1,0 +1,133 @@
+"""Report section of ``descent_navigation`` (the lab's report style, :mod:`renderlab.report.style`): from the
+``descent_filter`` and ``descent_landmarks`` tables alone, ``descent_summary.csv`` (one row per method),
+``descent_timeseries.csv`` (per method and image), and three figures (PNG + SVG): position and velocity error vs
+time with the filter's 3σ, and ANEES / ANIS vs time with their 95 % χ² bands and pass/fail marks
+(:mod:`.scoring` says how each number is made)."""
+
+from __future__ import annotations
+
+import csv
+import html
+import math
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.studies.descent_navigation.scoring import POS, VEL, columns, method_summary, timeseries
+
+
+def _write_csv(rows: list[dict], path: Path) -> None:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
+    """Errors of every run (thin) and ±3σ RMS of the filter (dashed) per method (columns) and site axis (rows)."""
+    from renderlab.report.style import method_colors, plt, save
+
+    cols, unit = (POS, "m") if kind == "position" else (VEL, "m/s")
+    sig = [c.replace("err_", "sig_") for c in cols]
+    c = columns(ftab, ("run", "method", "frame", "t_s", *cols, *sig))
+    methods = sorted(set(c["method"].tolist()))
+    colors = method_colors(methods)
+    pyplot = plt()
+    fig, axes = pyplot.subplots(3, len(methods), figsize=(3.6 * len(methods), 7.0), sharex=True, squeeze=False)
+    for j, m in enumerate(methods):
+        for i, (e, s) in enumerate(zip(cols, sig)):
+            ax = axes[i, j]
+            sel = (c["method"] == m) & (c["frame"] >= 0)
+            for r in sorted(set(c["run"][sel].tolist())):
+                rr = sel & (c["run"] == r)
+                ax.plot(c["t_s"][rr], c[e][rr], color="0.55", lw=0.4, alpha=0.5)
+            ts = sorted(set(c["t_s"][sel].tolist()))
+            three = np.array([3 * np.sqrt(np.nanmean(c[s][sel & (c["t_s"] == t)] ** 2)) for t in ts])
+            ax.plot(ts, three, "--", color=colors[m], lw=1.5, label="±3σ (filter, RMS over runs)")
+            ax.plot(ts, -three, "--", color=colors[m], lw=1.5)
+            ax.set_ylabel(f"{'ENU'[i]} {kind} error ({unit})")
+            if i == 0:
+                ax.set_title(m)
+                ax.plot([], [], color="0.55", lw=0.8, label="each run")
+                ax.legend(loc="upper right", fontsize=7)
+            if i == 2:
+                ax.set_xlabel("time (s)")
+    fig.tight_layout()
+    return save(fig, out_dir / f"descent_{kind}_error")
+
+
+def consistency_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
+    """ANEES/6 and ANIS/dof vs time per method, the 95 % bands shaded, inside (●) / outside (✕)."""
+    from renderlab.report.style import method_colors, plt, save
+
+    methods = sorted({r["method"] for r in ts_rows})
+    colors = method_colors(methods)
+    pyplot = plt()
+    fig, axes = pyplot.subplots(1, 2, figsize=(10, 3.8), squeeze=False)
+    for ax, (key, lo, hi, inside, title) in zip(axes[0], (("anees", "anees_lo", "anees_hi", "anees_inside",
+                                                          "ANEES / 6 (state, 6 dof)"),
+                                                         ("anis_per_dof", "anis_lo", "anis_hi", "anis_inside",
+                                                          "ANIS / dof (landmark pixels)"))):
+        scale = 6.0 if key == "anees" else 1.0
+        for m in methods:
+            rows = [r for r in ts_rows if r["method"] == m and r["frame"] >= 0 and np.isfinite(r[key])]
+            t = np.array([r["t_s"] for r in rows])
+            v = np.array([r[key] for r in rows]) / scale
+            ok = np.array([bool(r[inside]) for r in rows])
+            ax.fill_between(t, [r[lo] / scale for r in rows], [r[hi] / scale for r in rows], color=colors[m],
+                            alpha=0.12, lw=0)
+            ax.plot(t, v, color=colors[m], lw=1.2, label=m)
+            ax.plot(t[ok], v[ok], "o", color=colors[m], ms=4)
+            ax.plot(t[~ok], v[~ok], "x", color=colors[m], ms=6, mew=1.5)
+        ax.axhline(1.0, color="k", lw=0.6)
+        ax.set_yscale("log")
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel(f"{title.split(' (')[0]} (—)")
+        ax.set_title(f"{title}\nshaded: 95 % χ² band; ● inside (PASS), ✕ outside (FAIL)", fontsize=8)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return save(fig, out_dir / "descent_consistency")
+
+
+def _html_table(summary: list[dict]) -> str:
+    from renderlab.report.style import badge, fmt
+
+    head = ("method", "runs", "ANEES/6 [95 % CI]", "times in NEES band", "ANIS/dof [95 % CI]", "times in NIS band",
+            "touchdown |δr| median / p95 (m)", "touchdown 3σ (m)", "track lost (runs)", "kept bias s, l (px)",
+            "gated / flagged")
+    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    for r in summary:
+        ok_nees = r["anees_over_6_lo"] <= 1.0 <= r["anees_over_6_hi"]
+        ok_nis = r["anis_per_dof_lo"] <= 1.0 <= r["anis_per_dof_hi"]
+        cells = [r["method"], r["n_runs"],
+                 f"{fmt(r['anees_over_6'], 3)} [{fmt(r['anees_over_6_lo'], 3)}, {fmt(r['anees_over_6_hi'], 3)}] "
+                 + badge(ok_nees), f"{r['anees_inside_frac']:.0%}",
+                 f"{fmt(r['anis_per_dof'], 3)} [{fmt(r['anis_per_dof_lo'], 3)}, {fmt(r['anis_per_dof_hi'], 3)}] "
+                 + badge(ok_nis), f"{r['anis_inside_frac']:.0%}",
+                 f"{fmt(r['touchdown_pos_err_median_m'], 3)} / {fmt(r['touchdown_pos_err_p95_m'], 3)}",
+                 fmt(r["touchdown_pos_3sig_rms_m"], 3), r["track_lost_runs"],
+                 f"{fmt(r.get('kept_bias_s_px', math.nan), 2)}, {fmt(r.get('kept_bias_l_px', math.nan), 2)}",
+                 f"{r['gated_frac']:.1%} / {r['flagged_frac']:.1%}"]
+        out.append("<tr>" + "".join(f"<td>{c if isinstance(c, str) and c.count('<') else html.escape(str(c))}</td>"
+                                    for c in cells) + "</tr>")
+    return "\n".join(out) + "</table>"
+
+
+def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
+    """The study's section: CSVs and figures into ``out_dir`` (module docstring)."""
+    ftab = tables.get("descent_filter")
+    if ftab is None or ftab.num_rows == 0:
+        return []
+    out_dir = Path(out_dir)
+    ts_rows = timeseries(ftab)
+    summary = method_summary(ftab, tables.get("descent_landmarks"), ts_rows)
+    _write_csv(summary, out_dir / "descent_summary.csv")
+    _write_csv(ts_rows, out_dir / "descent_timeseries.csv")
+    figs = error_figure(ftab, "position", out_dir) + error_figure(ftab, "velocity", out_dir) \
+        + consistency_figure(ts_rows, out_dir)
+    imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f.endswith(".png"))
+    note = ("<p>ANEES/6 and ANIS/dof: 1 is consistent; intervals are 95 % bootstraps over whole runs (the images of "
+            "a run are correlated). Touchdown proxy: position error norm at the last image (50 m). Track lost: "
+            "a run with ≥ N consecutive images without an accepted landmark (N = track_loss_frames).</p>")
+    return [("Descent navigation", _html_table(summary) + note + imgs)]

@@ -1,0 +1,139 @@
+"""Study ``descent_navigation``: each landmark method drives the descent EKF closed-loop down the ARRM descent.
+
+The truth render depends only on the nominal scenario (the truth cache, :mod:`renderlab.campaign.cache`): it is
+rendered once along the true trajectory and serves every run, because a run disperses only what the onboard system
+does not control in the truth — the filter's initial estimate (x0 = truth + N(0, P0)), the star tracker's attitude
+error per image, the accelerometer's noise per sample and the sensor noise (the cached radiance re-exposed with the
+run's own Poisson + read noise, :mod:`renderlab.campaign.reexpose`). Every method of a run sees the same images and
+draws (paired comparison); each drives its own filter (:mod:`.loop`). Truth perturbations (they would change the
+rendered image) are refused. Tables: ``descent_filter`` (one row per run, method and image, plus the prior) and
+``descent_landmarks`` (one row per landmark attempted), reported by :mod:`.report`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
+
+
+def section(scenario):
+    """The scenario's ``[descent_navigation]`` section (defaults when absent)."""
+    from renderlab.studies.descent_navigation.config import DescentNavigationConfig
+
+    return getattr(scenario, "descent_navigation", None) or DescentNavigationConfig()
+
+
+def check(scenario) -> None:
+    """Refuse what the study cannot run, before any output: world, trajectory, truth perturbations, names."""
+    from renderlab import plugins
+
+    if scenario.world.kind != "ev5" or scenario.trajectory.kind != "ev5_descent":
+        raise UserError(f"study descent_navigation needs world.kind 'ev5' with an 'ev5_descent' trajectory, got "
+                        f"'{scenario.world.kind}'")
+    p = scenario.perturbations
+    on = [n for n in TRUTH_PERTURBATIONS if getattr(p, n, None) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
+    if on:
+        raise UserError(f"study descent_navigation renders the nominal descent once; perturbations.{on[0]} is not "
+                        "supported (the study disperses the initial estimate and the sensors)")
+    for name in section(scenario).methods:
+        plugins.landmark_methods.get(name, where="descent_navigation.methods: ")
+
+
+def filter_options(cfg, omega_rad_s: float) -> dict:
+    """The onboard filter's options: its own GM (no J2), the spin, the process and input noise, the gate."""
+    return {"gm_m3_s2": cfg.gm_filter_m3_s2, "omega_rad_s": (0.0, 0.0, omega_rad_s), "q_acc_m2_s3": cfg.q_acc_m2_s3,
+            "sigma_input_mps2": cfg.accel_sigma_mps2, "gate_probability": cfg.gate_probability,
+            "reject_flagged": cfg.reject_flagged, "max_step_s": 10.0}
+
+
+def _accel_intervals(truth, times, cfg, rng) -> list:
+    """Per image k: the accelerometer samples [(t0, t1, u)] from the previous image to t_k (none for k = 0)."""
+    out = [[]]
+    for a, b in zip(times[:-1], times[1:]):
+        n = max(1, int(math.ceil((b - a) * cfg.accel_rate_hz - 1e-9)))
+        edges = np.linspace(a, b, n + 1)
+        out.append([(float(t0), float(t1), truth.accelerometer(t0, t1, cfg.accel_sigma_mps2, rng))
+                    for t0, t1 in zip(edges[:-1], edges[1:])])
+    return out
+
+
+def run_inputs(ts, truth, maplets, cfg, scenario, run_index, ss) -> object:
+    """The run's shared :class:`~renderlab.studies.descent_navigation.loop.RunInputs` (every draw from ``ss``)."""
+    from scipy.spatial.transform import Rotation
+
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.geometry.rotations import rotation_from_quat_xyzw
+    from renderlab.studies.descent_navigation.loop import RunInputs
+    from renderlab.studies.descent_navigation.truth import site_frame
+
+    ss_x0, ss_st, ss_acc = ss
+    times = np.array([float(rec["time_s"]) for rec in ts.frames])
+    R_true = np.stack([rotation_from_quat_xyzw(rec["pose"]["quat_render_from_cam_xyzw"]).as_matrix()
+                       for rec in ts.frames])
+    sig_st = math.radians(cfg.star_tracker_sigma_arcsec / 3600.0)
+    dth = np.random.default_rng(ss_st).standard_normal((len(times), 3)) * sig_st
+    R_star = np.einsum("kij,kjl->kil", R_true, Rotation.from_rotvec(dth).as_matrix())
+    sd0 = np.r_[np.full(3, cfg.initial_position_sigma_m), np.full(3, cfg.initial_velocity_sigma_mps)]
+    x0 = truth.state(times[0]) + np.random.default_rng(ss_x0).standard_normal(6) * sd0
+    centres = np.array([m.center_m for m in maplets], float)
+    return RunInputs(ts=ts, truth=truth, maplets=maplets, centres=centres,
+                     spacing=np.array([m.spacing_m for m in maplets], float), R_site=site_frame(ts)[1], times=times,
+                     R_true=R_true, pos_true=np.array([rec["pose"]["position_m"] for rec in ts.frames], float),
+                     cameras=[CameraModel.from_dict(rec["camera"]) for rec in ts.frames], R_star=R_star,
+                     accel=_accel_intervals(truth, times, cfg, np.random.default_rng(ss_acc)), x0=x0,
+                     P0=np.diag(sd0**2), sigma_st_rad=sig_st, campaign=scenario.name, run=int(run_index))
+
+
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
+    """One run of ``descent_navigation`` → ``{"descent_filter": table, "descent_landmarks": table}``."""
+    import pyarrow as pa
+
+    from renderlab.campaign.cache import cached_truthset
+    from renderlab.campaign.reexpose import ReexposedTruthSet
+    from renderlab.measurement.descent_filter import DescentNavFilter
+    from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
+    from renderlab.scenario import scenario_from_dict, truth_dict
+    from renderlab.sensor import SensorOptions
+    from renderlab.studies.descent_navigation.loop import run_method
+    from renderlab.studies.descent_navigation.truth import true_descent
+    from renderlab.truthset import TruthSet
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    check(scenario)
+    cfg = section(scenario)
+    ss_noise, ss_x0, ss_st, ss_acc = seed_sequence.spawn(4)
+    truth_sc = scenario_from_dict(truth_dict(scenario.to_dict()), "descent_navigation truth scenario")
+    path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
+    ts0 = TruthSet.open(path)
+    noise_seeds = [int(s.generate_state(1)[0]) for s in ss_noise.spawn(len(ts0))]
+    ts = ReexposedTruthSet(ts0, SensorOptions(**scenario.sensor.options_dict()), noise_seeds, cache=True)
+    truth = true_descent(ts0, scenario, cfg)
+    inp = run_inputs(ts, truth, read_catalog(path), cfg, scenario, run_index, (ss_x0, ss_st, ss_acc))
+    mopts = MeasureOptions(n_sigma=cfg.n_sigma, min_search_px=cfg.min_search_px, max_search_px=cfg.max_search_px,
+                           campaign=scenario.name, run=int(run_index))
+    L_table, _ = onboard_photometry(ts0, mopts)
+    frows, lrows = [], []
+    for name in cfg.methods:
+        impl = make_method(name, mopts, L_table)
+        f, lr = run_method(impl, inp, DescentNavFilter(filter_options(cfg, truth.omega_rad_s)), cfg, mopts)
+        frows += f
+        lrows += lr
+    return {"descent_filter": _table(frows, "reason"), "descent_landmarks": _table(lrows, "reason")}
+
+
+def _table(rows: list[dict], categorical: str):
+    """A pyarrow table of rows (same keys), ``categorical`` dictionary-encoded."""
+    import pyarrow as pa
+
+    if not rows:
+        return pa.table({})
+    cols = {k: [r[k] for r in rows] for k in rows[0]}
+    t = pa.table(cols)
+    i = t.column_names.index(categorical)
+    return t.set_column(i, categorical, pa.array(cols[categorical], pa.string()).dictionary_encode())

@@ -1,0 +1,103 @@
+r"""The true descent the filter navigates: the kinematic ARRM trajectory, the truth's gravity, the control it implies.
+
+Position (body frame) as :mod:`renderlab.worlds.ev5.descent` renders it: :math:`\mathbf q(t) = \mathbf o + h(t)\mathbf n`
+and, above the spin-match altitude, :math:`\mathbf r(t) = R_z(\omega(t_m - t))\,\mathbf q(t)` (a line fixed in
+inertial space). Velocity and acceleration by central differences (steps 1 ms and 10 ms: rounding below 1e-9 m/s
+and 1e-9 m/s² for |r| < 1 km). The truth's gravity is a point mass plus J2 about the spin pole (body +z):
+
+.. math::
+
+    \mathbf g_T = -\frac{\mu\mathbf r}{r^3} - \frac{3 J_2\mu R^2}{2 r^5}
+    \begin{bmatrix} x(1-5z^2/r^2) \\ y(1-5z^2/r^2) \\ z(3-5z^2/r^2)\end{bmatrix}   \quad (T1)
+
+(Vallado, *Fundamentals of Astrodynamics and Applications*, 4th ed., eq. 8-30). The control acceleration the
+kinematic trajectory needs follows from eq. D1 of :mod:`estimators.descent_nav.dynamics` solved for u:
+:math:`\mathbf u = \ddot{\mathbf r} - \mathbf g_T + 2\boldsymbol\omega\times\dot{\mathbf r}
++ \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r)` (T2). The accelerometer reports the mean of u over its
+sample (Simpson's rule) plus white noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class TrueDescent:
+    """The kinematic descent and the truth's gravity (module docstring)."""
+
+    profile: object          # renderlab.worlds.ev5.descent.DescentProfile
+    omega_rad_s: float
+    origin_m: np.ndarray
+    normal: np.ndarray
+    gm: float
+    j2: float
+    r_ref_m: float
+
+    @property
+    def omega(self) -> np.ndarray:
+        return np.array([0.0, 0.0, self.omega_rad_s])
+
+    def position(self, t) -> np.ndarray:
+        """r(t) (..., 3) in the body frame."""
+        t = np.asarray(t, float)
+        q = self.origin_m + self.profile.altitude(np.atleast_1d(t))[:, None] * self.normal
+        th = np.where(np.atleast_1d(t) < self.profile.t_spin_match, self.omega_rad_s * (self.profile.t_spin_match
+                                                                                         - np.atleast_1d(t)), 0.0)
+        c, s = np.cos(th), np.sin(th)
+        out = np.stack([c * q[:, 0] - s * q[:, 1], s * q[:, 0] + c * q[:, 1], q[:, 2]], axis=-1)
+        return out.reshape(t.shape + (3,))
+
+    def state(self, t) -> np.ndarray:
+        """[r, v] (..., 6)."""
+        h = 1e-3
+        v = (self.position(np.asarray(t) + h) - self.position(np.asarray(t) - h)) / (2 * h)
+        return np.concatenate([self.position(t), v], axis=-1)
+
+    def acceleration(self, t) -> np.ndarray:
+        """r̈(t) (..., 3), kinematic."""
+        h = 1e-2
+        t = np.asarray(t, float)
+        return (self.position(t + h) - 2 * self.position(t) + self.position(t - h)) / h**2
+
+    def gravity(self, r) -> np.ndarray:
+        """g_T of eq. T1 (..., 3)."""
+        r = np.asarray(r, float)
+        rn = np.linalg.norm(r, axis=-1, keepdims=True)
+        z2 = (r[..., 2:3] / rn) ** 2
+        f = -1.5 * self.j2 * self.gm * self.r_ref_m**2 / rn**5
+        j2 = f * np.concatenate([r[..., :2] * (1 - 5 * z2), r[..., 2:3] * (3 - 5 * z2)], axis=-1)
+        return -self.gm * r / rn**3 + j2
+
+    def control(self, t) -> np.ndarray:
+        """u(t) of eq. T2 (..., 3)."""
+        x = self.state(t)
+        r, v = x[..., :3], x[..., 3:]
+        w = np.broadcast_to(self.omega, r.shape)
+        return self.acceleration(t) - self.gravity(r) + 2 * np.cross(w, v) + np.cross(w, np.cross(w, r))
+
+    def accelerometer(self, t0: float, t1: float, sigma: float, rng: np.random.Generator) -> np.ndarray:
+        """The accelerometer's reading over [t0, t1]: the mean of u (Simpson) + N(0, σ²) per axis."""
+        u = self.control(np.array([t0, 0.5 * (t0 + t1), t1]))
+        return (u[0] + 4 * u[1] + u[2]) / 6.0 + sigma * rng.standard_normal(3)
+
+
+def site_frame(ts) -> tuple[np.ndarray, np.ndarray]:
+    """(origin_m, R_body_from_site) of the landing site from the truth set's ``site.json`` (columns east, north, up)."""
+    import json
+
+    info = json.loads((ts.path / "site.json").read_text(encoding="utf-8"))
+    return np.asarray(info["origin_m"], float), np.asarray(info["R_body_from_site"], float)
+
+
+def true_descent(ts, scenario, cfg) -> TrueDescent:
+    """The :class:`TrueDescent` of an EV5 descent truth set: the site and spin as rendered (``site.json``, the
+    frames' ``ev5.spin``), the profile of ``scenario.trajectory``, the truth gravity of ``cfg``."""
+    from renderlab.worlds.ev5.descent import DescentProfile
+
+    origin, R = site_frame(ts)
+    period = float(ts.frames[0]["ev5"]["spin"]["period_s"])
+    return TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / period, origin, R[:, 2],
+                       float(cfg.gm_true_m3_s2), float(cfg.j2_true), float(cfg.r_ref_m))
