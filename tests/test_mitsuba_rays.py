@@ -198,3 +198,17 @@ def test_cuda_request_without_gpu_takes_the_same_path():
     assert cu.variant == "llvm_ad_mono" and not cu.scalar and cu.ray_path == "drjit"
     assert np.array_equal(cu.render(spec_cu, seed=2).radiance, ref.radiance)
     assert mitsuba.variant() == "llvm_ad_mono"
+
+
+def test_device_variant_sends_llvm_requests_to_cuda():
+    """RENDERLAB_MITSUBA_DEVICE (benchmarks/gpu_check.sh): cuda maps llvm_ad_<colour> → cuda_ad_<colour>."""
+    from renderlab.errors import UserError
+    from renderlab.render.variant import device_variant
+
+    assert device_variant("llvm_ad_mono", "cuda") == "cuda_ad_mono"
+    assert device_variant("llvm_ad_rgb", "cuda") == "cuda_ad_rgb"
+    assert device_variant("cuda_ad_rgb", "llvm") == "llvm_ad_rgb"
+    assert device_variant("scalar_rgb", "cuda") == "scalar_rgb"
+    assert device_variant("llvm_ad_mono", "") == "llvm_ad_mono"
+    with pytest.raises(UserError, match="RENDERLAB_MITSUBA_DEVICE"):
+        device_variant("llvm_ad_mono", "gpu")

@@ -6,6 +6,11 @@ user already set ``DRJIT_LIBLLVM_PATH``), selects the requested variant and fall
 a CUDA variant without a GPU to the LLVM variant of the same colour, an LLVM variant without a usable
 LLVM to ``scalar_rgb``.
 The import of mitsuba happens here, inside the function, so ``renderlab --help`` stays instant.
+
+``RENDERLAB_MITSUBA_DEVICE=cuda`` in the environment turns every request for ``llvm_ad_<colour>`` into
+``cuda_ad_<colour>`` (same fallback chain), so a scenario, a test run or a benchmark goes to the GPU
+without editing it (``benchmarks/gpu_check.sh``). Every JIT variant takes the same render path
+(:mod:`renderlab.render.mitsuba_rays`); only ``scalar_rgb`` traces rays from Python.
 """
 
 from __future__ import annotations
@@ -54,6 +59,18 @@ def _why(variant: str, exc: Exception) -> str:
     return f"{what}; install Debian's libllvm19 (./setup.sh does) or set DRJIT_LIBLLVM_PATH"
 
 
+def device_variant(variant: str, device: str | None = None) -> str:
+    """``variant`` on the device named by ``device`` (default ``$RENDERLAB_MITSUBA_DEVICE``): ``cuda`` maps
+    ``llvm_ad_<colour>`` to ``cuda_ad_<colour>``; ``llvm`` maps ``cuda_ad_<colour>`` to ``llvm_ad_<colour>``;
+    unset or empty leaves it unchanged. Any other value is a UserError."""
+    device = os.environ.get("RENDERLAB_MITSUBA_DEVICE", "") if device is None else device
+    if device not in ("", "cuda", "llvm"):
+        raise UserError(f"RENDERLAB_MITSUBA_DEVICE must be cuda or llvm, got {device!r}")
+    if device and variant.startswith(("llvm_ad_", "cuda_ad_")):
+        return f"{device}_ad_{variant.rsplit('_', 1)[-1]}"
+    return variant
+
+
 def init_mitsuba(variant: str = "llvm_ad_mono"):
     """Import mitsuba, select ``variant`` (falling back with a warning) and return the module.
 
@@ -73,6 +90,7 @@ def init_mitsuba(variant: str = "llvm_ad_mono"):
     """
     if variant not in KNOWN_VARIANTS:
         raise UserError(f"render.variant must be one of {', '.join(KNOWN_VARIANTS)}, got {variant!r}")
+    variant = device_variant(variant)
     if variant != "scalar_rgb" and "DRJIT_LIBLLVM_PATH" not in os.environ:  # CUDA may fall back to LLVM
         lib = find_llvm19()
         if lib:
