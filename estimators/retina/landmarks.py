@@ -35,6 +35,9 @@ knob                  default       turn it when
 ``min_pixels``        64            overlapping valid pixels required; lower for small or distant maplets
 ``outlier_k``         5.0           final output phase threshold in robust σ; lower to flag more
 ``outlier_floor_px``  1.0 px        smallest flagged distance from the median shift (keeps tight frames clean)
+``recentre_passes``   0             re-centred passes after the finder (:mod:`.recentre`: the template moved by
+                                    the sub-pixel estimate, eq. 9 and the finder again at zero offset); 2 with
+                                    ``gaussian_2d`` is the lab's refined step (``retina_refined``)
 ====================  ============  ========================================================================
 
 Use
@@ -66,6 +69,7 @@ from estimators.retina.correlation import correlation_surface
 from estimators.retina.maplet_mesh import MapletMesh
 from estimators.retina.peaks import locate_peak
 from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
+from estimators.retina.recentre import recentred_shift
 from renderlab.geometry.camera import CameraModel
 
 
@@ -85,6 +89,8 @@ class RetinaOptions:
         Minimum overlapping valid pixels at the peak.
     outlier_k, outlier_floor_px : float
         Final output phase threshold (module docstring).
+    recentre_passes : int
+        Re-centred peak passes after the finder (:func:`~.recentre.recentred_shift`); 0 = the finder alone.
     """
 
     template: TemplateOptions = field(default_factory=TemplateOptions)
@@ -93,6 +99,7 @@ class RetinaOptions:
     min_pixels: int = 64
     outlier_k: float = 5.0
     outlier_floor_px: float = 1.0
+    recentre_passes: int = 0
 
 
 @dataclass
@@ -171,6 +178,10 @@ def measure_landmark(image: np.ndarray, mesh: MapletMesh, camera: CameraModel, p
             out.flags |= F.LOW_CORRELATION
         if not out.flags:
             out.ds, out.dl = peak.ds, peak.dl
+            if options.recentre_passes > 0:
+                out.ds, out.dl = recentred_shift(image, tpl.image, tpl.valid, tpl.s0, tpl.l0, peak.ds, peak.dl,
+                                                 options.peak, options.recentre_passes, image_valid,
+                                                 options.min_pixels)
         return out
     finally:
         out.t_ms = (time.perf_counter() - t0) * 1e3

@@ -14,6 +14,7 @@ import numpy as np
 
 from estimators.retina.landmarks import RetinaOptions, measure_landmark
 from estimators.retina.maplet_mesh import build_mesh
+from estimators.retina.peak_step import STEPS
 from estimators.retina.peaks import FINDERS
 from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
 from renderlab.geometry.camera import CameraModel
@@ -32,7 +33,8 @@ def plain_maplet(n: int = 41, spacing: float = 0.1, seed: int = 5) -> Maplet:
 
 def rendered_locking_curve(fractions, methods=tuple(FINDERS), seeds=(5, 6, 7), search_px: int = 3,
                            template: TemplateOptions = TemplateOptions()):
-    """Bias of each finder vs a known fractional shift (f, f/2) of a Retina-rendered maplet.
+    """Bias of each finder (or step of :data:`~.peak_step.STEPS`) vs a known fractional shift (f, f/2) of a
+    Retina-rendered maplet.
 
     Returns
     -------
@@ -63,7 +65,9 @@ def rendered_locking_curve(fractions, methods=tuple(FINDERS), seeds=(5, 6, 7), s
             pred = project_point(cam, ap, M.center_m)
             true_shift = truth - pred
             for m in methods:
-                r = measure_landmark(img, mesh, cam, ap, sun, search_px, RetinaOptions(template=template, peak=m),
+                finder, passes = STEPS[m]
+                r = measure_landmark(img, mesh, cam, ap, sun, search_px,
+                                     RetinaOptions(template=template, peak=finder, recentre_passes=passes),
                                      image_valid=valid)
                 if not r.has_result:
                     raise RuntimeError(f"no result for finder {m} at shift {f} (flags {r.flags})")

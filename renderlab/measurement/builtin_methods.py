@@ -50,6 +50,8 @@ class RetinaMethod:
     name = "retina"
     #: the peak finder used when ``options.peak`` is None (the paper's step, to reproduce the paper)
     default_peak = "retina_3x3"
+    #: re-centred peak passes after the finder (:mod:`estimators.retina.recentre`); 0 = the finder alone
+    recentre_passes = 0
 
     def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
         from estimators.retina import RetinaOptions, TemplateOptions
@@ -57,8 +59,9 @@ class RetinaMethod:
         self.options = RetinaOptions(template=TemplateOptions(supersample=options.supersample,
                                                               psf_sigma_px=options.psf_sigma_px,
                                                               L_table=tuple(options.L_table)),
-                                     peak=options.peak or self.default_peak, min_correlation=options.min_correlation)
-        self.peak = self.options.peak
+                                     peak=options.peak or self.default_peak, min_correlation=options.min_correlation,
+                                     recentre_passes=self.recentre_passes)
+        self.peak = self.options.peak + (f"+recentre{self.recentre_passes}" if self.recentre_passes else "")
         self._meshes: dict[int, tuple] = {}
 
     def _mesh(self, maplet):
@@ -81,11 +84,14 @@ class RetinaMethod:
 
 class RetinaRefinedMethod(RetinaMethod):
     """Retina with the refined sub-pixel step: a 2-D Gaussian (quadric on log C, full covariance) on the 3×3
-    neighbourhood of the eq. 9 peak (``gaussian_2d``), chosen from the pixel-locking and noise-vs-CRLB curves of
-    ``benchmarks/bench_retina_peak_step.py``; everything else as :class:`RetinaMethod`."""
+    neighbourhood of the eq. 9 peak (``gaussian_2d``), then two re-centred passes (the template moved by the
+    sub-pixel estimate, eq. 9 and the fit again at zero offset; :mod:`estimators.retina.recentre`), chosen from
+    the pixel-locking and noise-vs-CRLB tables of ``benchmarks/bench_retina_peak_step.py``; everything else as
+    :class:`RetinaMethod`. The ``peak`` column reads ``gaussian_2d+recentre2``."""
 
     name = "retina_refined"
     default_peak = "gaussian_2d"
+    recentre_passes = 2
 
 
 class SpcMethod:

@@ -1,0 +1,101 @@
+r"""Re-centred sub-pixel peak: move the template by the current sub-pixel estimate and refit at zero offset.
+
+Description
+-----------
+Every 3-point or 3×3 peak fit of :mod:`.peaks` is exact at integer shifts and wrong in between when the
+correlation surface (Retina eq. 9) does not have the shape the fit assumes (pixel locking). Sampling the
+surface *around the estimate* instead of around the integer maximum removes most of it: with the estimate
+δ = n + φ (n integer, |φ| ≤ ½), the template I_p is moved by φ, I_p'(x) = I_p(x − φ) (separable Lanczos-3
+interpolation of the noise-free template, its footprint mean outside the footprint, the footprint shrunk by one
+pixel on the side the shift uncovers), eq. 9 is evaluated at the nine integer shifts n + (−1, 0, 1)², and the
+finder's offset from their centre, ε, gives δ ← n + φ + ε. The residual ε is the finder's bias at a near-zero
+offset, where every symmetric fit is exact, so each pass shrinks the error by the slope of the finder's locking
+curve there (measured: ``benchmarks/bench_retina_peak_step.py``). The image is not resampled, so its noise
+stays white and the registration Cramér–Rao bound applies unchanged.
+
+Tuning
+------
+``iterations`` (passes; 0 = the finder alone), the finder (``gaussian_2d`` by default), ``min_pixels``
+(overlap required at each of the nine shifts; a pass that fails keeps the previous estimate).
+
+Use
+---
+::
+
+    ds, dl = recentred_shift(image, tpl.image, tpl.valid, tpl.s0, tpl.l0, peak.ds, peak.dl, "gaussian_2d", 2)
+
+References
+----------
+C. A. Wright et al., "Relative Terrain Imaging Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission
+(ARRM)", NASA GSFC, 2016 (eq. 9; "Peak Finding").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from estimators.retina.correlation import correlation_surface_direct
+from estimators.retina.peaks import FINDERS
+
+
+def _lanczos3_weights(t: float) -> np.ndarray:
+    """The six Lanczos-3 weights of samples floor + (−2 … 3) for a point t ∈ [0, 1) past the floor (sum 1)."""
+    z = t - np.arange(-2, 4)
+    w = np.sinc(z) * np.sinc(z / 3.0)
+    return w / w.sum()
+
+
+def _move_axis(a: np.ndarray, phase: float, axis: int) -> np.ndarray:
+    """``a`` moved by ``phase`` px along ``axis`` (out(x) = a(x − phase)), Lanczos-3, edges replicated."""
+    if phase == 0.0:
+        return a
+    u = -phase
+    f = int(np.floor(u))
+    w = _lanczos3_weights(u - f)
+    pad = [(0, 0), (0, 0)]
+    pad[axis] = (3 - min(f, 0) + 2, 3 + max(f, 0) + 3)
+    ap = np.pad(a, pad, mode="edge")
+    n = a.shape[axis]
+    base = pad[axis][0] + f
+    out = np.zeros_like(a)
+    for j, wj in zip(range(-2, 4), w):
+        sl = [slice(None), slice(None)]
+        sl[axis] = slice(base + j, base + j + n)
+        out += wj * ap[tuple(sl)]
+    return out
+
+
+def moved_template(template: np.ndarray, valid: np.ndarray, phase_sl) -> tuple[np.ndarray, np.ndarray]:
+    """``(T', V')``: the template moved by (φs, φl) px (|φ| ≤ ½), T'(x) = T(x − φ) by separable Lanczos-3
+    interpolation of the footprint (its mean outside it), and the footprint shrunk by one pixel on the side the
+    shift uncovers."""
+    t = np.asarray(template, float)
+    v = np.asarray(valid, bool)
+    moved = _move_axis(_move_axis(np.where(v, t, float(t[v].mean())), phase_sl[0], 1), phase_sl[1], 0)
+    vv = v.copy()
+    for axis, ph in ((1, phase_sl[0]), (0, phase_sl[1])):
+        if ph > 0:  # content moves toward +axis: pixel x reads x − φ, which needs x − 1 inside the footprint
+            vv[(slice(None),) * axis + (slice(1, None),)] &= v[(slice(None),) * axis + (slice(None, -1),)]
+            vv[(slice(None),) * axis + (slice(0, 1),)] = False
+        elif ph < 0:
+            vv[(slice(None),) * axis + (slice(None, -1),)] &= v[(slice(None),) * axis + (slice(1, None),)]
+            vv[(slice(None),) * axis + (slice(-1, None),)] = False
+    return moved, vv
+
+
+def recentred_shift(image, template, valid, s0: int, l0: int, ds: float, dl: float, finder: str = "gaussian_2d",
+                    iterations: int = 2, image_valid=None, min_pixels: int = 16) -> tuple[float, float]:
+    """The shift (Δs, Δl) after ``iterations`` re-centred passes from (``ds``, ``dl``) (module docstring)."""
+    fit = FINDERS[finder]
+    for _ in range(int(iterations)):
+        n = (int(np.round(ds)), int(np.round(dl)))
+        phase = (ds - n[0], dl - n[1])
+        T, V = moved_template(template, valid, phase)
+        if V.sum() < min_pixels:
+            break
+        C, _ = correlation_surface_direct(image, T, V, s0 + n[0], l0 + n[1], 1, image_valid, min_pixels)
+        if not np.all(np.isfinite(C)):
+            break
+        e = fit(C, 1, 1)
+        ds, dl = n[0] + phase[0] + min(max(float(e[0]), -1.0), 1.0), n[1] + phase[1] + min(max(float(e[1]), -1.0), 1.0)
+    return float(ds), float(dl)
