@@ -160,18 +160,18 @@ def test_demo_piece(tmp_path):
 
 
 def test_report_section_flags_the_published_image_in_the_loop_inconsistency(repo, tmp_path):
-    """On the published image-in-the-loop tables: ANEES at the end (10.0) and the total NIS per dof (0.76) are
+    """On the published image-in-the-loop tables: ANEES at the end (8.95) and the total NIS per dof (0.60) are
     outside their 99 % bands → two FAIL badges, each with the study's known reason; units in the tables, the
     χ² bands low then high, the figure says how many runs are drawn of how many."""
     from renderlab.studies.coastline_ekf.study import report_sections
 
     d = repo / "results/coastline_ekf/image_in_the_loop"
-    tables = {n: pq.read_table(d / f"{n}.parquet") for n in ("coastline_filter", "coastline_frames")}
+    tables = {n: pq.read_table(d / "tables" / f"{n}.parquet") for n in ("coastline_filter", "coastline_frames")}
     [(title, body)] = report_sections(tables, tmp_path)
     assert "Straub" in title
     assert body.count('<span class="badge fail">FAIL</span>') == 2 and "badge pass" not in body
-    assert "ANEES 10.00 is above its band [4.54, 7.69]" in body and "map error" in body
-    assert "Total NIS / dof 0.763 is below its band" in body
+    assert "ANEES 8.95 is above its band [4.54, 7.69]" in body and "map error" in body
+    assert "Total NIS / dof 0.597 is below its band" in body
     assert "<th class=\"l\">unit</th>" in body and ">mm/s<" in body
     assert body.index("χ² band low") < body.index("χ² band high")
     assert "25 of 32 runs drawn" in body and "time (s)" in body

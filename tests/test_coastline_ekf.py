@@ -232,22 +232,35 @@ def test_bad_options_raise_one_line_user_error(bad):
     assert "\n" not in str(ei.value) and next(iter(bad)) in str(ei.value)
 
 
-def test_publish_writes_table1_figures_and_summary(tmp_path):
-    """The publication command on a tiny case: files exist, figures are PNGs, summary numbers are finite."""
+def test_publish_writes_the_published_layout_and_its_report(tmp_path):
+    """The publication command on a tiny case: the published layout (tables/, campaign.json, runs.json), a report
+    made from those tables (figures are PNG + SVG, summary numbers finite and equal to a direct computation from the
+    per-run rows that ``--keep-runs`` publishes)."""
     import csv
 
     import pyarrow.parquet as pq
 
+    from renderlab.campaign.publish import is_published
     from renderlab.studies.coastline_ekf.publish import main
+    from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary, steady_state
 
     assert main(["--out", str(tmp_path), "--runs", "12", "--orbits", "i45_h500", "--revolutions", "0.25",
-                 "--chunk", "5"]) == 0
-    for name in ("summary.csv", "table1.md", "i45_h500_timeseries.parquet", "i45_h500_errors.png",
-                 "i45_h500_consistency.png"):
-        assert (tmp_path / name).stat().st_size > 0, name
-    assert (tmp_path / "i45_h500_errors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    row = next(csv.DictReader(open(tmp_path / "summary.csv")))
+                 "--chunk", "5", "--keep-runs"]) == 0
+    assert is_published(tmp_path)
+    rep = tmp_path / "report"
+    for name in ("summary.csv", "table1.md", "index.html", "i45_h500_coastline_errors.png",
+                 "i45_h500_coastline_errors.svg", "i45_h500_coastline_consistency.png"):
+        assert (rep / name).stat().st_size > 0, name
+    assert (rep / "i45_h500_coastline_errors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    row = next(csv.DictReader(open(rep / "summary.csv")))
     assert row["case"] == "i45_h500" and int(row["runs"]) == 12
-    assert all(math.isfinite(float(row[f"mc_3sig_{a}"])) for a in ("r_m", "i_m", "c_m", "vr_mps", "vi_mps", "vc_mps"))
-    ts = pq.read_table(tmp_path / "i45_h500_timeseries.parquet")
+    ts = pq.read_table(tmp_path / "tables" / "coastline_timeseries.parquet")
     assert ts.num_rows == int(row["images"]) + 1 and int(ts["n_runs"][0].as_py()) == 12
+    runs = pq.read_table(tmp_path / "tables" / "coastline_runs.parquet").drop(["case"])
+    assert len(set(runs["run"].to_pylist())) == 12
+    direct = steady_state(per_time_summary(runs))
+    for key in ("mc_3sig_r_m", "mc_3sig_i_m", "filter_3sig_c_m", "anees_mean"):
+        assert float(row[key]) == pytest.approx(direct[key], rel=1e-5), key
+    assert float(row["nis_total_over_dof"]) == pytest.approx(nis_total_test(runs)["ratio"], rel=1e-5)
+    sample = pq.read_table(tmp_path / "tables" / "coastline_sample_runs.parquet")
+    assert sorted(set(sample["run"].to_pylist())) == list(range(12))

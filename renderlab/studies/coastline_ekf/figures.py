@@ -40,9 +40,13 @@ def _error_panel(ax, runs_table, summary, sample, key: str, scale: float, t_div:
     t = summary["t_s"].to_numpy() / t_div
     runs, t_run = runs_table["run"].to_numpy(), runs_table["t_s"].to_numpy() / t_div
     err = runs_table[f"err_{key}"].to_numpy()
-    for k in sample:
+    xs, ys = [], []
+    for k in sample:                                    # one line, runs separated by NaN (fast to draw)
         sel = runs == k
-        ax.plot(t_run[sel], scale * err[sel], color=RUN, lw=0.4, alpha=0.35)
+        xs += [t_run[sel], [np.nan]]
+        ys += [scale * err[sel], [np.nan]]
+    if xs:
+        ax.plot(np.concatenate(xs), np.concatenate(ys), color=RUN, lw=0.4, alpha=0.35, rasterized=True)
     mc = scale * summary[f"mc_rms_{key}"].to_numpy()
     fs = scale * summary[f"filter_sig_{key}"].to_numpy()
     _band(ax, t, 3 * mc, color=MC, lw=1.3)

@@ -2,29 +2,24 @@
 
     python -m renderlab.studies.coastline_ekf.publish --out results/coastline_ekf --runs 1000 --orbits all
 
-For each orbit: the per-time summary (``<case>_timeseries.parquet``: MC mean/RMS, filter σ, PCRB σ per RIC
-axis, ANEES/ANIS with 99 % χ² bands), ``<case>_errors.png`` (Figs. 5-9 style) and ``<case>_consistency.png``;
-for all orbits ``summary.csv`` (steady-state 3σ per axis for MC, filter and PCRB; χ² totals; timing) and
-``table1.md`` (Table 1's layout, ours beside the paper's). ``--keep-runs`` also writes the per-run tables
-(design's filter-study schema), which are large (≈27 MB per 1000 runs per orbit).
+Runs every orbit's Monte Carlo and writes the published layout of :mod:`.published` (``campaign.json``,
+``runs.json``, ``tables/``: per orbit the per-time summary of all runs with the PCRB σ, the per-run NIS / NEES
+totals, the first 25 runs' rows), then the report from those tables alone (``renderlab report OUT`` makes it
+again): ``report/summary.csv`` (steady-state 3σ per axis for MC, filter and PCRB; χ² totals; timing),
+``report/table1.md`` (Table 1's layout, ours beside the paper's), per orbit ``<case>_coastline_errors`` (Figs. 5-9
+style) and ``<case>_coastline_consistency`` (PNG + SVG) and ``index.html``. ``--keep-runs`` also publishes every
+run's rows (``tables/coastline_runs.parquet``, ≈5 MB per 200 runs of one orbit), from which the report then
+recomputes the per-time summary.
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
-import math
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-
-PAPER_TABLE1 = {  # case: along-track, cross-track, radial position [km]; along, cross, radial velocity [m/s]
-    "i00_h1000": (1.0, 1.4, 5.0, 5.0, 1.4, 1.0), "i45_h1000": (1.0, 1.4, 5.0, 5.0, 1.4, 1.0),
-    "i90_h1000": (0.6, 1.3, 3.0, 3.0, 1.3, 0.6), "i45_h500": (1.0, 1.4, 4.5, 4.8, 1.5, 1.1),
-    "i90_h500": (0.5, 1.3, 1.8, 2.0, 1.4, 0.6),
-}
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -46,12 +41,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def publish_orbit(case: str, args) -> dict:
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors
-    from renderlab.studies.coastline_ekf.scoring import nis_total_test, pcrb_ric_sigma, per_time_summary, steady_state
+    """Run one orbit's Monte Carlo → its published tables (:func:`.published.orbit_tables`)."""
     from renderlab.studies.coastline_ekf.geometric import paper_orbit, run_batch, truth_geometry
+    from renderlab.studies.coastline_ekf.published import PAPER_TABLE1, orbit_tables
+    from renderlab.studies.coastline_ekf.scoring import pcrb_ric_sigma, per_time_summary
+
+    import pyarrow as pa
 
     o = paper_orbit(case, cadence_s=args.cadence_s, sigma_theta_rad=args.sigma_theta_mrad * 1e-3,
                     points_per_image=args.points_per_image)
@@ -70,54 +65,36 @@ def publish_orbit(case: str, args) -> dict:
     t_mc = time.perf_counter() - t0
     table = pa.concat_tables(parts)
     summary = per_time_summary(table, pcrb_ric_sigma(geo, o))
-    out = Path(args.out)
-    pq.write_table(summary, out / f"{case}_timeseries.parquet")
-    if args.keep_runs:
-        pq.write_table(table, out / f"{case}_runs.parquet")
-    alt, inc = o.altitude_m / 1e3, math.degrees(o.inclination_rad)
-    title = f"{case}: i = {inc:.0f}°, h = {alt:.0f} km, σθ = {o.sigma_theta_rad * 1e3:.2f} mrad"
-    plot_errors(table.filter(table["run"].to_numpy() < 25), summary, out / f"{case}_errors.png", title)
-    plot_consistency(summary, out / f"{case}_consistency.png", title)
-    row = {"case": case, "altitude_km": alt, "inclination_deg": inc, "runs": args.runs,
-           "duration_s": float(geo.t_s[-1]), "images": int(len(geo.t_s) - 1),
-           "images_with_coastline": int((geo.n_meas > 0).sum()), "mean_points_per_image": float(geo.n_meas[1:].mean()),
-           **steady_state(summary)}
-    nis = nis_total_test(table)
-    row.update(nis_total_over_dof=nis["ratio"], nis_total_inside_99=nis["inside"],
-               anees_inside_99_fraction=float(np.mean((summary["anees"].to_numpy() >= summary["anees_lo"].to_numpy())
-                                                      & (summary["anees"].to_numpy() <= summary["anees_hi"].to_numpy()))),
-               seconds_geometry=round(t_geo, 1), seconds_monte_carlo=round(t_mc, 1))
-    return row
+    return orbit_tables(case, o, geo, table, summary, {"geometry": t_geo, "monte_carlo": t_mc}, args.keep_runs)
 
 
-def _table1(rows: list[dict]) -> str:
-    lines = ["| orbit | along-track pos | cross-track pos | radial pos | along-track vel | cross-track vel | radial vel |",
-             "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        ours = [r["mc_3sig_i_m"], r["mc_3sig_c_m"], r["mc_3sig_r_m"], r["mc_3sig_vi_mps"], r["mc_3sig_vc_mps"],
-                r["mc_3sig_vr_mps"]]
-        paper = PAPER_TABLE1[r["case"]]
-        cells = [f"{ours[j]:.1f} m (paper {paper[j]} km)" for j in range(3)] + \
-                [f"{1e3 * ours[j]:.2f} mm/s (paper {paper[j]} m/s)" for j in range(3, 6)]
-        lines.append(f"| {r['inclination_deg']:.0f}°, {r['altitude_km']:.0f} km | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+def _plan(args, cases: list[str]) -> dict:
+    """``campaign.json``'s plan: the command's options (the scenario of every orbit)."""
+    opts = {k: v for k, v in sorted(vars(args).items()) if k not in ("out", "chunk")}
+    return {"name": f"coastline_ekf_geometric_{args.out.name}", "runs": args.runs, "seed": args.seed,
+            "scenario": {"description": "geometric coastline-EKF Monte Carlo, Straub & Christian Table 1",
+                         "orbits": cases, "options": {k: v for k, v in opts.items() if k != "orbits"},
+                         "perturbations": {"apriori_position_sigma_m": [500.0] * 3,
+                                           "apriori_velocity_sigma_mps": [0.005] * 3}}}
 
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    from renderlab.errors import UserError
+    from renderlab.report.campaign_report import make_report
     from renderlab.studies.coastline_ekf.geometric import PAPER_ORBITS
+    from renderlab.studies.coastline_ekf.published import write_folder
 
     cases = list(PAPER_ORBITS) if args.orbits == "all" else [c.strip() for c in args.orbits.split(",")]
-    args.out.mkdir(parents=True, exist_ok=True)
-    rows = [publish_orbit(c, args) for c in cases]
-    with open(args.out / "summary.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
-    (args.out / "table1.md").write_text(
-        "Steady-state Monte Carlo 3σ (3 x RMS over runs and the last 20 % of the span), ours vs Table 1.\n\n"
-        + _table1(rows))
-    print((args.out / "table1.md").read_text())
+    bad = [c for c in cases if c not in PAPER_ORBITS]
+    if bad or args.runs < 1 or args.chunk < 1:
+        raise UserError(f"unknown orbit {bad[0]!r}; choose from {', '.join(PAPER_ORBITS)}" if bad
+                        else "--runs and --chunk must be >= 1")
+    parts = [publish_orbit(c, args) for c in cases]
+    write_folder(args.out, parts, _plan(args, cases))
+    page = make_report(args.out, args.out / "report")
+    print((args.out / "report" / "table1.md").read_text())
+    print(f"published {args.out} (tables/, campaign.json, runs.json); report {page}")
     return 0
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from renderlab.report import style
 from renderlab.report.html_table import table as html_table
 
-__all__ = ["is_coastline_table", "coastline_section"]
+__all__ = ["is_coastline_table", "coastline_section", "summary_blocks"]
 
 _ROWS = [("r", "m", "radial position", 1, "m"), ("i", "m", "in-track position", 1, "m"),
          ("c", "m", "cross-track position", 1, "m"), ("vr", "mps", "radial velocity", 1e3, "mm/s"),
@@ -144,8 +144,7 @@ def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | No
     (str, str)
         Section title and HTML body.
     """
-    from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors, time_unit
-    from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary, steady_state
+    from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary
 
     runs, t = table["run"].to_numpy(), table["t_s"].to_numpy()
     n_runs = len(np.unique(runs))
@@ -154,25 +153,63 @@ def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | No
         return title, _render([{"kind": "text", "html": "Runs do not share one time grid; no coastline summary."}])
     pcrb = pcrb_sigma if pcrb_sigma is not None and len(pcrb_sigma) == len(t) // n_runs else None
     summary = per_time_summary(table, pcrb)
-    div, tname = time_unit(t)
     mode = "image in the loop" if frames is not None else "geometric"
-    err = plot_errors(table, summary, stage / f"{name}_coastline_errors.png", f"Coastline EKF, {mode}", unit=(div, tname))
-    cons = plot_consistency(summary, stage / f"{name}_coastline_consistency.png", f"Coastline EKF, {mode}",
-                            unit=(div, tname))
+    ss, blocks = summary_blocks(name, summary, table, nis_total_test(table), stage, f"Coastline EKF, {mode}",
+                                mode, frames=frames)
+    _write_steady_state(stage / f"{name}_coastline_steady_state.csv", ss)
+    return title, _render(blocks + [{"kind": "links", "files": [f"{name}_coastline_steady_state.csv"]}])
+
+
+def summary_blocks(name: str, summary, sample, nis: dict, stage: Path, figure_title: str, mode: str, frames=None,
+                   unit: tuple[float, str] | None = None) -> tuple[dict, list[dict]]:
+    """Steady-state numbers and the report blocks (tables, verdicts, both figures) of one per-time summary.
+
+    Parameters
+    ----------
+    name : str
+        File prefix: ``<name>_coastline_{errors,consistency}.{png,svg}`` are written into ``stage``.
+    summary : pyarrow.Table
+        :func:`~renderlab.studies.coastline_ekf.scoring.per_time_summary` of all runs (PCRB columns optional).
+    sample : pyarrow.Table
+        Per-run filter rows of the runs drawn as thin lines (all runs or a sample of them).
+    nis : dict
+        :func:`~renderlab.studies.coastline_ekf.scoring.nis_band_test` of all runs.
+    stage : Path
+        Report folder.
+    figure_title, mode : str
+        First line of the figures' titles; ``"geometric"`` or ``"image in the loop"`` for the text.
+    frames : pyarrow.Table, optional
+        The image mode's per-image diagnostics.
+    unit : (divisor, name), optional
+        The report's time unit (default: :func:`time_unit` of the summary's times).
+
+    Returns
+    -------
+    (dict, list of dict)
+        :func:`~renderlab.studies.coastline_ekf.scoring.steady_state` plus ``runs``, the NIS and ANEES verdicts;
+        the blocks.
+    """
+    from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors, time_unit
+    from renderlab.studies.coastline_ekf.scoring import steady_state
+
+    n_runs = int(summary["n_runs"].to_numpy()[0])
+    pcrb = "pcrb_sig_r_m" in summary.column_names
+    div, tname = unit if unit is not None else time_unit(summary["t_s"].to_numpy())
+    err = plot_errors(sample, summary, stage / f"{name}_coastline_errors.png", figure_title, unit=(div, tname))
+    cons = plot_consistency(summary, stage / f"{name}_coastline_consistency.png", figure_title, unit=(div, tname))
     ss = steady_state(summary)
-    nis = nis_total_test(table)
     rows, verdict = _consistency(summary, nis, tname, div)
     anees, lo, hi = (summary[c].to_numpy() for c in ("anees", "anees_lo", "anees_hi"))
     ss.update(runs=n_runs, nis_total_over_dof=nis["ratio"], nis_total_inside_99=nis["inside"],
               anees_inside_99_fraction=float(np.mean((anees >= lo) & (anees <= hi))))
-    _write_steady_state(stage / f"{name}_coastline_steady_state.csv", ss)
     cons_cols = [("statistic", "statistic"), ("value", "value"), ("lo", "χ² band low (99 %)"),
                  ("hi", "χ² band high (99 %)"), ("badge", "consistent?"), ("times", "inside its band at")]
+    n_drawn = len(np.unique(sample["run"].to_numpy()[:]))
     blocks = [
         {"kind": "text", "html": f"{n_runs} runs, {mode} mode. Steady state: the last 20 % of the span, "
                                  f"{ss['window_start_s'] / div:.4g}–{ss['window_end_s'] / div:.4g} {tname}; 3σ of the "
                                  "Monte Carlo (3 × RMS over runs), of the filter (3 × RMS of its σ)"
-                                 + (" and of the posterior Cramér–Rao bound" if pcrb is not None else
+                                 + (" and of the posterior Cramér–Rao bound" if pcrb else
                                     "; the posterior Cramér–Rao bound needs the truth geometry and is published by "
                                     "<code>python -m renderlab.studies.coastline_ekf.publish</code>") + "."},
         {"kind": "table", "html": _steady_table(ss)},
@@ -184,9 +221,8 @@ def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | No
         *({"kind": "text", "html": s} for s in _explanations(verdict, frames)),
         *([{"kind": "text", "html": _frames_note(frames)}] if frames is not None and _frames_note(frames) else []),
         {"kind": "figure", "png": err[0], "svg": err[1], "alt": f"{name} coastline errors",
-         "caption": f"Errors per RIC axis against time ({tname}): {min(n_runs, 25)} of {n_runs} runs drawn, the ±3σ "
+         "caption": f"Errors per RIC axis against time ({tname}): {min(n_drawn, 25)} of {n_runs} runs drawn, the ±3σ "
                     f"curves over all {n_runs}."},
         {"kind": "figure", "png": cons[0], "svg": cons[1], "alt": f"{name} coastline consistency",
-         "caption": "ANEES and ANIS per dof against their 99 % χ² bands; crosses: outside the band."},
-        {"kind": "links", "files": [f"{name}_coastline_steady_state.csv"]}]
-    return title, _render(blocks)
+         "caption": "ANEES and ANIS per dof against their 99 % χ² bands; crosses: outside the band."}]
+    return ss, blocks

@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AXES", "chi2_band", "per_time_summary", "pcrb_ric_sigma", "steady_state", "nis_total_test"]
+__all__ = ["AXES", "chi2_band", "per_time_summary", "pcrb_ric_sigma", "steady_state", "nis_total_test",
+           "nis_band_test"]
 
 AXES = [("r", "m"), ("i", "m"), ("c", "m"), ("vr", "mps"), ("vi", "mps"), ("vc", "mps")]
 ERR = [f"err_{a}_{u}" for a, u in AXES]
@@ -85,11 +86,14 @@ def per_time_summary(table, pcrb_sigma: np.ndarray | None = None, p: float = 0.9
 
 def nis_total_test(table, p: float = 0.99) -> dict:
     """All NIS of all runs and images summed against χ²(N Σ 2m_k): value, band, inside."""
+    c, N, K = _columns(table)
+    return nis_band_test(float(np.nansum(c["nis"])), float(np.sum(2 * c["n_meas"])), p)
+
+
+def nis_band_test(total: float, dof: float, p: float = 0.99) -> dict:
+    """A NIS sum ``total`` of ``dof`` degrees of freedom against its two-sided p band of χ²(dof)."""
     from scipy.stats import chi2
 
-    c, N, K = _columns(table)
-    dof = float(np.sum(2 * c["n_meas"]))
-    total = float(np.nansum(c["nis"]))
     lo, hi = chi2.ppf(0.5 * (1 - p), dof), chi2.ppf(0.5 * (1 + p), dof)
     return {"total": total, "dof": dof, "lo": lo, "hi": hi, "ratio": total / dof, "inside": bool(lo <= total <= hi)}
 

@@ -101,14 +101,20 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
 def report_sections(tables: dict, stage) -> list[tuple[str, str]]:
     """``renderlab report`` hook: the coastline section (Figs. 5-9, ANEES/ANIS with 2m-dof bands) per filter table
-    (the image mode's ``coastline_frames`` table, when present, explains its consistency)."""
+    (the image mode's ``coastline_frames`` table, when present, explains its consistency); a published geometric
+    folder (:mod:`.published`) gets one section per orbit, a published image folder with a ``geometric_filter``
+    table the comparison of its modes (:mod:`.comparison`)."""
     from pathlib import Path
 
+    from renderlab.studies.coastline_ekf import comparison, published
     from renderlab.studies.coastline_ekf.report_section import coastline_section, is_coastline_table
 
+    if published.is_geometric(tables):
+        return published.report_sections(tables, Path(stage))
     frames = tables.get("coastline_frames")
-    return [coastline_section(name, t, Path(stage), frames=frames) for name, t in sorted(tables.items())
-            if is_coastline_table(t)]
+    out = [coastline_section(name, t, Path(stage), frames=frames) for name, t in sorted(tables.items())
+           if is_coastline_table(t) and not comparison.is_comparison_table(name)]
+    return out + comparison.report_sections(tables, Path(stage))
 
 
 def run_demo_coastline(out, progress: bool = True, runs: int = 16) -> dict:
