@@ -29,7 +29,8 @@ Tuning
 knob                  default       turn it when
 ====================  ============  ========================================================================
 ``peak``              retina_3x3    compare finders (``parabola_1d``, ``quadric_2d``, ``gaussian``,
-                                    ``upsampled``): :func:`~.peaks.pixel_locking_curve` shows each one's bias
+                                    ``gaussian_2d``, ``upsampled``): :func:`~.peaks.pixel_locking_curve` shows
+                                    each one's bias
 ``min_correlation``   0.3           raise to refuse weak matches (fewer results, fewer gross errors); lower
                                     on low-contrast terrain
 ``min_pixels``        64            overlapping valid pixels required; lower for small or distant maplets
