@@ -133,8 +133,10 @@ class MitsubaBackend:
             "wrap_mode": "clamp",
         }
 
-    def _trimesh(self, body: BodySpec, key: str):
-        """A Mitsuba mesh built from in-memory vertices (body frame → render frame in float64)."""
+    def _trimesh(self, body: BodySpec, key: str, bsdf=None):
+        """A Mitsuba mesh built from in-memory vertices (body frame → render frame in float64); ``bsdf`` (a
+        loaded BSDF) is shared when given — the tiles of one surface share one, so a frame with hundreds of
+        tiles traces the BSDF once, not once per tile."""
         mi = self.mi
         from renderlab.render.mitsuba_bsdf import bsdf_dict
 
@@ -145,7 +147,7 @@ class MitsubaBackend:
         else:
             albedo = self._albedo_texture(body)
         props = mi.Properties()
-        props["bsdf"] = mi.load_dict(bsdf_dict(body.law, albedo))
+        props["bsdf"] = mi.load_dict(bsdf_dict(body.law, albedo)) if bsdf is None else bsdf
         has_uv, has_n = body.vertex_uv is not None, body.vertex_normals is not None
         mesh = mi.Mesh(key, len(V), len(F), props=props, has_vertex_normals=has_n, has_vertex_texcoords=has_uv)
         params = mi.traverse(mesh)
@@ -222,13 +224,13 @@ class MitsubaBackend:
             yield ray
 
     def _intersect(self, frame: FrameSpec, centres: np.ndarray):
-        """(valid, P, N, registry id) of the first hit along each centre ray."""
+        """(valid, P (3, N), N (3, N), registry id) of the first hit along each centre ray."""
         mi, dr = self.mi, self.dr
         if not self.scalar:
             si = self.scene.ray_intersect(self._rays(frame, centres))
             reg = np.array(dr.reinterpret_array(mi.UInt32, si.shape), dtype=np.int64)
-            return (np.array(si.is_valid(), dtype=bool), np.array(si.p, dtype=np.float64).T,
-                    np.array(si.sh_frame.n, dtype=np.float64).T, reg)
+            return (np.array(si.is_valid(), dtype=bool), np.array(si.p, dtype=np.float64),
+                    np.array(si.sh_frame.n, dtype=np.float64), reg)
         n = len(centres)
         valid, P, N, reg = np.zeros(n, bool), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int64)
         shapes = list(self.scene.shapes())
@@ -237,7 +239,7 @@ class MitsubaBackend:
             if si.is_valid():
                 valid[k], P[k], N[k] = True, list(si.p), list(si.sh_frame.n)
                 reg[k] = self._scalar_reg[shapes.index(si.shape)] if si.shape in shapes else 0
-        return valid, P, N, reg
+        return valid, P.T, N.T, reg
 
     def _radiance(self, frame: FrameSpec, sl: np.ndarray, seed: int) -> np.ndarray:
         """Radiance (channels, N) along the rays through ``sl`` with a sampler seeded by ``seed``."""
@@ -257,13 +259,17 @@ class MitsubaBackend:
         return out
 
     def _truth_aovs(self, frame: FrameSpec, hits):
-        """Position (render origin added back), normal, float64 range and body id from centre-ray hits."""
+        """Position (3, N; render origin added back), normal (3, N), float64 range and body id from centre-ray
+        hits (valid, P (3, N), N (3, N), registry id)."""
         valid, P, N, reg = hits
         ids = np.where(valid, self._id_lut[np.clip(reg, 0, len(self._id_lut) - 1)], -1).astype(np.int32)
-        P[~valid] = np.nan
-        N[~valid] = np.nan
-        rng_m = np.linalg.norm(P - (np.asarray(frame.pose.position_m, float) - self.origin)[None, :], axis=1)
-        return P + self.origin, N, rng_m, ids
+        P, N = np.array(P, np.float64), np.array(N, np.float64)
+        P[:, ~valid] = np.nan
+        N[:, ~valid] = np.nan
+        d = P - (np.asarray(frame.pose.position_m, float) - self.origin)[:, None]
+        rng_m = np.sqrt(np.einsum("ij,ij->j", d, d))
+        P += self.origin[:, None]
+        return P, N, rng_m, ids
 
     def _camera_rays(self, camera) -> CameraRays:
         """The ray generator of ``camera`` (its float64 direction grid is built and uploaded once)."""
@@ -312,8 +318,8 @@ class MitsubaBackend:
             total = self._radiance_pass(cr, pose, shift, sum(passes[:k]), m, int(seeds[k]))
             dr.eval(total, *(truth if k == 0 else ()))  # the truth AOVs with the first pass
             acc += np.array(total, dtype=np.float64).reshape(channels, W * H)
-        valid, P, N, reg = (np.array(truth[0], dtype=bool), np.array(truth[1], dtype=np.float64).T,
-                            np.array(truth[2], dtype=np.float64).T, np.array(truth[3], dtype=np.int64))
+        valid, P, N, reg = (np.array(truth[0], dtype=bool), np.array(truth[1], dtype=np.float64),
+                            np.array(truth[2], dtype=np.float64), np.array(truth[3], dtype=np.int64))
         return self._frame(frame, acc / sum(passes), (valid, P, N, reg))
 
     def render(self, frame: FrameSpec, seed: int) -> RenderedFrame:
@@ -354,8 +360,8 @@ class MitsubaBackend:
         radiance = radiance[0].reshape(H, W) if len(radiance) == 1 else radiance.T.reshape(H, W, 3)
         return RenderedFrame(
             radiance=radiance,
-            position=P.reshape(H, W, 3).astype(np.float32),
-            normal=N.reshape(H, W, 3).astype(np.float32),
+            position=np.ascontiguousarray(P.T, np.float32).reshape(H, W, 3),
+            normal=np.ascontiguousarray(N.T, np.float32).reshape(H, W, 3),
             range_m=rng_m.reshape(H, W),
             body_id=ids.reshape(H, W),
         )
