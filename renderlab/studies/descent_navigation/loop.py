@@ -116,6 +116,18 @@ def _measure(impl, inp, k, filt, cfg, mopts):
     return sel, results, FilterMeasurement("pixel", z, R, ctx)
 
 
+def _prior_cols(filt, R_star) -> dict:
+    """The a-priori pose the method gets (body frame) and the filter's largest position σ at that time."""
+    from scipy.spatial.transform import Rotation
+
+    from renderlab.geometry.rotations import quat_xyzw
+
+    q = quat_xyzw(Rotation.from_matrix(R_star))
+    return {**{f"apriori_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])},
+            **{f"star_quat_body_from_cam_{a}": float(v) for a, v in zip("xyzw", q)},
+            "apriori_sigma_pos_max_m": float(np.sqrt(np.linalg.eigvalsh(filt.P[:3, :3])[-1]))}
+
+
 def _propagate(filt, intervals) -> None:
     for t0, t1, u in intervals:
         filt.set_input(u)
@@ -131,7 +143,8 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
     frows = [{**base, "frame": -1, "t_s": float(inp.times[0]), "has_result": False, "reason": "prior",
               **_error_cols(filt.x, filt.P, inp.truth.state(inp.times[0]), inp.R_site), "nis": math.nan, "dof": 0,
               "n_attempted": 0, "n_results": 0, "n_flagged": 0, "n_gated": 0, "n_kept": 0, "search_px_mean": math.nan,
-              "track_lost": False}]
+              "track_lost": False, **_prior_cols(filt, inp.R_star[0]),
+              **{f"est_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])}}]
     lrows, misses, lost, diverged = [], 0, False, False
     for k, t in enumerate(inp.times):
         row = {**base, "frame": k, "t_s": float(t)}
@@ -139,6 +152,7 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
             frows.append({**frows[-1], **row, "reason": "diverged"})
             continue
         _propagate(filt, inp.accel[k])
+        prior = _prior_cols(filt, inp.R_star[k])
         sel, results, meas = _measure(impl, inp, k, filt, cfg, mopts)
         upd = None
         try:
@@ -159,7 +173,8 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
                       "n_flagged": int(upd.flagged.sum()) if upd is not None else 0,
                       "n_gated": int(upd.gated.sum()) if upd is not None else 0, "n_kept": kept,
                       "search_px_mean": float(np.mean([r.search_px for r in results])) if results else math.nan,
-                      "track_lost": bool(lost)})
+                      "track_lost": bool(lost), **prior,
+                      **{f"est_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])}})
         lrows += _landmark_rows(inp, impl.name, k, sel, results, upd, inp.cameras[k],
                                 CameraPose(inp.R_true[k], inp.pos_true[k]))
     return frows, lrows
