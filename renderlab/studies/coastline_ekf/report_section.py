@@ -31,9 +31,9 @@ MAP_ERROR = ("The study's own README (<code>results/coastline_ekf/image_in_the_l
              "ANEES above its band in the image mode to the onboard map error that the filter does not model: the "
              "database error is smooth, so the points of one image are displaced nearly alike; that common error "
              "looks like a position error, and the filter's R (eq. 18, independent LOS) takes it as information, "
-             "which makes the filter inconsistent. With no map error the same pipeline ends inside its band; with "
-             "the error modelled in R as a shared per-image LOS rotation (<code>coastline.map_error_in_filter = "
-             "true</code>) it stays inside at every time.")
+             "which makes the filter inconsistent. With the error modelled in R as a shared per-image LOS rotation "
+             "(<code>coastline.map_error_in_filter = true</code>) ANEES stays inside its band at every time; with no "
+             "map error it ends below its band (the σθ the filter assumes then exceeds the measured image error).")
 GEOMETRIC = ("Known causes of an ANEES above its band in the geometric mode are what the filter does not model: "
              "a J2 truth (<code>trajectory.j2</code>) against the two-body filter with Q = 0, or, with few points "
              "per image and a large σθ, km-level in-track errors that bend the EKF's linearisation about its own "
