@@ -13,6 +13,9 @@ different seeds (only pixels whose footprint is not uniform — edges, the spher
 light from a hard sun is otherwise exact). *Equal noise*: the Cycles time at the sample count whose
 noise equals Mitsuba's at ``--spp`` (log-log interpolation between the measured Cycles sample counts).
 
+``mitsuba-numpy`` is the same Mitsuba backend with ``ray_path = "numpy"`` (the former path: numpy rays per
+sample), timed in the same run for the before/after ratio (``--skip-numpy`` leaves it out).
+
 Run:  .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py                 # 256 px, 16 spp
       .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py --size 64 --repeats 1   # smoke
 """
@@ -20,6 +23,7 @@ Run:  .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py                 # 2
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -38,12 +42,16 @@ def _scenario(size: int, spp: int):
 
 
 def _backend(renderer: str, size: int, spp: int):
+    """``renderer`` is a registered renderer, or ``mitsuba-numpy``: Mitsuba's former numpy ray path."""
     from renderlab.pipeline import make_backend
     from renderlab.worlds.base import make_plan
 
     sc, base = _scenario(size, spp)
     plan = make_plan(sc, base)
-    return make_backend(sc, plan.scene(0), renderer), plan.frames[0]
+    be = make_backend(sc, plan.scene(0), "mitsuba" if renderer == "mitsuba-numpy" else renderer)
+    if renderer == "mitsuba-numpy":
+        be.ray_path = "numpy"
+    return be, plan.frames[0]
 
 
 def main() -> None:
@@ -52,9 +60,11 @@ def main() -> None:
     ap.add_argument("--spp", type=int, default=16, help="Mitsuba's sample count (equal-samples comparison)")
     ap.add_argument("--cycles-spp", default="4,16,64", help="Cycles sample counts measured (comma-separated)")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--skip-numpy", action="store_true", help="do not time Mitsuba's former numpy ray path")
     args = ap.parse_args()
     cyc_spp = sorted({int(v) for v in args.cycles_spp.split(",")} | {args.spp})
-    configs = [("mitsuba", args.spp)] + [("cycles", s) for s in cyc_spp]
+    configs = ([("mitsuba", args.spp)] + ([] if args.skip_numpy else [("mitsuba-numpy", args.spp)])
+               + [("cycles", s) for s in cyc_spp])
     backends = {}
     for name, spp in configs:
         t0 = time.perf_counter()
@@ -76,11 +86,13 @@ def main() -> None:
     noise = {c: float(np.sqrt(np.mean(((f[0] - f[1])[lit]) ** 2) / 2)) for c, f in frames.items()}
     med = {c: float(np.median(t)) for c, t in times.items()}
     H = frames[configs[0]][0].shape[0]
-    print(f"\n{args.size}x{H} px, {args.repeats} repeats, lit pixels {int(lit.sum())}")
-    print(f"{'renderer':8s} {'spp':>5s} {'s/frame (median)':>17s} {'noise rms [W m^-2 sr^-1]':>26s}")
+    print(f"\n{args.size}x{H} px, {args.repeats} repeats, lit pixels {int(lit.sum())}, load avg {os.getloadavg()[0]:.1f}")
+    print(f"{'renderer':13s} {'spp':>5s} {'s/frame (median)':>17s} {'noise rms [W m^-2 sr^-1]':>26s}")
     for c in configs:
-        print(f"{c[0]:8s} {c[1]:5d} {med[c]:17.3f} {noise[c]:26.4f}")
+        print(f"{c[0]:13s} {c[1]:5d} {med[c]:17.3f} {noise[c]:26.4f}")
     m = configs[0]
+    if ("mitsuba-numpy", args.spp) in med:
+        print(f"\nMitsuba former numpy ray path / Dr.Jit ray path time = {med[('mitsuba-numpy', args.spp)] / med[m]:.2f}")
     print(f"\nequal samples ({args.spp} spp): Cycles / Mitsuba time = {med[('cycles', args.spp)] / med[m]:.2f}")
     cs = [c for c in configs if c[0] == "cycles"]
     ln, lt = np.log([noise[c] for c in cs]), np.log([med[c] for c in cs])
