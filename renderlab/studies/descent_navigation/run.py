@@ -96,7 +96,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
     from renderlab.campaign.cache import cached_truthset
     from renderlab.campaign.reexpose import ReexposedTruthSet
-    from renderlab.measurement.descent_filter import DescentNavFilter
+    from renderlab import plugins
     from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
     from renderlab.scenario import scenario_from_dict, truth_dict
     from renderlab.sensor import SensorOptions
@@ -118,10 +118,11 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     mopts = MeasureOptions(n_sigma=cfg.n_sigma, min_search_px=cfg.min_search_px, max_search_px=cfg.max_search_px,
                            campaign=scenario.name, run=int(run_index))
     L_table, _ = onboard_photometry(ts0, mopts)
+    make_filter = plugins.filters.get("descent_ekf")          # the registered filter, through the contract
     frows, lrows = [], []
     for name in cfg.methods:
         impl = make_method(name, mopts, L_table)
-        f, lr = run_method(impl, inp, DescentNavFilter(filter_options(cfg, truth.omega_rad_s)), cfg, mopts)
+        f, lr = run_method(impl, inp, make_filter(filter_options(cfg, truth.omega_rad_s)), cfg, mopts)
         frows += f
         lrows += lr
     return {"descent_filter": _table(frows, "reason"), "descent_landmarks": _table(lrows, "reason")}
