@@ -16,6 +16,7 @@ from typing import Hashable, Protocol, runtime_checkable
 class TiledSurface(Protocol):
     name: str
     body_id: int
+    law: object  # the surface's PhotometricLaw (all tiles share it)
 
     def select(self, camera, pose) -> list[Hashable]:
         """Keys of the tiles to render for a camera model at a pose (render frame); each key has a ``name``."""

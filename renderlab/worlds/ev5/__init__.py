@@ -2,7 +2,9 @@
 
 Render frame = EV5 body-fixed frame (``EV5_FIXED``): the asteroid is static; the camera and the
 sun move per frame (:mod:`.descent`), so one Mitsuba scene serves every frame. Bodies: id 0 the
-global mesh (:mod:`.shape`, cut under the site), id 1 the landing-site DEM (:mod:`.site`). The
+global mesh (:mod:`.shape`, cut under the site), id 1 the landing-site DEM (:mod:`.site`; with
+``world.site.lod`` as tiles with levels of detail chosen per frame, :mod:`.tiles`). The built shape and
+site are cached in the lab cache by content key (:mod:`.world_cache`). The
 truth set carries the landmark catalog (:mod:`.catalog`, :mod:`.landmarks`) and
 ``landmark_truth.parquet`` (:mod:`.landmark_truth`). ``world.seed`` alone makes body, site,
 boulders, catalog and maplets (independent random streams per part).
@@ -39,29 +41,32 @@ class EV5Model:
     albedo: float
     full_shape_stats: dict = field(default_factory=dict)
 
-    def bodies(self):
+    def bodies(self, site: bool = True):
+        """The global body and (``site``) the full-resolution site DEM as trimesh bodies."""
         from renderlab.render.scene import BodySpec
 
-        sv, sf = self.site.mesh()
         common = dict(center_m=np.zeros(3), R_render_from_body=np.eye(3), law=self.law, albedo=self.albedo)
-        return [BodySpec(name="ev5", body_id=GLOBAL_ID, shape="trimesh", vertices=self.shape.vertices,
-                         faces=self.shape.faces, vertex_albedo=self.shape.vertex_albedo, **common),
-                BodySpec(name="landing_site", body_id=SITE_ID, shape="trimesh", vertices=sv, faces=sf,
-                         vertex_albedo=self.site.albedo.reshape(-1), **common)]
+        out = [BodySpec(name="ev5", body_id=GLOBAL_ID, shape="trimesh", vertices=self.shape.vertices,
+                        faces=self.shape.faces, vertex_albedo=self.shape.vertex_albedo, **common)]
+        if site:
+            sv, sf = self.site.mesh()
+            out.append(BodySpec(name="landing_site", body_id=SITE_ID, shape="trimesh", vertices=sv, faces=sf,
+                                vertex_albedo=np.asarray(self.site.albedo).reshape(-1), **common))
+        return out
+
+    def tiled_site(self, tile_cells: int, lod_pixels: float):
+        """The site as tiles with levels of detail (:class:`~renderlab.worlds.ev5.tiles.TiledSite`)."""
+        from renderlab.worlds.ev5.tiles import TiledSite
+
+        return TiledSite(self.site, tile_cells, lod_pixels, body_id=SITE_ID, name="landing_site", law=self.law,
+                         albedo=self.albedo)
 
 
-def build_model(world, base_dir: Path) -> EV5Model:
-    """Build the EV5 world of a validated :class:`~renderlab.worlds.ev5.config.EV5World`."""
-    from renderlab.dynamics.small_body import SpinState
-    from renderlab.errors import UserError
-    from renderlab.photometry import make_law
-    from renderlab.worlds.ev5.landmarks import build_catalog
+def _build_shape_site(world, base_dir: Path, bar):
+    """(cut global shape, site, full-shape statistics) built from ``world.seed`` (no cache)."""
     from renderlab.worlds.ev5.shape import load_shape_file, procedural_shape
     from renderlab.worlds.ev5.site import build_site
 
-    from tqdm import tqdm
-
-    bar = tqdm(total=3, desc="ev5 world", unit="step", disable=None)  # off when not on a terminal
     bar.set_postfix_str("global shape")
     if world.shape_file:
         shape = load_shape_file((Path(base_dir) / world.shape_file).resolve(), world.shape_file_units)
@@ -74,6 +79,31 @@ def build_model(world, base_dir: Path) -> EV5Model:
     bar.update()
     bar.set_postfix_str("landing site")
     site, cut = build_site(shape, world.site, facet, stream(world.seed, "terrain"), stream(world.seed, "boulders"))
+    return cut, site, stats
+
+
+def build_model(world, base_dir: Path) -> EV5Model:
+    """Build the EV5 world of a validated :class:`~renderlab.worlds.ev5.config.EV5World`.
+
+    With ``world.build_cache`` the cut shape and the site come from the lab cache when built before
+    (:mod:`.world_cache`; arrays memory-mapped, ``radius_fn`` is then None); the catalog is always made
+    from the site with its own random streams, so it is the same either way.
+    """
+    from renderlab.dynamics.small_body import SpinState
+    from renderlab.errors import UserError
+    from renderlab.photometry import make_law
+    from renderlab.worlds.ev5.landmarks import build_catalog
+    from renderlab.worlds.ev5.world_cache import cached_build
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=3, desc="ev5 world", unit="step", disable=None)  # off when not on a terminal
+    if world.build_cache:
+        cut, site, stats, status = cached_build(world, base_dir, lambda: _build_shape_site(world, base_dir, bar))
+        bar.n = 2
+        bar.set_postfix_str(f"shape + site: cache {status}")
+    else:
+        cut, site, stats = _build_shape_site(world, base_dir, bar)
     bar.update()
     bar.set_postfix_str("landmark catalog")
     maplets, tiers = build_catalog(site, world, stream(world.seed, "placement"), stream(world.seed, "mapping_error"))
@@ -125,10 +155,13 @@ def make_plan(scenario, base_dir: Path):
             st = states[spec.index]
             T = model.spin.T_eclip_from_body(st.time_s)
             epoch = {} if epoch0 is None else {"epoch_utc": epoch0.plus(st.time_s).iso("UTC", 6)}
-            return {"bodies": {b.name: b.state() for b in scene.bodies}, **epoch,
-                    "ev5": {"altitude_m": st.altitude_m, "spin_matched": st.spin_matched,
-                            "spin": model.spin.to_dict(st.time_s),
-                            "sun_direction_eclip": [float(v) for v in T.apply(st.sun_dir_body)]}}
+            ev5 = {"altitude_m": st.altitude_m, "spin_matched": st.spin_matched, "spin": model.spin.to_dict(st.time_s),
+                   "sun_direction_eclip": [float(v) for v in T.apply(st.sun_dir_body)]}
+            bodies = {b.name: b.state() for b in scene.bodies}
+            for t in scene.tiled:  # the tiles and levels this frame rendered (renderlab.worlds.ev5.tiles)
+                bodies[t.name] = t.state()
+                ev5["lod"] = t.lod_summary(t.select(spec.camera, spec.pose))
+            return {"bodies": bodies, **epoch, "ev5": ev5}
 
         def write_static(self, writer):
             from renderlab.worlds.ev5.catalog import write_catalog
@@ -147,9 +180,11 @@ def make_plan(scenario, base_dir: Path):
             return {"landmark_truth": landmark_rows(spec.index, spec, rendered, model.maplets, model.tiers,
                                                     model.site, self._footprints)}
 
+    lod = scenario.world.site
+    tiled = [model.tiled_site(lod.tile_cells, lod.lod_pixels)] if lod.lod else []
     plan = EV5Plan(frames=frames, render_frame={"name": "EV5_FIXED"},
-                   static_scene=SceneDescription(bodies=model.bodies(), render_frame={"name": "EV5_FIXED"},
-                                                 origin_m=np.array(model.site.origin_m, float)))
+                   static_scene=SceneDescription(bodies=model.bodies(site=not lod.lod), render_frame={"name": "EV5_FIXED"},
+                                                 origin_m=np.array(model.site.origin_m, float), tiled=tiled))
     plan._footprints = {}
     plan.model = model
     plan.states = states

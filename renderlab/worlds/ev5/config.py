@@ -71,6 +71,20 @@ class EV5Site(Strict):
     albedo_rms: Fraction = Field(0.12, description="Relative albedo variation (correlated), besides per-boulder "
                                  "albedo [fraction]")
     albedo_corr_m: Positive = Field(0.3, description="Correlation length of the albedo variation [m]")
+    # levels of detail (renderlab.worlds.ev5.tiles): the renderer gets only the tiles in the frustum
+    lod: bool = Field(True, description="Render the site as tiles with levels of detail, only those in the "
+                      "frustum (false: the full-resolution DEM in every frame, the old path)")
+    tile_cells: Annotated[int, Field(ge=2, le=4096)] = Field(128, description="Tile side in DEM cells, a power of "
+                                                            "two (the coarsest level has one cell per tile) [cells]")
+    lod_pixels: Annotated[float, Field(gt=0, le=64, allow_inf_nan=False)] = Field(
+        1.0, description="Coarsest facet a tile may use, in pixels at the tile's nearest point [px]")
+
+    @field_validator("tile_cells")
+    @classmethod
+    def _pow2(cls, v):
+        if v & (v - 1):
+            raise ValueError(f"tile_cells must be a power of two, got {v}")
+        return v
 
     @model_validator(mode="after")
     def _sizes(self):
@@ -128,6 +142,9 @@ class EV5World(Strict):
     mapping_error_corr_cells: NonNegative = Field(1.0, description="Gaussian correlation length of the mapping "
                                                   "error [maplet cells]")
     albedo_error_rms: NonNegative = Field(0.02, description="Relative albedo error of the maplets [fraction]")
+    build_cache: bool = Field(True, description="Keep the built global shape and site on disk in the lab cache "
+                              "folder ($RENDERLAB_CACHE/ev5_world), keyed by the world's keys and the builder's "
+                              "code, and reuse them in later processes")
 
     @model_validator(mode="after")
     def _tiers(self):
