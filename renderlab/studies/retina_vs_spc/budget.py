@@ -1,0 +1,274 @@
+"""Error budget of the landmark methods against the registration Cramér–Rao bound (issue 20).
+
+Every error source of the ``retina_vs_spc`` campaign is switched on alone, all others off, on the published
+reduced EV5 scenario (``results/retina_vs_spc/scenario.toml``), plus "all off" and "all on"; every
+registered method of the study (Retina with the paper's 3×3 peak step, ``retina_refined`` with the better
+step, SPC, the NCC baseline) measures the same frames. The switches are scenario keys, nothing else:
+
+==================== ============================================================================
+source               "on" = the base scenario's value of
+==================== ============================================================================
+sensor_noise         ``retina_vs_spc.sensor_noise`` (off: the noise-free expected DN, rounded)
+mapping_error        ``world.mapping_error_m`` (maplet height error; off: 0)
+albedo_error         ``world.albedo_error_rms`` (maplet albedo error; off: 0)
+photometric_law      ``world.law`` / ``law_params`` (Hapke truth; off: McEwen truth, the onboard form,
+                     so the onboard L(α) fit is exact)
+apriori_pose         ``perturbations.apriori_position_sigma_m``, ``apriori_attitude_sigma_deg``
+camera_knowledge     ``perturbations.focal_length_sigma_frac``, ``principal_point_sigma_px``,
+                     ``distortion_sigma``
+sun_knowledge        ``perturbations.sun_direction_sigma_deg``
+maplet_spacing       ``perturbations.maplet_spacing_sigma_frac``
+==================== ============================================================================
+
+The peak step is not a scenario switch but a method: ``retina`` (3×3 step) beside ``retina_refined`` in every
+configuration (:mod:`.budget_stats` reports the difference). The shadow approximation cannot be switched off:
+the truth renderer has no shadow-free mode, so every configuration has ray-traced cast shadows in the truth
+and each method's own shadowing in its template; :mod:`.budget_stats` measures it instead by splitting the
+"all off" rows by truth shadow fraction.
+
+The truth render depends only on the world keys (law, mapping and albedo error: five truth sets, the
+others share the "all off" one through the truth cache). Configurations with no random draw (sensor
+noise off, no perturbation on) give identical runs, so they run once. Every configuration uses the same
+campaign seed and run indices, so runs ``i`` of two configurations share their noise and draws (common
+random numbers). Written, into ``--out``: ``tables/budget_measurements.parquet`` (every row of every run,
+column ``config``), ``tables/budget_configs.parquet`` (configuration, source, runs, overrides as JSON),
+``tables/budget_perturbations.parquet``, ``budget.json`` (command, seed, runs) and the report
+(:mod:`.budget_report`), which ``report`` makes again from the tables alone::
+
+    python -m renderlab.studies.retina_vs_spc.budget run --out results/error_budget --runs 20 --workers 2
+    python -m renderlab.studies.retina_vs_spc.budget report results/error_budget
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import sys
+import time
+from pathlib import Path
+
+from renderlab.errors import UserError
+
+#: source → (description, dotted scenario keys restored from the base scenario to switch it on)
+SOURCES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "sensor_noise": ("sensor noise (Poisson + read noise, new draw per run)", ("retina_vs_spc.sensor_noise",)),
+    "mapping_error": ("maplet mapping (height) error", ("world.mapping_error_m",)),
+    "albedo_error": ("maplet albedo error", ("world.albedo_error_rms",)),
+    "photometric_law": ("photometric law: Hapke truth vs the onboard McEwen fit", ("world.law", "world.law_params")),
+    "apriori_pose": ("a-priori pose error", ("perturbations.apriori_position_sigma_m",
+                                             "perturbations.apriori_attitude_sigma_deg")),
+    "camera_knowledge": ("camera knowledge (focal length, principal point, distortion)",
+                         ("perturbations.focal_length_sigma_frac", "perturbations.principal_point_sigma_px",
+                          "perturbations.distortion_sigma")),
+    "sun_knowledge": ("Sun-direction knowledge", ("perturbations.sun_direction_sigma_deg",)),
+    "maplet_spacing": ("maplet resolution (spacing) knowledge", ("perturbations.maplet_spacing_sigma_frac",)),
+}
+
+#: every source off
+OFF: dict[str, object] = {
+    "retina_vs_spc.sensor_noise": False, "world.mapping_error_m": 0.0, "world.albedo_error_rms": 0.0,
+    "world.law": "mcewen", "world.law_params": {},
+    "perturbations.apriori_position_sigma_m": [0.0, 0.0, 0.0], "perturbations.apriori_attitude_sigma_deg": 0.0,
+    "perturbations.focal_length_sigma_frac": 0.0, "perturbations.principal_point_sigma_px": 0.0,
+    "perturbations.distortion_sigma": {}, "perturbations.sun_direction_sigma_deg": 0.0,
+    "perturbations.maplet_spacing_sigma_frac": 0.0,
+}
+
+#: the methods of every configuration (the study's registered names)
+METHODS = ("retina", "retina_refined", "spc", "ncc_baseline")
+
+
+def _get(d: dict, dotted: str):
+    for k in dotted.split("."):
+        d = d[k]
+    return d
+
+
+def _set(d: dict, dotted: str, value) -> None:
+    *head, last = dotted.split(".")
+    for k in head:
+        d = d.setdefault(k, {})
+    d[last] = copy.deepcopy(value)
+
+
+def with_section(base: dict) -> dict:
+    """A copy of the scenario dict with its ``[retina_vs_spc]`` section filled in (defaults when absent)."""
+    from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+
+    base = copy.deepcopy(base)
+    if not base.get("retina_vs_spc"):
+        base["retina_vs_spc"] = RetinaVsSpcConfig().model_dump(mode="json")
+    return base
+
+
+def budget_configs(base: dict, methods=METHODS) -> list[dict]:
+    """The configurations: ``all_off``, one per source (that source at the base value, the others off) and
+    ``all_on`` (the base scenario) → ``[{"config", "source", "description", "overrides", "scenario"}]``.
+
+    ``base`` is a validated scenario's dict (defaults filled in); every configuration names ``methods``.
+    """
+    base = with_section(base)
+    for keys in (k for _, ks in SOURCES.values() for k in ks):
+        try:
+            _get(base, keys)
+        except (KeyError, TypeError):
+            raise UserError(f"error budget: the base scenario has no {keys} (an EV5 retina_vs_spc scenario with "
+                            "its [retina_vs_spc] section is needed)") from None
+    out = []
+
+    def add(name, source, desc, overrides):
+        sc = copy.deepcopy(base)
+        for k, v in overrides.items():
+            _set(sc, k, v)
+        _set(sc, "retina_vs_spc.methods", list(methods))
+        out.append({"config": name, "source": source, "description": desc, "overrides": overrides, "scenario": sc})
+
+    add("all_off", "", "every source off (peak step: see retina vs retina_refined)", dict(OFF))
+    for src, (desc, keys) in SOURCES.items():
+        add(src, src, f"{desc} alone", {**OFF, **{k: _get(base, k) for k in keys}})
+    add("all_on", "", "every source on (the published campaign's scenario)", {})
+    return out
+
+
+def stochastic(sc: dict) -> bool:
+    """Whether runs of the scenario differ (sensor noise on or a perturbation with non-zero σ)."""
+    if _get(sc, "retina_vs_spc.sensor_noise"):
+        return True
+    p = sc.get("perturbations") or {}
+    keys = [k.split(".", 1)[1] for _, ks in SOURCES.values() for k in ks if k.startswith("perturbations.")]
+    return any(_nonzero(p.get(k)) for k in keys)
+
+
+def _nonzero(v) -> bool:
+    if isinstance(v, dict):
+        return any(_nonzero(x) for x in v.values())
+    if isinstance(v, (list, tuple)):
+        return any(_nonzero(x) for x in v)
+    return v is not None and float(v) != 0.0
+
+
+def _one_run(task):
+    """Worker: one run of one configuration → (config, run, measurements, perturbations, seconds)."""
+    import pyarrow as pa
+
+    from renderlab.campaign.plan import run_seed_sequence
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.studies.retina_vs_spc.run import run
+
+    import pyarrow.parquet as pq
+
+    name, sc_dict, base_dir, index, seed, workdir = task
+    t0 = time.perf_counter()
+    done = _done_paths(task)
+    if all(p.is_file() for p in done):  # finished by an earlier, interrupted call (same scenario, seed, run)
+        return name, index, pq.read_table(done[0]), pq.read_table(done[1]), 0.0
+    scenario = scenario_from_dict(sc_dict, f"error budget configuration {name}")
+    out = run(scenario, Path(base_dir), index, run_seed_sequence(seed, index), Path(workdir))
+    tabs = []
+    for key, path in zip(("measurements", "perturbations"), done):
+        t = out[key]
+        tabs.append(t.append_column("config", pa.array([name] * t.num_rows, pa.string())))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.tmp")
+        pq.write_table(tabs[-1], tmp)
+        tmp.replace(path)
+    return name, index, tabs[0], tabs[1], time.perf_counter() - t0
+
+
+def _done_paths(task) -> tuple[Path, Path]:
+    """Where a finished run of ``task`` is kept in the scratch folder (keyed by scenario content, seed, run)."""
+    import hashlib
+
+    name, sc_dict, _, index, seed, workdir = task
+    key = hashlib.sha256(json.dumps([sc_dict, seed, index], sort_keys=True).encode()).hexdigest()[:16]
+    d = Path(workdir) / "budget_runs"
+    return d / f"{name}_{index:03d}_{key}_m.parquet", d / f"{name}_{index:03d}_{key}_p.parquet"
+
+
+def _tasks(configs, base_dir, runs, seed, workdir) -> tuple[list, list]:
+    """(first tasks: one per distinct truth, rest): no two workers render the same truth at once."""
+    from renderlab.scenario import truth_dict
+
+    first, rest, seen = [], [], set()
+    for c in configs:
+        n = runs if stochastic(c["scenario"]) else 1
+        c["runs"] = n
+        key = json.dumps(truth_dict(c["scenario"]), sort_keys=True)
+        for i in range(n):
+            task = (c["config"], c["scenario"], str(base_dir), i, seed, str(workdir))
+            (rest if key in seen else first).append(task)
+            seen.add(key)
+    return first, rest
+
+
+def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir: Path, command: str) -> None:
+    """Run every configuration (progress on stderr), write the tables and ``budget.json``, then the report."""
+    import concurrent.futures as cf
+
+    import pyarrow as pa
+
+    from renderlab.scenario import load_scenario
+    from renderlab.studies.retina_vs_spc.budget_tables import write_tables
+
+    if runs < 2:
+        raise UserError(f"--runs must be >= 2 (noise needs repeated runs), got {runs}")
+    scenario, base_dir = load_scenario(scenario_path)
+    base = scenario.to_dict()
+    seed = int(base.get("campaign", {}).get("seed", 0))
+    configs = budget_configs(base)
+    first, rest = _tasks(configs, base_dir, runs, seed, workdir)
+    total, done, t0 = len(first) + len(rest), 0, time.perf_counter()
+    meas, pert = [], []
+    with cf.ProcessPoolExecutor(max_workers=max(1, workers)) as pool:
+        for batch in (first, rest):
+            for name, i, m, p, dt in pool.map(_one_run, batch):
+                done += 1
+                meas.append(m)
+                pert.append(p)
+                print(f"[{done}/{total}] {name} run {i}: {m.num_rows} rows, {dt:.1f} s "
+                      f"(elapsed {time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+    write_tables(out, configs, pa.concat_tables(meas, promote_options="default"),
+                 pa.concat_tables(pert, promote_options="default"),
+                 {"command": command, "scenario": scenario_path.name, "seed": seed, "runs": runs,
+                  "wall_s": round(time.perf_counter() - t0, 1), "workers": workers})
+    from renderlab.studies.retina_vs_spc.budget_report import write_report
+
+    write_report(out)
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m renderlab.studies.retina_vs_spc.budget",
+                                description="Error budget of the landmark methods against the registration CRLB")
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("run", help="run every configuration and write tables + report into --out")
+    r.add_argument("--scenario", type=Path, default=Path("results/retina_vs_spc/scenario.toml"),
+                   help="base scenario (all sources on)")
+    r.add_argument("--out", type=Path, required=True, help="output folder (tables/, budget.json, report files)")
+    r.add_argument("--runs", type=int, default=20, help="runs per configuration that has random draws")
+    r.add_argument("--workers", type=int, default=2, help="worker processes")
+    r.add_argument("--workdir", type=Path, default=Path("/tmp/renderlab_error_budget"),
+                   help="scratch folder (truth cache)")
+    g = sub.add_parser("report", help="make the table and figure again from FOLDER/tables alone")
+    g.add_argument("folder", type=Path)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.command == "run":
+            cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
+            run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd)
+        else:
+            from renderlab.studies.retina_vs_spc.budget_report import write_report
+
+            write_report(args.folder)
+    except UserError as err:
+        print(f"renderlab: error: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

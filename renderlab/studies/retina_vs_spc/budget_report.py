@@ -1,0 +1,166 @@
+"""The error budget's report, from its tables alone (:mod:`.budget_tables`, statistics :mod:`.budget_stats`).
+
+``python -m renderlab.studies.retina_vs_spc.budget report FOLDER`` writes ``FOLDER/report/``:
+
+* ``budget_summary.csv`` — per configuration, method, subset (``all``: every landmark with a truth pixel;
+  ``well_measured``: the study's pre-declared subset) and axis: rates, mean, robust σ, std, per-landmark bias
+  rms and noise sd with 95 % cluster-bootstrap intervals (landmark-frames), median CRLB, noise / CRLB;
+* ``budget_terms.csv`` — per method, subset, axis and statistic: all-off value, each source's contribution,
+  the quadrature sum, all-on and sum / all-on (joint cluster bootstrap), ``check`` PASS when sum / all-on is
+  within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off);
+* ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
+  residual of the exact models comes from;
+* ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+N_BOOT_SUMMARY, N_BOOT_JOINT, SEED = 1000, 500, 20
+TERMS_ORDER = ("all_off", "sensor_noise", "mapping_error", "albedo_error", "photometric_law", "apriori_pose",
+               "camera_knowledge", "sun_knowledge", "maplet_spacing", "peak_step", "quadrature_sum", "all_on")
+BANDS = (("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf))
+
+
+def _subsets(table, cols) -> dict:
+    from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+    from renderlab.studies.retina_vs_spc.report import well_measured_mask
+
+    return {"all": np.ones(table.num_rows, bool), "well_measured": well_measured_mask(table, RetinaVsSpcConfig())}
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    keys = list(rows[0]) if rows else []
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=keys, lineterminator="\n")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def compute(meas, configs, gross_px: float = 1.0) -> tuple[list, list, list]:
+    """(summary rows, term rows, breakdown rows) of a budget's tables (module docstring)."""
+    from renderlab.studies.retina_vs_spc import budget_stats as S
+
+    cols = S.columns(meas)
+    runs = dict(zip(configs.column("config").to_pylist(), configs.column("runs").to_pylist()))
+    sources = [s for s in configs.column("source").to_pylist() if s]
+    methods = sorted(set(cols["method"]), key=lambda m: (m != "retina", m != "retina_refined", m))
+    weights = S.joint_weights(cols["n_clusters"], N_BOOT_JOINT, SEED)
+    summary, terms = [], []
+    for sub, mask in _subsets(meas, cols).items():
+        for axis in S.AXES:
+            samp = {m: {c: S.sample(cols, c, m, mask, axis, runs[c]) for c in runs} for m in methods}
+            for m in methods:
+                for c in runs:
+                    row = S.summary_row(samp[m][c], weights, gross_px, N_BOOT_SUMMARY, SEED)
+                    summary.append({"config": c, "method": m, "subset": sub, "axis": axis, **row})
+                rows = S.budget_rows(samp[m], sources, weights, gross_px)
+                if m == "retina" and "retina_refined" in samp:
+                    rows += _peak_rows(S, samp, weights, gross_px)
+                for r in rows:
+                    r.update(method=m, subset=sub, axis=axis)
+                terms += _with_check(rows)
+    return summary, terms, _breakdown(S, cols, runs, methods, gross_px)
+
+
+def _peak_rows(S, samp, weights, gross_px) -> list[dict]:
+    """Retina's 3×3 step against ``retina_refined``, all else off: signed √(v²(3×3) − v²(refined))."""
+    out = []
+    a, b = samp["retina"]["all_off"], samp["retina_refined"]["all_off"]
+    for st in S.STATS:
+        def term(w):
+            d = np.asarray(S.weighted_stat(st, a, w, gross_px)) ** 2 - np.asarray(S.weighted_stat(st, b, w, gross_px)) ** 2
+            return np.sign(d) * np.sqrt(np.abs(d))
+        lo, hi = S._ci(term(weights))
+        out.append({"statistic": st, "term": "peak_step", "value": float(term(np.ones(weights.shape[1]))), "lo": lo,
+                    "hi": hi})
+    return out
+
+
+def _with_check(rows: list[dict]) -> list[dict]:
+    for r in rows:
+        r["check"] = ("PASS" if abs(r["value"] - 1) <= 0.2 else "FAIL") if r["term"] == "sum_over_all_on" and \
+            np.isfinite(r["value"]) else ""
+    order = {t: i for i, t in enumerate(TERMS_ORDER + ("sum_over_all_on",))}
+    return sorted(rows, key=lambda r: (r["statistic"], order.get(r["term"], 99)))
+
+
+def _breakdown(S, cols, runs, methods, gross_px) -> list[dict]:
+    """All-off rows (both axes) by GSD-ratio band and by truth shadow: rms of the per-landmark bias."""
+    out = []
+    g, sh = cols["gsd_ratio"], cols["shadow_fraction"]
+    groups = [(n, (g >= lo) & (g < hi) if np.isfinite(hi) else g >= lo) for n, lo, hi in BANDS]
+    groups += [("no_truth_shadow", sh == 0), ("truth_shadow>0", sh > 0)]
+    for m in methods:
+        for name, mask in groups:
+            s = S.sample(cols, "all_off", m, mask, "both", runs["all_off"])
+            ones = np.ones(cols["n_clusters"])
+            out.append({"method": m, "group": name, "results": int(s.err.size),
+                        "landmark_frames": int(np.unique(s.cluster).size),
+                        "robust_sigma": S.weighted_stat("robust_sigma", s, ones, gross_px),
+                        "bias_rms": S.weighted_stat("bias_rms", s, ones, gross_px),
+                        "crlb": float(np.nanmedian(s.crlb)) if np.isfinite(s.crlb).any() else float("nan")})
+    return out
+
+
+def _cell(rows, method, term, stat) -> str:
+    r = next((r for r in rows if r["method"] == method and r["term"] == term and r["statistic"] == stat), None)
+    if r is None or not np.isfinite(r["value"]):
+        return "–"
+    if term == "sum_over_all_on":
+        return f"{r['value']:.2f} [{r['lo']:.2f}, {r['hi']:.2f}] {r['check']}"
+    return f"{r['value']:.3f} [{r['lo']:.3f}, {r['hi']:.3f}]"
+
+
+def markdown(summary: list[dict], terms: list[dict]) -> str:
+    """The README's tables: per statistic, the budget terms per method (subset all, both axes pooled)."""
+    rows = [r for r in terms if r["subset"] == "all" and r["axis"] == "both"]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    out = []
+    names = {"robust_sigma": "robust σ", "std": "std", "bias_rms": "per-landmark bias rms",
+             "noise_sd": "per-landmark noise sd"}
+    for st, title in names.items():
+        out += [f"### {title} (px; all landmarks with a truth pixel, both axes pooled; contribution = "
+                "signed √(v²(source alone) − v²(all off)))", "",
+                "| term | " + " | ".join(methods) + " |", "|---|" + "---|" * len(methods)]
+        for t in TERMS_ORDER + ("sum_over_all_on",):
+            if any(r["term"] == t and r["statistic"] == st for r in rows):
+                out.append(f"| {t} | " + " | ".join(_cell(rows, m, t, st) for m in methods) + " |")
+        out.append("")
+    crlb = [r for r in summary if r["subset"] == "all" and r["axis"] == "both" and r["config"] == "sensor_noise"]
+    out += ["### sensor noise alone against the CRLB (all landmarks, both axes pooled)", "",
+            "| method | median CRLB (px) | noise sd (px) | median noise sd / CRLB |", "|---|---|---|---|"]
+    for r in crlb:
+        out.append(f"| {r['method']} | {r['crlb']:.4f} | {r['noise_sd']:.4f} [{r['noise_sd_lo']:.4f}, "
+                   f"{r['noise_sd_hi']:.4f}] | {r['noise_over_crlb']:.2f} [{r['noise_over_crlb_lo']:.2f}, "
+                   f"{r['noise_over_crlb_hi']:.2f}] |")
+    return "\n".join(out) + "\n"
+
+
+def write_report(folder: Path) -> Path:
+    """Write ``folder/report/`` from ``folder/tables/`` alone (staged: all or nothing); returns the report folder."""
+    from renderlab.campaign import store
+    from renderlab.studies.retina_vs_spc.budget_figure import budget_figure
+    from renderlab.studies.retina_vs_spc.budget_tables import read_tables
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise UserError(f"{folder}: no such folder")
+    meas, configs = read_tables(folder)
+    summary, terms, breakdown = compute(meas, configs)
+    with store.staged_folder(folder / "report", "the error-budget report") as stage:
+        _write_csv(stage / "budget_summary.csv", summary)
+        _write_csv(stage / "budget_terms.csv", terms)
+        _write_csv(stage / "budget_breakdown.csv", breakdown)
+        (stage / "budget_table.md").write_text(markdown(summary, terms), encoding="utf-8")
+        budget_figure(summary, terms, stage / "error_budget")
+    print(f"renderlab: wrote {folder / 'report'} (budget_summary.csv, budget_terms.csv, budget_table.md, "
+          "error_budget.png/.svg)")
+    return folder / "report"
