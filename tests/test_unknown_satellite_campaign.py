@@ -96,33 +96,6 @@ def test_report_has_the_study_section(campaign, tmp_path):
     assert " of 2</td>" in page                             # run flags as "k of N"
 
 
-def test_report_section_on_the_published_campaign(repo, tmp_path):
-    """On the published 20-run tables: score ids carry the unit of their values, flags are "k of 20", the 37°
-    stage-2 attitude error is explained (it follows the stage-1 epoch attitude; unobservable ratios), raw and
-    relabelled rows are both shown because 6 runs came out relabelled, and the figures are PNG + SVG."""
-    import pyarrow.parquet as pq
-
-    from renderlab.studies.unknown_satellite.figures import SCORES, same_pairs, score_summary
-    from renderlab.studies.unknown_satellite.report_section import study_section
-
-    d = repo / "results/unknown_satellite/campaign"
-    tables = {n: pq.read_table(d / f"{n}.parquet") for n in ("scores", "stage2", "stage1_history")}
-    units = {"cm": ("_cm",), "cm/s": ("_cm_s",), "deg/s": ("_deg_s",), "deg": ("_deg",), "px": ("_px",)}
-    for r in score_summary(tables["scores"]):
-        if r["unit"] in units:
-            assert r["score"].endswith(units[r["unit"]]), r
-        if r["score"].startswith("flag_"):
-            assert "mean" not in r and 0 <= r["flagged"] <= r["runs"] == 20
-    assert all(v[0] != c or not c.endswith(("_m", "_mps")) for c, v in SCORES.items())
-    assert same_pairs(tables["scores"]) == set()
-    [(_, body)] = study_section(tables, tmp_path)
-    assert "13 of 20" in body and "6 of 20 runs came out relabelled" in body
-    assert "follows the stage-1 epoch attitude error" in body and "not observable on this arc" in body
-    assert "_aligned" not in body and "×10" not in body
-    for f in ("fig5_convergence", "fig7_points", "fig14_stage2_attitude"):
-        assert (tmp_path / f"unknown_satellite_{f}.svg").is_file()
-
-
 def test_truth_dispersions_are_applied_exactly(repo):
     from scipy.spatial.transform import Rotation
 

@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
-from renderlab.report.campaign_report import write_csv  # noqa: F401  (re-exported: results/.../make_campaign.py)
 
 #: scores summarised across runs: column → (score id in the unit of the summary, label, scale, unit, group)
 SCORES = {
@@ -76,7 +75,7 @@ def _np(t, name, dtype=float):
 
 def score_summary(scores) -> list[dict]:
     """Per score: runs, mean, std, median, 10th and 90th percentile in the unit of :data:`SCORES` (the score id
-    carries that unit); per run flag: ``flagged`` runs of ``runs``."""
+    carries that unit); per run flag: ``flagged`` runs of ``runs`` and their ``rate`` (fraction)."""
     rows = []
     for col, (sid, label, scale, unit, _) in SCORES.items():
         if col not in scores.column_names:
@@ -93,7 +92,7 @@ def score_summary(scores) -> list[dict]:
 
     for name, on in run_flags(scores).items():
         rows.append({"score": f"flag_{name}", "label": RUN_FLAGS[name], "unit": "runs", "runs": len(on),
-                     "flagged": int(np.sum(on))})
+                     "flagged": int(np.sum(on)), "rate": float(np.mean(on)) if len(on) else float("nan")})
     return rows
 
 

@@ -201,3 +201,43 @@ def inertia_observability_table(scenario, arcs=DEFAULT_ARCS, *, sigma_px: float 
     rows = [arc_information(scenario, c, sigma_px=sigma_px, range_prior_sigma_m=range_prior_sigma_m, tracks=t)
             for c in tqdm(arcs, desc="FIM vs arc", disable=not progress) for t in ("segments", "ideal")]
     return pa.Table.from_pylist(rows)
+
+
+def main(argv=None) -> int:
+    """``python -m renderlab.studies.unknown_satellite.observability SCENARIO --out FILE.parquet [--set K=V]``: the
+    table of :func:`inertia_observability_table` (zstd Parquet, written atomically), e.g. into a published study
+    folder's ``tables/`` where its report draws it (:mod:`.observability_report`)."""
+    import argparse
+    import os
+    import sys
+    from pathlib import Path
+
+    import pyarrow.parquet as pq
+
+    from renderlab.scenario import load_scenario
+
+    ap = argparse.ArgumentParser(prog="python -m renderlab.studies.unknown_satellite.observability",
+                                 description="Cramér–Rao σ of the inertia ratios against arc length (eq. 7)")
+    ap.add_argument("scenario", help="microsat scenario TOML (e.g. scenes/unknown_satellite.toml)")
+    ap.add_argument("--out", required=True, help="Parquet file to write")
+    ap.add_argument("--set", action="append", default=[], dest="overrides", metavar="KEY=VALUE")
+    args = ap.parse_args(argv)
+    try:
+        sc, _ = load_scenario(Path(args.scenario), args.overrides)
+        table = inertia_observability_table(sc, progress=True)
+        out = Path(args.out)
+        tmp = out.with_name(f".{out.name}.{os.getpid()}")
+        pq.write_table(table, str(tmp), compression="zstd", compression_level=9)
+        os.replace(tmp, out)
+    except UserError as exc:
+        print(f"renderlab: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"renderlab: error: cannot write {args.out}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    print(f"renderlab: wrote {out} ({table.num_rows} rows)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,5 +1,7 @@
 """The unknown-satellite section of ``renderlab report``: score tables (gauge-free, body frame, stage-1
-diagnostics), run flags as "k of N runs", Figs 5-7 and 13-14 (:mod:`renderlab.studies.unknown_satellite.figures`).
+diagnostics), run flags as a rate with "k of N runs", Figs 5-7 and 13-14
+(:mod:`renderlab.studies.unknown_satellite.figures`), and where the folder has the ``inertia_observability`` table
+its Fisher-information figure and table (:mod:`renderlab.studies.unknown_satellite.observability_report`).
 
 The study reports its per-frame ``stage2`` table itself (``own_tables`` of its
 :class:`~renderlab.contracts.study.Study`), so the generic filter section does not stack every ``err_*`` column
@@ -67,7 +69,7 @@ def attitude_note(scores) -> str:
             text += ("What remains is the orientation of the principal axes in the body, which the inertia ratios fix, "
                      f"and they are not observable on this arc (Cramér–Rao σ of I1/I3 and I2/I3: median {s1:.2f} and "
                      f"{s2:.2f}; they become observable with a longer arc, "
-                     "<code>results/unknown_satellite/campaign/README.md</code>). ")
+                     "<code>results/unknown_satellite/long_arc_120s</code>). ")
         else:
             text += (f"The inertia ratios are well determined here (Cramér–Rao σ median {s1:.3f}, {s2:.3f}), so the "
                      "remaining error is not explained by them; see the run flags. ")
@@ -97,12 +99,14 @@ def _score_tables(rows: list[dict], same: set[str], n_runs: int) -> list[dict]:
 def _flag_table(rows: list[dict]) -> list[dict]:
     flags = [{"flag": r["score"][5:].replace("_", " "),
               "label": r["label"].replace("*_aligned scores", "see the scores “axes relabelled to truth”"),
-              "flagged": f"{r['flagged']} of {r['runs']}"} for r in rows if r["score"].startswith("flag_")]
+              "rate": f"{100 * r['rate']:.0f} %", "flagged": f"{r['flagged']} of {r['runs']}"}
+             for r in rows if r["score"].startswith("flag_")]
     if not flags:
         return []
     return [{"kind": "h3", "text": "Run flags"},
-            {"kind": "table", "html": html_table(flags, [("flag", "flag"), ("label", "meaning"),
-                                                          ("flagged", "runs flagged")], left=("flag", "label"))}]
+            {"kind": "table", "html": html_table(flags, [("flag", "flag"), ("label", "meaning"), ("rate", "rate (%)"),
+                                                          ("flagged", "runs flagged (count)")],
+                                                 left=("flag", "label"))}]
 
 
 def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
@@ -112,6 +116,8 @@ def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
 
     if "scores" not in tables:
         return []
+    from renderlab.studies.unknown_satellite.observability_report import observability_blocks
+
     scores = tables["scores"]
     rows = score_summary(scores)
     write_csv(out_dir / "unknown_satellite_summary.csv", rows)
@@ -127,6 +133,8 @@ def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     blocks += _score_tables(rows, same_pairs(scores), n) + _flag_table(rows)
     blocks += [{"kind": "figure", "png": f["png"], "svg": f["svg"], "alt": f["name"], "caption": f["caption"]}
                for f in campaign_figures(tables, out_dir)]
+    if "inertia_observability" in tables:
+        blocks += observability_blocks(tables["inertia_observability"], out_dir)
     blocks.append({"kind": "links", "files": ["unknown_satellite_summary.csv"]})
     body = render_blocks(blocks)
     return [(TITLE, body)]
