@@ -6,8 +6,8 @@ Every 3-point or 3×3 peak fit of :mod:`.peaks` is exact at integer shifts and w
 correlation surface (Retina eq. 9) does not have the shape the fit assumes (pixel locking). Sampling the
 surface *around the estimate* instead of around the integer maximum removes most of it: with the estimate
 δ = n + φ (n integer, |φ| ≤ ½), the template I_p is moved by φ, I_p'(x) = I_p(x − φ) (separable Lanczos-3
-interpolation of the noise-free template, its footprint mean outside the footprint, the footprint shrunk by one
-pixel on the side the shift uncovers), eq. 9 is evaluated at the nine integer shifts n + (−1, 0, 1)², and the
+interpolation of the noise-free template, its footprint mean outside the footprint, the footprint eroded by one
+pixel on every side), eq. 9 is evaluated at the nine integer shifts n + (−1, 0, 1)², and the
 finder's offset from their centre, ε, gives δ ← n + φ + ε. The residual ε is the finder's bias at a near-zero
 offset, where every symmetric fit is exact, so each pass shrinks the error by the slope of the finder's locking
 curve there (measured: ``benchmarks/bench_retina_peak_step.py``). The image is not resampled, so its noise
@@ -67,19 +67,15 @@ def _move_axis(a: np.ndarray, phase: float, axis: int) -> np.ndarray:
 
 def moved_template(template: np.ndarray, valid: np.ndarray, phase_sl) -> tuple[np.ndarray, np.ndarray]:
     """``(T', V')``: the template moved by (φs, φl) px (|φ| ≤ ½), T'(x) = T(x − φ) by separable Lanczos-3
-    interpolation of the footprint (its mean outside it), and the footprint shrunk by one pixel on the side the
-    shift uncovers."""
+    interpolation of the footprint (its mean outside it), and the footprint eroded by one pixel on every side
+    (whatever the sign of φ, so the pixel set does not jump as φ crosses zero)."""
     t = np.asarray(template, float)
     v = np.asarray(valid, bool)
     moved = _move_axis(_move_axis(np.where(v, t, float(t[v].mean())), phase_sl[0], 1), phase_sl[1], 0)
     vv = v.copy()
-    for axis, ph in ((1, phase_sl[0]), (0, phase_sl[1])):
-        if ph > 0:  # content moves toward +axis: pixel x reads x − φ, which needs x − 1 inside the footprint
-            vv[(slice(None),) * axis + (slice(1, None),)] &= v[(slice(None),) * axis + (slice(None, -1),)]
-            vv[(slice(None),) * axis + (slice(0, 1),)] = False
-        elif ph < 0:
-            vv[(slice(None),) * axis + (slice(None, -1),)] &= v[(slice(None),) * axis + (slice(1, None),)]
-            vv[(slice(None),) * axis + (slice(-1, None),)] = False
+    vv[[0, -1], :] = False
+    vv[:, [0, -1]] = False
+    vv[1:-1, 1:-1] &= v[:-2, 1:-1] & v[2:, 1:-1] & v[1:-1, :-2] & v[1:-1, 2:]
     return moved, vv
 
 
