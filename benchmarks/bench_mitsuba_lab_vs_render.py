@@ -16,7 +16,8 @@ configuration once, in an order rotated by r):
   spp and resolution. It computes the radiance only (no truth AOVs) and has square pixels (fy = fx).
 
 The first call of each configuration (JIT compile or kernel-cache load) is a warm-up, excluded.
-Printed: the median and minimum of ``--repeats`` calls, the ratios lab drjit / mi.render (target
+Printed: the median and minimum of ``--repeats`` calls (wall clock) and the median CPU time of the process
+(all its threads: on a shared machine less sensitive to other jobs than the wall clock), the ratios lab drjit / mi.render (target
 ≤ 1.3×) and lab numpy / lab drjit, the largest difference between the two lab images and how many pixels
 differ by more than 1e-4 of the maximum (same sub-pixel positions: float32 rounding only, which can move a
 sample that lies on an edge to its other side), the mean radiance of each, and the peak resident memory.
@@ -103,6 +104,7 @@ def main(argv=None):
     log(f"machine : {os.cpu_count()} logical CPUs, load avg {os.getloadavg()[0]:.2f} at start")
     cfgs = configurations(args, log)
     images, times, first = {}, {name: [] for name, _ in cfgs}, {}
+    cpu = {name: [] for name, _ in cfgs}
     for name, run in cfgs:
         t0 = time.perf_counter()
         images[name] = run()
@@ -110,23 +112,29 @@ def main(argv=None):
     for r in range(args.repeats):
         k = r % len(cfgs)
         for name, run in cfgs[k:] + cfgs[:k]:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             run()
             times[name].append(time.perf_counter() - t0)
+            cpu[name].append(time.process_time() - c0)
         log(f"round {r + 1}/{args.repeats}: " + ", ".join(f"{n} {times[n][-1]:.3f} s" for n, _ in cfgs))
     log()
-    log(f"{'configuration':12s} {'median s':>9s} {'min s':>9s} {'first s':>9s} {'mean radiance':>14s}")
+    log(f"{'configuration':12s} {'median s':>9s} {'min s':>9s} {'first s':>9s} {'CPU s median':>13s} "
+        f"{'mean radiance':>14s}")
     med = {n: statistics.median(t) for n, t in times.items()}
     mn = {n: min(t) for n, t in times.items()}
+    cmed = {n: statistics.median(t) for n, t in cpu.items()}
     for name, _ in cfgs:
-        log(f"{name:12s} {med[name]:9.3f} {mn[name]:9.3f} {first[name]:9.3f} {float(images[name].mean()):14.4f}")
+        log(f"{name:12s} {med[name]:9.3f} {mn[name]:9.3f} {first[name]:9.3f} {cmed[name]:13.3f} "
+            f"{float(images[name].mean()):14.4f}")
     log()
     log("ratios, both measured in this run (median/median, min/min):")
     a, b = "lab drjit", "mi.render"
-    log(f"  lab drjit / mi.render : {med[a] / med[b]:.2f}x  {mn[a] / mn[b]:.2f}x  (target <= 1.3x)")
+    log(f"  lab drjit / mi.render : {med[a] / med[b]:.2f}x  {mn[a] / mn[b]:.2f}x  (target <= 1.3x); "
+        f"CPU time (all threads of the process, less sensitive to other jobs) {cmed[a] / cmed[b]:.2f}x")
     if "lab numpy" in med:
         c = "lab numpy"
-        log(f"  lab numpy / lab drjit : {med[c] / med[a]:.2f}x  {mn[c] / mn[a]:.2f}x  (speed-up of the Dr.Jit rays)")
+        log(f"  lab numpy / lab drjit : {med[c] / med[a]:.2f}x  {mn[c] / mn[a]:.2f}x  (speed-up of the Dr.Jit rays); "
+            f"CPU time {cmed[c] / cmed[a]:.2f}x")
         diff = np.abs(images[c] - images[a]) / images[c].max()
         log(f"  lab drjit vs lab numpy image (same sub-pixel positions and seeds): max |diff| / max = "
             f"{diff.max():.1e}; {int((diff > 1e-4).sum())} of {diff.size} px differ by more than 1e-4 of the max "
