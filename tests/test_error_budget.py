@@ -93,6 +93,10 @@ def test_statistics_match_direct_numpy_computations():
     mad = np.median(np.abs(e - np.median(e)))
     assert S.weighted_stat("robust_sigma", s, ones, 1.0) == pytest.approx(1.482602218505602 * mad, rel=1e-9)
     assert 0.06 < S.weighted_stat("noise_sd", s, ones, 1.0) < 0.10  # the drawn 0.08
+    both = S.sample(cols, "b", "retina", np.ones(t.num_rows, bool), "both", 12)  # axes pooled, spread per axis
+    el = np.asarray(t.column("err_l").to_pylist())[np.asarray(t.column("config").to_pylist()) == "b"]
+    var_both = [x[lm == k].var(ddof=1) for x in (e, el) for k in range(60)]
+    assert S.weighted_stat("noise_sd", both, ones, 1.0) == pytest.approx(np.sqrt(np.mean(var_both)), rel=1e-12)
     w = S.joint_weights(cols["n_clusters"], 3, 1)  # a replicate = the rows of the drawn landmarks repeated
     clu = cols["cluster"][np.asarray(t.column("config").to_pylist()) == "b"]
     rep = np.concatenate([e[clu == j] for j in np.repeat(np.arange(60), w[0].astype(int))])

@@ -40,10 +40,12 @@ STATS = ("robust_sigma", "std", "bias_rms", "noise_sd")
 @dataclass(frozen=True)
 class Sample:
     """The results of one (configuration, method, subset, axis): errors, landmark-frame index per row (into
-    the folder-wide universe of landmark-frames), CRLB per row, attempted rows and the configuration's runs."""
+    the folder-wide universe of landmark-frames: the bootstrap unit), ``group`` = 2 · landmark-frame + axis
+    (0: s, 1: l; the unit of a per-landmark mean and spread), CRLB per row, attempted rows and the runs."""
 
     err: np.ndarray
     cluster: np.ndarray
+    group: np.ndarray
     crlb: np.ndarray
     attempted: int
     runs: int
@@ -72,9 +74,10 @@ def sample(cols: dict, config: str, method: str, subset: np.ndarray, axis: str, 
     parts = ("s", "l") if axis == "both" else (axis,)
     err = np.concatenate([cols[f"err_{a}"][rows] for a in parts])
     clu = np.concatenate([cols["cluster"][rows] for _ in parts])
+    grp = np.concatenate([2 * cols["cluster"][rows] + "sl".index(a) for a in parts])
     crlb = np.concatenate([cols[f"crlb_{a}"][rows] for a in parts])
     ok = np.isfinite(err)
-    return Sample(err[ok], clu[ok], crlb[ok], int(rows.sum()) * len(parts), int(runs))
+    return Sample(err[ok], clu[ok], grp[ok], crlb[ok], int(rows.sum()) * len(parts), int(runs))
 
 
 def _robust(x: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -133,7 +136,8 @@ def _stat(name: str, s: Sample, wc: np.ndarray, gross_px: float) -> np.ndarray:
                 return np.where(n >= 2, np.sqrt((w * (x - m[:, None]) ** 2).sum(-1) / (n - 1)), np.nan)
         return np.where(n >= 2, _robust(x, w), np.nan)
     core = np.abs(x) <= gross_px
-    x, c = x[core], c[core]
+    x, c = x[core], s.group[core]  # per landmark-frame and axis; weights per landmark-frame
+    wc = np.repeat(wc, 2, axis=1)
     K = wc.shape[1]
     nc = np.bincount(c, minlength=K).astype(float)
     sx = np.bincount(c, x, minlength=K)
@@ -152,11 +156,11 @@ def _stat(name: str, s: Sample, wc: np.ndarray, gross_px: float) -> np.ndarray:
 
 
 def noise_over_crlb(s: Sample, gross_px: float) -> np.ndarray:
-    """Per landmark-frame (with ≥ 2 core results and a finite CRLB) noise sd / CRLB."""
+    """Per landmark-frame and axis (with ≥ 2 core results and a finite CRLB) noise sd / CRLB."""
     core = np.abs(s.err) <= gross_px
     out = []
-    for k in np.unique(s.cluster[core]):
-        sel = core & (s.cluster == k)
+    for k in np.unique(s.group[core]):
+        sel = core & (s.group == k)
         if sel.sum() >= 2 and np.isfinite(s.crlb[sel]).any():
             out.append(np.std(s.err[sel], ddof=1) / np.nanmedian(s.crlb[sel]))
     return np.asarray(out, float)
