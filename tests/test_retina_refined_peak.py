@@ -38,7 +38,7 @@ def test_gaussian_2d_falls_back_to_the_quadric_without_logarithms():
 
 
 def test_moved_template_matches_scipy_fourier_shift():
-    """Lanczos-3 moving of a band-limited texture vs scipy.ndimage.fourier_shift (exact for it): < 2 % rms of
+    """Cubic B-spline moving of a band-limited texture vs scipy.ndimage.fourier_shift (exact for it): < 2 % rms of
     the texture's std away from the edges (measured 0.6-1.3 %)."""
     rng = np.random.default_rng(3)
     base, _ = shifted_texture((64, 64), (0, 0), 1.2, rng)

@@ -5,7 +5,7 @@ Description
 Every 3-point or 3×3 peak fit of :mod:`.peaks` is exact at integer shifts and wrong in between when the
 correlation surface (Retina eq. 9) does not have the shape the fit assumes (pixel locking). Sampling the
 surface *around the estimate* instead of around the integer maximum removes most of it: with the estimate
-δ = n + φ (n integer, |φ| ≤ ½), the template I_p is moved by φ, I_p'(x) = I_p(x − φ) (separable Lanczos-3
+δ = n + φ (n integer, |φ| ≤ ½), the template I_p is moved by φ, I_p'(x) = I_p(x − φ) (cubic B-spline
 interpolation of the noise-free template, its footprint mean outside the footprint, the footprint eroded by one
 pixel on every side), eq. 9 is evaluated at the nine integer shifts n + (−1, 0, 1)², and the
 finder's offset from their centre, ε, gives δ ← n + φ + ε. The residual ε is the finder's bias at a near-zero
@@ -38,40 +38,16 @@ from estimators.retina.correlation import correlation_surface_direct
 from estimators.retina.peaks import FINDERS
 
 
-def _lanczos3_weights(t: float) -> np.ndarray:
-    """The six Lanczos-3 weights of samples floor + (−2 … 3) for a point t ∈ [0, 1) past the floor (sum 1)."""
-    z = t - np.arange(-2, 4)
-    w = np.sinc(z) * np.sinc(z / 3.0)
-    return w / w.sum()
-
-
-def _move_axis(a: np.ndarray, phase: float, axis: int) -> np.ndarray:
-    """``a`` moved by ``phase`` px along ``axis`` (out(x) = a(x − phase)), Lanczos-3, edges replicated."""
-    if phase == 0.0:
-        return a
-    u = -phase
-    f = int(np.floor(u))
-    w = _lanczos3_weights(u - f)
-    pad = [(0, 0), (0, 0)]
-    pad[axis] = (3 - min(f, 0) + 2, 3 + max(f, 0) + 3)
-    ap = np.pad(a, pad, mode="edge")
-    n = a.shape[axis]
-    base = pad[axis][0] + f
-    out = np.zeros_like(a)
-    for j, wj in zip(range(-2, 4), w):
-        sl = [slice(None), slice(None)]
-        sl[axis] = slice(base + j, base + j + n)
-        out += wj * ap[tuple(sl)]
-    return out
-
-
 def moved_template(template: np.ndarray, valid: np.ndarray, phase_sl) -> tuple[np.ndarray, np.ndarray]:
-    """``(T', V')``: the template moved by (φs, φl) px (|φ| ≤ ½), T'(x) = T(x − φ) by separable Lanczos-3
-    interpolation of the footprint (its mean outside it), and the footprint eroded by one pixel on every side
-    (whatever the sign of φ, so the pixel set does not jump as φ crosses zero)."""
+    """``(T', V')``: the template moved by (φs, φl) px (|φ| ≤ ½), T'(x) = T(x − φ) by cubic B-spline
+    interpolation (exact for cubic polynomials; ``scipy.ndimage.shift``, order 3) of the footprint (its mean
+    outside it), and the footprint eroded by one pixel on every side (whatever the sign of φ, so the pixel
+    set does not jump as φ crosses zero)."""
+    from scipy.ndimage import shift
+
     t = np.asarray(template, float)
     v = np.asarray(valid, bool)
-    moved = _move_axis(_move_axis(np.where(v, t, float(t[v].mean())), phase_sl[0], 1), phase_sl[1], 0)
+    moved = shift(np.where(v, t, float(t[v].mean())), (phase_sl[1], phase_sl[0]), order=3, mode="nearest")
     vv = v.copy()
     vv[[0, -1], :] = False
     vv[:, [0, -1]] = False
