@@ -13,6 +13,11 @@ pose (camera at t, R_render_from_cam) and camera model:
   against the full-resolution site DEM, step ½ cell; terrain outside the site patch casts no
   shadow here) or where the sun is below the local facet;
 * ``gsd_ratio`` = GSD / spacing, GSD = range / f_px (the pixel footprint across the line of sight).
+
+Truth geometry: the catalog centres, maplets and the shadow march use the full-resolution DEM; with
+``world.site.lod`` the position AOV comes from the frame's tiles (:mod:`.tiles`, levels recorded per frame in
+the manifest's ``ev5.lod``), whose range differs from the full DEM by ≤ 0.25 GSD on 99 % of pixels (tested),
+well inside the occlusion tolerance.
 """
 
 from __future__ import annotations

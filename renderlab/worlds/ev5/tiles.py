@@ -28,9 +28,12 @@ errors. Each tile hangs a skirt (vertical wall along its border, outward facing)
 Truth consistency: the rendered AOVs (position, range, normal) of the site come from the frame's tiles at
 their levels (recorded per frame in the manifest, ``ev5.lod``); the landmark catalog, the maplets, the
 landmark centres and the shadow march of ``landmark_truth`` use the full-resolution DEM (level 0). The
-difference of the two is measured by ray casting in ``tests/test_ev5_tiles.py`` (range difference at the
-frame's pixel scale, in units of the GSD) and kept within the occlusion tolerance of
-:mod:`renderlab.worlds.ev5.landmark_truth` (max(spacing, 3 GSD)).
+difference of the two is measured by ray casting in ``tests/test_ev5_tiles.py``: |range(tiles) −
+range(full DEM)| at the frame's pixel centres, in units of the GSD; the test requires ≤ 0.25 GSD on 99 % of
+site pixels (measured on the tiny test world at 100 m, level 1: median 0.002, p99 0.086, p99.9 0.24 GSD;
+with lod_pixels = 8: p99 0.85, which the test rejects). That is far inside the occlusion tolerance of
+:mod:`renderlab.worlds.ev5.landmark_truth` (max(spacing, 3 GSD)), so visibility flags do not depend on the
+level; ``aov_offset_m`` includes the level's height error (bounded per frame by ``ev5.lod.max_height_error_m``).
 """
 
 from __future__ import annotations
