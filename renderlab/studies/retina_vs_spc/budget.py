@@ -35,7 +35,8 @@ column ``config``), ``tables/budget_configs.parquet`` (configuration, source, ru
 ``tables/budget_perturbations.parquet``, ``budget.json`` (command, seed, runs) and the report
 (:mod:`.budget_report`), which ``report`` makes again from the tables alone::
 
-    python -m renderlab.studies.retina_vs_spc.budget run --out results/error_budget --runs 20 --workers 2
+    python -m renderlab.studies.retina_vs_spc.budget run --out results/error_budget --runs 10 --workers 2
+    python -m renderlab.studies.retina_vs_spc.budget probe results/error_budget   # template sampling (.budget_probe)
     python -m renderlab.studies.retina_vs_spc.budget report results/error_budget
 """
 
@@ -199,7 +200,7 @@ def _tasks(configs, base_dir, runs, seed, workdir) -> tuple[list, list]:
             task = (c["config"], c["scenario"], str(base_dir), i, seed, str(workdir))
             (rest if key in seen else first).append(task)
             seen.add(key)
-    return first, rest
+    return first, sorted(rest, key=lambda task: task[3])  # run-major: every configuration advances together
 
 
 def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir: Path, command: str) -> None:
@@ -251,7 +252,32 @@ def _parser() -> argparse.ArgumentParser:
                    help="scratch folder (truth cache)")
     g = sub.add_parser("report", help="make the table and figure again from FOLDER/tables alone")
     g.add_argument("folder", type=Path)
+    q = sub.add_parser("probe", help="Retina's template supersampling on the all-off truth (.budget_probe) into "
+                                     "FOLDER/tables, then the report")
+    q.add_argument("folder", type=Path)
+    q.add_argument("--scenario", type=Path, default=Path("results/retina_vs_spc/scenario.toml"))
+    q.add_argument("--workdir", type=Path, default=Path("/tmp/renderlab_error_budget"))
     return p
+
+
+def run_probe(folder: Path, scenario_path: Path, workdir: Path) -> None:
+    """Measure the probe's rows (:func:`.budget_probe.probe_table`) into ``folder/tables``, then the report."""
+    import pyarrow.parquet as pq
+
+    from renderlab.scenario import load_scenario
+    from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_table
+    from renderlab.studies.retina_vs_spc.budget_report import write_report
+    from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
+
+    read_tables(folder)  # a budget folder first
+    scenario, base_dir = load_scenario(scenario_path)
+    all_off = next(c for c in budget_configs(scenario.to_dict()) if c["config"] == "all_off")
+    table = probe_table(all_off["scenario"], base_dir, workdir)
+    out = Path(folder) / TABLES / f"{PROBE}.parquet"
+    tmp = out.with_name(f".{out.name}.tmp")
+    pq.write_table(table, tmp)
+    tmp.replace(out)
+    write_report(folder)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -260,6 +286,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "run":
             cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
             run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd)
+        elif args.command == "probe":
+            run_probe(args.folder, args.scenario, args.workdir)
         else:
             from renderlab.studies.retina_vs_spc.budget_report import write_report
 

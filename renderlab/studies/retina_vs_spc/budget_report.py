@@ -144,6 +144,25 @@ def markdown(summary: list[dict], terms: list[dict]) -> str:
     return "\n".join(out) + "\n"
 
 
+def _probe(folder: Path) -> list[dict]:
+    """The template-sampling probe's rows (:mod:`.budget_probe`), or [] when the folder has no probe table."""
+    import pyarrow.parquet as pq
+
+    from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_rows
+    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
+
+    p = Path(folder) / TABLES / f"{PROBE}.parquet"
+    return probe_rows(pq.read_table(p)) if p.is_file() else []
+
+
+def _probe_markdown(rows: list[dict]) -> str:
+    out = ["### all off: Retina's template supersampling k × k (per-landmark bias rms, px, both axes)", "",
+           "| method | k | results | bias rms |", "|---|---|---|---|"]
+    out += [f"| {r['method']} | {r['supersample']} | {r['results']} | {r['bias_rms']:.4f} [{r['bias_rms_lo']:.4f}, "
+            f"{r['bias_rms_hi']:.4f}] |" for r in rows]
+    return "\n".join(out) + "\n"
+
+
 def write_report(folder: Path) -> Path:
     """Write ``folder/report/`` from ``folder/tables/`` alone (staged: all or nothing); returns the report folder."""
     from renderlab.campaign import store
@@ -155,11 +174,16 @@ def write_report(folder: Path) -> Path:
         raise UserError(f"{folder}: no such folder")
     meas, configs = read_tables(folder)
     summary, terms, breakdown = compute(meas, configs)
+    probe = _probe(folder)
     with store.staged_folder(folder / "report", "the error-budget report") as stage:
         _write_csv(stage / "budget_summary.csv", summary)
         _write_csv(stage / "budget_terms.csv", terms)
         _write_csv(stage / "budget_breakdown.csv", breakdown)
-        (stage / "budget_table.md").write_text(markdown(summary, terms), encoding="utf-8")
+        md = markdown(summary, terms)
+        if probe:
+            _write_csv(stage / "budget_supersample.csv", probe)
+            md += _probe_markdown(probe)
+        (stage / "budget_table.md").write_text(md, encoding="utf-8")
         budget_figure(summary, terms, stage / "error_budget")
     print(f"renderlab: wrote {folder / 'report'} (budget_summary.csv, budget_terms.csv, budget_table.md, "
           "error_budget.png/.svg)")

@@ -8,15 +8,18 @@ runs; every interval is a 95 % percentile cluster-bootstrap interval over landma
 
 Statistics of the errors ``err = measured − true`` (px; axis ``s``, ``l`` or ``both``, the two axes pooled):
 
-* ``mean``, ``robust_sigma`` (1.4826 · MAD) and ``std`` of every result
-  (:func:`renderlab.stats.bootstrap.cluster_bootstrap`);
+* ``mean``, ``robust_sigma`` (1.4826 · MAD) and ``std`` of every result (mean and std:
+  :func:`renderlab.stats.bootstrap.cluster_bootstrap`; robust σ and everything below: the same multinomial
+  landmark-frame counts applied as weights, vectorised over replicates, :func:`joint_weights`);
 * the per-landmark decomposition on the results with |err| ≤ the gross-error threshold (1 px):
   ``bias_rms`` — rms over landmark-frames of the landmark-frame's mean error over runs (what a filter sees
   as a per-landmark bias), and ``noise_sd`` — the pooled within-landmark-frame standard deviation over runs
   (what it sees as noise; zero by construction where all runs are identical);
 * ``crlb`` — median over landmark-frames of the registration CRLB ``crlb_s``/``crlb_l``
   (:func:`renderlab.campaign.scoring.registration_crlb`: √ of the diagonal of J⁻¹, J = Σ ∇I ∇Iᵀ / σ² the
-  Fisher information of an (s, l) shift of the noise-free truth image I in Gaussian pixel noise σ²) and ``noise_over_crlb`` — median over landmark-frames of noise_sd / CRLB.
+  Fisher information of an (s, l) shift of the noise-free truth image I in Gaussian pixel noise σ²) and
+  ``noise_over_crlb`` — √(mean over landmark-frames and axes of noise variance / CRLB²), the rms ratio
+  (unbiased in the variance, unlike a median of few-run standard deviations), interval by resampling them.
 
 A source's contribution to a statistic v is ``sign(d)·√|d|`` with d = v²(source alone) − v²(all off), and the
 quadrature sum of the budget is ``√(v²(all off) + Σ d)``, compared with v(all on). Their intervals come from
@@ -156,13 +159,13 @@ def _stat(name: str, s: Sample, wc: np.ndarray, gross_px: float) -> np.ndarray:
 
 
 def noise_over_crlb(s: Sample, gross_px: float) -> np.ndarray:
-    """Per landmark-frame and axis (with ≥ 2 core results and a finite CRLB) noise sd / CRLB."""
+    """Per landmark-frame and axis (with ≥ 2 core results and a finite CRLB) noise variance / CRLB²."""
     core = np.abs(s.err) <= gross_px
     out = []
     for k in np.unique(s.group[core]):
         sel = core & (s.group == k)
         if sel.sum() >= 2 and np.isfinite(s.crlb[sel]).any():
-            out.append(np.std(s.err[sel], ddof=1) / np.nanmedian(s.crlb[sel]))
+            out.append(np.var(s.err[sel], ddof=1) / np.nanmedian(s.crlb[sel]) ** 2)
     return np.asarray(out, float)
 
 
@@ -190,10 +193,10 @@ def summary_row(s: Sample, weights: np.ndarray, gross_px: float, n_boot: int, se
         row[f"{st}_lo"], row[f"{st}_hi"] = _ci(weighted_stat(st, s, weights, gross_px))
     row["crlb"] = float(np.nanmedian(s.crlb)) if np.isfinite(s.crlb).any() else float("nan")
     r = noise_over_crlb(s, gross_px) if s.runs >= 2 else np.array([])
-    row["noise_over_crlb"] = float(np.median(r)) if r.size else float("nan")
+    row["noise_over_crlb"] = float(np.sqrt(np.mean(r))) if r.size else float("nan")
     if r.size >= 10:
         rng = np.random.default_rng(seed)
-        reps = np.median(r[rng.integers(0, r.size, (n_boot, r.size))], axis=1)
+        reps = np.sqrt(np.mean(r[rng.integers(0, r.size, (n_boot, r.size))], axis=1))
         row["noise_over_crlb_lo"], row["noise_over_crlb_hi"] = _ci(reps)
     else:
         row["noise_over_crlb_lo"] = row["noise_over_crlb_hi"] = float("nan")
