@@ -86,12 +86,12 @@ def test_refined_step_noise_is_near_the_registration_crlb():
 
 def test_refined_step_on_retina_rendered_maplets():
     """Retina re-renders its template from an a-priori camera translated by a known amount
-    (estimators.retina.locking): the refined step's bias stays under 0.02 px (measured 0.012), the 3×3 step's
-    exceeds it (0.060)."""
+    (estimators.retina.locking, the benchmark's three maplets and eleven shifts): the refined step's mean bias
+    stays under the issue's 0.02 px (measured 0.017 / 0.015 px, s / l), the paper's 3×3 step's does not (0.060)."""
     from estimators.retina.locking import rendered_locking_curve
 
-    fr = np.array([-0.4, -0.2, 0.2, 0.4])
-    curve = rendered_locking_curve(fr, methods=("gaussian_2d_rc", "retina_3x3"), seeds=(5, 6))
+    fr = np.round(np.linspace(-0.5, 0.5, 11), 3)
+    curve = rendered_locking_curve(fr, methods=("gaussian_2d_rc", "retina_3x3"))
     assert max(np.abs(b).max() for b in curve["gaussian_2d_rc"]) < 0.02, curve["gaussian_2d_rc"]
     assert max(np.abs(b).max() for b in curve["retina_3x3"]) > 0.02
 
