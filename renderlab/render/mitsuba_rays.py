@@ -19,6 +19,9 @@ computed in the kernel:
   2.6e-3 px (Kannala–Brandt, f = 30 px), 1e-5 px for pinholes (``tests/test_mitsuba_rays.py`` measures it
   for every model against the float64 oracle :meth:`CameraModel.project`);
 * pixel centres (the truth-AOV rays) fall exactly on grid nodes: no interpolation at all;
+* a node without a preimage (beyond a wide fisheye's field of view) is NaN, and so is every sample
+  interpolated from it: such samples miss everything (radiance 0), within one pixel of where the
+  numpy path's rays stop;
 * the world direction is R·d (R the camera-to-render rotation, opaque per-frame scalars so the kernel
   is compiled once), the ray starts at depth ``near_clip_m`` and ends at depth ``far_clip_m`` along the
   boresight (planar clip planes, like a camera's).
