@@ -64,8 +64,8 @@ def node_directions(camera) -> np.ndarray:
 
     (x/z, y/z, 1) for a pinhole camera, unit rays otherwise; NaN where the unprojection has no preimage.
     """
-    s, l = np.meshgrid(np.arange(-1.0, camera.width + 1.0), np.arange(-1.0, camera.height + 1.0))
-    d = camera.unproject(np.stack([s, l], axis=-1))
+    s, line = np.meshgrid(np.arange(-1.0, camera.width + 1.0), np.arange(-1.0, camera.height + 1.0))
+    d = camera.unproject(np.stack([s, line], axis=-1))
     return d / d[..., 2:3] if interpolates_plane(camera) else d
 
 
@@ -98,16 +98,16 @@ class CameraRays:
 
     def centre_directions(self, pix):
         """Camera-frame directions through the centres of pixels ``pix`` (UInt32, l·W + s)."""
-        s, l = pix % self.W, pix // self.W
-        return self._node(s + 1, l + 1)
+        s, line = pix % self.W, pix // self.W
+        return self._node(s + 1, line + 1)
 
     def sample_directions(self, pix, off):
         """Camera-frame directions at pixel ``pix`` + offset ``off`` (Point2f in [−½, ½)²), bilinear."""
         mi, dr = self.mi, self.dr
-        s, l = pix % self.W, pix // self.W
+        s, line = pix % self.W, pix // self.W
         neg_s, neg_l = off.x < 0, off.y < 0
         i0 = dr.select(neg_s, s, s + 1)
-        j0 = dr.select(neg_l, l, l + 1)
+        j0 = dr.select(neg_l, line, line + 1)
         tx = dr.select(neg_s, off.x + 1.0, off.x)
         ty = dr.select(neg_l, off.y + 1.0, off.y)
         d = (self._node(i0, j0) * ((1.0 - tx) * (1.0 - ty)) + self._node(i0 + 1, j0) * (tx * (1.0 - ty))
