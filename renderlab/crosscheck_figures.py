@@ -163,7 +163,8 @@ def figure(rows, images: list[dict], path: Path, targets: dict, max_frames: int 
 
 def _checks(targets: dict) -> list[tuple[str, str, str, float, str]]:
     """(row field, what, target key, scale, unit) of each banded quantity of the page."""
-    return [("rad_median_rel", "radiometric |L_C/L_M − 1|, median over lit pixels", "rad_median_rel", 100.0, "%"),
+    return [("rad_median_rel", "radiometric difference, median of abs(L_C / L_M − 1) over lit pixels", "rad_median_rel",
+             100.0, "%"),
             ("geo_max_px", "hit-point gap across the line of sight, max", "geo_max_px", 1.0, "px"),
             ("lmk_max_px", "hit-point gap at the landmark truth pixels, max", "geo_max_px", 1.0, "px"),
             ("reproj_cycles_max_px", "Cycles hit point re-projected through the lab's camera, max", "geo_max_px", 1.0,
