@@ -9,7 +9,8 @@ regenerates the whole report from them alone, with no re-run. The layout is the 
       tables/coastline_orbits.parquet      one row per orbit: options, geometry counts, seconds
       tables/coastline_timeseries.parquet  one row per orbit and time: per-time summary of all runs, PCRB σ
       tables/coastline_run_totals.parquet  one row per orbit and run: NIS sum and its dof, NEES first / last
-      tables/coastline_sample_runs.parquet the per-run rows of the first runs (the thin lines of the error figure)
+      tables/coastline_sample_runs.parquet the RIC errors of the first 25 runs (float32; the thin lines of the
+                                           error figures, drawn only)
       tables/coastline_runs.parquet        (``--keep-runs``) every run's rows; the per-time summary is then
                                            recomputed from them (PCRB σ from the time series)
       report/                              ``renderlab report FOLDER``: summary.csv, table1.md, figures, index.html
@@ -25,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["TABLES", "orbit_tables", "write_folder", "is_geometric", "report_sections", "PAPER_TABLE1"]
+__all__ = ["TABLES", "orbit_tables", "sample_table", "write_folder", "is_geometric", "report_sections", "PAPER_TABLE1"]
 
 TABLES = ("coastline_orbits", "coastline_timeseries", "coastline_run_totals", "coastline_sample_runs",
           "coastline_runs")
@@ -82,7 +83,7 @@ def orbit_tables(case: str, options, geometry, runs_table, summary, seconds: dic
     core = runs_table.drop([n for n in ("has_result", "reason", "campaign") if n in runs_table.column_names])
     out = {"coastline_orbits": pa.table({k: [v] for k, v in orbit.items()}), "coastline_timeseries": summary,
            "coastline_run_totals": totals,
-           "coastline_sample_runs": _first_runs(core)}
+           "coastline_sample_runs": sample_table(core)}
     if keep_runs:
         out["coastline_runs"] = core
     return {k: _with_case(v, case) for k, v in out.items()}
@@ -114,6 +115,19 @@ def write_folder(out: Path, parts: list[dict], plan: dict) -> None:
 def is_geometric(tables: dict) -> bool:
     """Tables of this layout (as opposed to a campaign's ``coastline_filter``)."""
     return "coastline_timeseries" in tables and "coastline_run_totals" in tables
+
+
+def sample_table(runs_table):
+    """``coastline_sample_runs``: ``run``, ``t_s`` and the RIC errors (float32: drawn only, never scored) of the
+    first :data:`N_SAMPLE` runs."""
+    import pyarrow as pa
+
+    from renderlab.studies.coastline_ekf.scoring import ERR
+
+    t = _first_runs(runs_table.select(["run", "t_s", *ERR]))
+    for name in ERR:
+        t = t.set_column(t.column_names.index(name), name, t[name].cast(pa.float32()))
+    return t
 
 
 def _first_runs(table):
