@@ -102,7 +102,7 @@ class DescentEKF:
     def __init__(self, options: DescentNavOptions | None = None):
         self.options = options or DescentNavOptions()
         self._omega = np.asarray(self.options.omega_rad_s, float)
-        self._gate = {}
+        self._gate, self._q = {}, {}
         self.t = self.x = self.P = None
         self.u = np.zeros(3)
 
@@ -128,8 +128,10 @@ class DescentEKF:
             return
         o = self.options
         self.x, phi = dynamics.propagate(self.x, dt, o.gm_m3_s2, self._omega, self.u, o.max_step_s)
-        P = phi @ self.P @ phi.T + dynamics.white_acceleration_q(dt, o.q_acc_m2_s3) \
-            + dynamics.held_input_q(dt, o.sigma_input_mps2)
+        if dt not in self._q:
+            self._q[dt] = dynamics.white_acceleration_q(dt, o.q_acc_m2_s3) + dynamics.held_input_q(dt,
+                                                                                                o.sigma_input_mps2)
+        P = phi @ self.P @ phi.T + self._q[dt]
         self.P = 0.5 * (P + P.T)
         self.t = float(t_s)
 

@@ -13,7 +13,7 @@ maplet spacing) lies in ``gsd_ratio_range``, at most ``max_landmarks`` per image
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,6 +42,13 @@ class RunInputs:
     sigma_st_rad: float
     campaign: str
     run: int
+    _images: dict = field(default_factory=dict)
+
+    def image(self, k: int) -> np.ndarray:
+        """The DN image k of this run, loaded once and shared by every method."""
+        if k not in self._images:
+            self._images[k] = self.ts.load(k).dn
+        return self._images[k]
 
 
 def select_landmarks(cam, pose, centres, spacing, cfg) -> np.ndarray:
@@ -103,7 +110,7 @@ def _measure(impl, inp, k, filt, cfg, mopts):
     if sel.size == 0:
         return sel, [], None
     cov_r = np.eye(3) * inp.sigma_st_rad**2
-    _, results = run_method_on_image(impl, inp.ts.load(k).dn, fr.adc_max, fr.camera, pose, fr.sun,
+    _, results = run_method_on_image(impl, inp.image(k), fr.adc_max, fr.camera, pose, fr.sun,
                                      [inp.maplets[i] for i in sel], inp.centres[sel], P[:3, :3], cov_r, mopts, k)
     good = [i for i, r in enumerate(results) if r.has_result]
     if not good:

@@ -54,12 +54,17 @@ def filter_options(cfg, omega_rad_s: float) -> dict:
 
 def _accel_intervals(truth, times, cfg, rng) -> list:
     """Per image k: the accelerometer samples [(t0, t1, u)] from the previous image to t_k (none for k = 0)."""
-    out = [[]]
+    spans = []
     for a, b in zip(times[:-1], times[1:]):
         n = max(1, int(math.ceil((b - a) * cfg.accel_rate_hz - 1e-9)))
         edges = np.linspace(a, b, n + 1)
-        out.append([(float(t0), float(t1), truth.accelerometer(t0, t1, cfg.accel_sigma_mps2, rng))
-                    for t0, t1 in zip(edges[:-1], edges[1:])])
+        spans.append(np.stack([edges[:-1], edges[1:]], 1))
+    allspans = np.concatenate(spans) if spans else np.zeros((0, 2))
+    u = truth.accelerometer(allspans[:, 0], allspans[:, 1], cfg.accel_sigma_mps2, rng)
+    out, j = [[]], 0
+    for sp in spans:
+        out.append([(float(t0), float(t1), u[j + i]) for i, (t0, t1) in enumerate(sp)])
+        j += len(sp)
     return out
 
 

@@ -43,9 +43,9 @@ class TrueDescent:
     def position(self, t) -> np.ndarray:
         """r(t) (..., 3) in the body frame."""
         t = np.asarray(t, float)
-        q = self.origin_m + self.profile.altitude(np.atleast_1d(t))[:, None] * self.normal
-        th = np.where(np.atleast_1d(t) < self.profile.t_spin_match, self.omega_rad_s * (self.profile.t_spin_match
-                                                                                         - np.atleast_1d(t)), 0.0)
+        tf = t.reshape(-1)
+        q = self.origin_m + self.profile.altitude(tf)[:, None] * self.normal
+        th = np.where(tf < self.profile.t_spin_match, self.omega_rad_s * (self.profile.t_spin_match - tf), 0.0)
         c, s = np.cos(th), np.sin(th)
         out = np.stack([c * q[:, 0] - s * q[:, 1], s * q[:, 0] + c * q[:, 1], q[:, 2]], axis=-1)
         return out.reshape(t.shape + (3,))
@@ -78,10 +78,12 @@ class TrueDescent:
         w = np.broadcast_to(self.omega, r.shape)
         return self.acceleration(t) - self.gravity(r) + 2 * np.cross(w, v) + np.cross(w, np.cross(w, r))
 
-    def accelerometer(self, t0: float, t1: float, sigma: float, rng: np.random.Generator) -> np.ndarray:
-        """The accelerometer's reading over [t0, t1]: the mean of u (Simpson) + N(0, σ²) per axis."""
-        u = self.control(np.array([t0, 0.5 * (t0 + t1), t1]))
-        return (u[0] + 4 * u[1] + u[2]) / 6.0 + sigma * rng.standard_normal(3)
+    def accelerometer(self, t0, t1, sigma: float, rng: np.random.Generator) -> np.ndarray:
+        """The accelerometer's readings over the samples [t0, t1] (n,): the mean of u (Simpson) + N(0, σ²) per axis,
+        (n, 3); the noise drawn sample by sample, 3 normals each."""
+        t0, t1 = np.atleast_1d(np.asarray(t0, float)), np.atleast_1d(np.asarray(t1, float))
+        u = self.control(np.stack([t0, 0.5 * (t0 + t1), t1], 1))
+        return (u[:, 0] + 4 * u[:, 1] + u[:, 2]) / 6.0 + sigma * rng.standard_normal((len(t0), 3))
 
 
 def site_frame(ts) -> tuple[np.ndarray, np.ndarray]:
