@@ -3,9 +3,9 @@
 The lab casts its own primary rays instead of using a Mitsuba sensor, so the image follows the
 lab's camera model — any 2×2 pixel map K (fx ≠ fy, skew, off-centre principal point, Retina eq. 4)
 and any distortion model — with no resampling. JIT variants (LLVM, CUDA) generate every sample's ray
-in the kernel (:mod:`renderlab.render.mitsuba_rays`: a float64 :meth:`CameraModel.unproject` of the
-pixel-centre grid once per camera, bilinear inside the pixel; exact for pinholes, ≤ 3e-3 px with
-distortion) in one wavefront of W·H·spp samples, like ``mi.render``. ``ray_path = "numpy"`` keeps
+in the kernel (:mod:`renderlab.render.mitsuba_rays`: a pinhole's inverse pixel map evaluated there,
+exact; with distortion a float64 :meth:`CameraModel.unproject` of the pixel-centre grid once per camera,
+bilinear inside the pixel, ≤ 3e-3 px) in one wavefront of W·H·spp samples, like ``mi.render``. ``ray_path = "numpy"`` keeps
 the former path (every sample's (s, l) through :meth:`CameraModel.unproject` in numpy, one wavefront
 per sample) for the benchmarks. Mitsuba's integrator (``path``; ``max_depth = 2`` is direct sunlight
 only) evaluates the radiance along the rays.
