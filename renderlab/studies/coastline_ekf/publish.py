@@ -71,7 +71,8 @@ def publish_orbit(case: str, args) -> dict:
 def _plan(args, cases: list[str]) -> dict:
     """``campaign.json``'s plan: the command's options (the scenario of every orbit)."""
     opts = {k: v for k, v in sorted(vars(args).items()) if k not in ("out", "chunk")}
-    return {"name": f"coastline_ekf_geometric_{args.out.name}", "runs": args.runs, "seed": args.seed,
+    name = "coastline_ekf_geometric" + ("" if args.out.name == "coastline_ekf" else f"_{args.out.name}")
+    return {"name": name, "runs": args.runs, "seed": args.seed,
             "scenario": {"description": "geometric coastline-EKF Monte Carlo, Straub & Christian Table 1",
                          "orbits": cases, "options": {k: v for k, v in opts.items() if k != "orbits"},
                          "perturbations": {"apriori_position_sigma_m": [500.0] * 3,
