@@ -264,3 +264,15 @@ def test_publish_writes_the_published_layout_and_its_report(tmp_path):
     assert float(row["nis_total_over_dof"]) == pytest.approx(nis_total_test(runs)["ratio"], rel=1e-5)
     sample = pq.read_table(tmp_path / "tables" / "coastline_sample_runs.parquet")
     assert sorted(set(sample["run"].to_pylist())) == list(range(12))
+
+
+@pytest.mark.parametrize("argv, message", [(["--orbits", "i45_h700"], "unknown orbit 'i45_h700'"),
+                                          (["--runs", "0"], "--runs and --chunk must be >= 1")])
+def test_publish_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, capsys, argv, message):
+    from renderlab.studies.coastline_ekf.publish import main, run_module
+
+    out = tmp_path / "pub"
+    assert run_module(main, ["--out", str(out), *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("renderlab: error: ") and message in err and "\n" not in err
+    assert not out.exists()

@@ -99,5 +99,18 @@ def main(argv=None) -> int:
     return 0
 
 
+def run_module(entry, argv=None) -> int:
+    """``python -m`` entry: a :class:`~renderlab.errors.UserError` is one line on stderr and exit code 2."""
+    import sys
+
+    from renderlab.errors import UserError
+
+    try:
+        return entry(argv)
+    except UserError as err:
+        print(f"renderlab: error: {err}", file=sys.stderr)
+        return 2
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_module(main))

@@ -106,4 +106,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from renderlab.studies.coastline_ekf.publish import run_module
+
+    raise SystemExit(run_module(main))
