@@ -1,0 +1,45 @@
+"""The published cross-renderer checks regenerate from their committed tables alone: ``renderlab report`` on a copy of
+``crosscheck.parquet`` + ``crosscheck_images.parquet`` of each ``results/crosscheck/<scene>`` gives the committed
+``crosscheck.md`` (every number) and the figure (PNG + SVG); and the page's verdicts agree with the targets applied
+to the table by this test itself."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from renderlab.cli import main
+from renderlab.crosscheck import TARGETS
+
+REPO = Path(__file__).resolve().parents[1]
+FOLDERS = sorted(p.parent for p in (REPO / "results" / "crosscheck").glob("*/crosscheck.parquet"))
+
+
+def test_the_three_crosscheck_sets_are_published():
+    assert [p.name for p in FOLDERS] == ["analytic_sphere_box", "ev5_low_sun", "ev5_small_descent"]
+
+
+@pytest.mark.parametrize("folder", FOLDERS, ids=[p.name for p in FOLDERS])
+def test_crosscheck_page_and_figure_regenerate_from_the_tables(folder, tmp_path, capsys):
+    copy = tmp_path / folder.name
+    copy.mkdir()
+    for name in ("crosscheck.parquet", "crosscheck_images.parquet"):
+        shutil.copy(folder / name, copy / name)
+    assert main(["report", str(copy)]) == 0
+    capsys.readouterr()
+    md = (folder / "crosscheck.md").read_text()
+    assert (copy / "crosscheck.md").read_text() == md
+    assert (copy / "crosscheck.png").stat().st_size > 50_000 and (copy / "crosscheck.svg").is_file()
+    assert sorted(p.name for p in folder.iterdir()) == ["crosscheck.md", "crosscheck.parquet", "crosscheck.png",
+                                                         "crosscheck.svg", "crosscheck_images.parquet"]
+    # the verdicts of the page are the targets applied to the committed table (independent of the page's code)
+    t = pq.read_table(folder / "crosscheck.parquet").to_pydict()
+    worst = {k: np.nanmax(np.array(t[k], float)) for k in TARGETS}
+    ok = all(worst[k] <= TARGETS[k] for k in TARGETS)
+    assert ("**FAIL**" not in md) == ok
+    assert f"| {worst['rad_median_rel'] * 100:.4f} % | **{'PASS' if worst['rad_median_rel'] <= 0.01 else 'FAIL'}** |" \
+        in md
