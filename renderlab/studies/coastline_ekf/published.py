@@ -80,11 +80,11 @@ def orbit_tables(case: str, options, geometry, runs_table, summary, seconds: dic
              "sigma_theta_mrad": options.sigma_theta_rad * 1e3, "points_per_image": options.points_per_image,
              "cadence_s": options.cadence_s, "truth_model": getattr(options, "truth_model", "j2_rk4"),
              "seconds_geometry": round(seconds["geometry"], 1), "seconds_monte_carlo": round(seconds["monte_carlo"], 1)}
-    core = runs_table.drop([n for n in ("has_result", "reason", "campaign") if n in runs_table.column_names])
+    core = runs_table.drop([n for n in ("campaign",) if n in runs_table.column_names])
     out = {"coastline_orbits": pa.table({k: [v] for k, v in orbit.items()}), "coastline_timeseries": summary,
            "coastline_run_totals": totals,
            "coastline_sample_runs": sample_table(core)}
-    if keep_runs:
+    if keep_runs:  # the filter table as the study wrote it (FILTER_CORE: has_result, reason)
         out["coastline_runs"] = core
     return {k: _with_case(v, case) for k, v in out.items()}
 
