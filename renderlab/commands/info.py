@@ -132,7 +132,7 @@ def campaign_lines(path: Path, published: bool) -> list[str]:
                             f"{(sc.get('trajectory') or {}).get('kind', '?')}"),
              _line("runs", f"{plan['runs']} planned: {len(by['ok'])} finished, {len(by['error'])} failed, "
                            f"{missing} missing"),
-             _line("seed", f"{entropy} (run i: SeedSequence({entropy}, spawn_key=(i,)))")]
+             _line("seed", f"{entropy} (run i: {_run_seed(seed, entropy)})")]
     if by["error"]:
         first = by["error"][0]
         lines.append(_line("first failure", f"run {first.get('run')}: {' '.join(str(first.get('error')).split())[:160]}"))
@@ -199,3 +199,11 @@ def run(args) -> int:
             lines += [""] + headline_lines(summary)
     print("\n".join(lines))
     return 0
+
+
+def _run_seed(seed, entropy) -> str:
+    """How run i is seeded: the engine's spawn key, or the plan's own ``run_seed`` text when it differs."""
+    own = seed.get("run_seed") if isinstance(seed, dict) else None
+    if isinstance(own, str) and own and own != "SeedSequence(entropy, spawn_key=(run,))":
+        return own.replace("entropy", str(entropy)).replace("[run]", "[i]")
+    return f"SeedSequence({entropy}, spawn_key=(i,))"

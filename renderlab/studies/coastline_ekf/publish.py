@@ -74,6 +74,7 @@ def _plan(args, cases: list[str]) -> dict:
     name = "coastline_ekf_geometric" + ("" if args.out.name == "coastline_ekf" else f"_{args.out.name}")
     return {"name": name, "runs": args.runs, "seed": args.seed,
             "scenario": {"description": "geometric coastline-EKF Monte Carlo, Straub & Christian Table 1",
+                         "world": {"kind": "earth"}, "trajectory": {"kind": "leo"},
                          "orbits": cases, "options": {k: v for k, v in opts.items() if k != "orbits"},
                          "perturbations": {"apriori_position_sigma_m": [500.0] * 3,
                                            "apriori_velocity_sigma_mps": [0.005] * 3}}}
