@@ -12,6 +12,11 @@ the same orbit, image times, σθ, P0, star tracker and seeds:
 :func:`report_sections` writes ``comparison.csv`` (one row per mode: final RMS error and filter σ per RIC axis,
 the run-mean error, ANEES per time against its 99 % χ²(6N)/N band, the summed NIS against χ²(N Σ 2m_k); image
 modes also the median LOS error of the matched points) and ``comparison.{png,svg}``, from those tables alone.
+
+References
+----------
+M. N. Straub and J. A. Christian, "Autonomous Optical Navigation for Earth-Observing Satellites Using
+Coastline Matching", West Virginia University, AIAA paper, c. 2015 (Table 1, Figs. 5-9, eq. 18).
 """
 
 from __future__ import annotations

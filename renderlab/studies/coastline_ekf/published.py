@@ -16,6 +16,11 @@ regenerates the whole report from them alone, with no re-run. The layout is the 
       report/                              ``renderlab report FOLDER``: summary.csv, table1.md, figures, index.html
 
 Every table has a ``case`` column (the orbit name, :data:`~renderlab.studies.coastline_ekf.geometric.PAPER_ORBITS`).
+
+References
+----------
+M. N. Straub and J. A. Christian, "Autonomous Optical Navigation for Earth-Observing Satellites Using
+Coastline Matching", West Virginia University, AIAA paper, c. 2015 (Table 1, Figs. 5-9, eq. 18).
 """
 
 from __future__ import annotations
