@@ -85,3 +85,24 @@ def test_campaign_report_in_browser(campaign_report):
     img = cv2.imread(str(shot))
     assert img is not None and img.shape[:2] == (2400, 1280)
     assert np.std(img) > 5, "the screenshot is blank"
+
+
+REPO = Path(__file__).resolve().parents[1]
+PUBLISHED = sorted(p.relative_to(REPO).as_posix() for p in (REPO / "results").rglob("report/index.html"))
+
+
+def test_every_published_result_has_a_report():
+    assert len(PUBLISHED) >= 8, PUBLISHED
+
+
+@pytest.mark.parametrize("page", PUBLISHED)
+def test_published_report_in_browser(page):
+    """Every committed report under results/ opens in Chromium with every figure loaded; screenshot kept."""
+    import cv2
+
+    html = REPO / page
+    assert check_report(html) == []
+    name = page.removeprefix("results/").removesuffix("/report/index.html").replace("/", "__")
+    shot = screenshot(html, ARTIFACTS / f"published_{name}.png", width=1280, height=2400)
+    img = cv2.imread(str(shot))
+    assert img is not None and np.std(img) > 5, "the screenshot is blank"
