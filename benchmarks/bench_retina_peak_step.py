@@ -114,20 +114,21 @@ def measure(kind, items, snrs, trials, seed):
     return errs, ratio, noisy_cases
 
 
-def time_per_call(cases, reps=3):
-    """µs per call of each step alone (the 7 x 7 surface given; the re-centred passes include their template
-    moves and 3 x 3 correlations)."""
+def time_per_call(cases, reps=5):
+    """Median µs per call of each step alone (the 7 x 7 surface given; the re-centred passes include their template
+    moves and 3 x 3 correlations), every call timed on its own and the steps interleaved (a shared, loaded machine
+    preempts single calls; the median ignores them)."""
     from estimators.retina.correlation import correlation_surface
 
     surf = [correlation_surface(c.image, c.template, c.valid, c.s0, c.l0, 3, c.image_valid)[0] for c in cases]
-    out = {}
-    for m in STEPS:
-        t0 = time.perf_counter()
-        for _ in range(reps):
-            for C, c in zip(surf, cases):
+    times = {m: [] for m in STEPS}
+    for _ in range(reps):
+        for C, c in zip(surf, cases):
+            for m in STEPS:
+                t0 = time.perf_counter()
                 estimate(m, C, c.image, c, c.image_valid)
-        out[m] = (time.perf_counter() - t0) / (reps * len(cases)) * 1e6
-    return out
+                times[m].append(time.perf_counter() - t0)
+    return {m: float(np.median(v)) * 1e6 for m, v in times.items()}
 
 
 def print_table(title, errs, ratio, snrs, us):
