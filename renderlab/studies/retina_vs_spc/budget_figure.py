@@ -49,6 +49,8 @@ def budget_figure(summary: list[dict], terms: list[dict], stem: Path) -> list[st
         ax.axhline(crlb, color="black", ls="--", lw=1, label=f"median CRLB {crlb:.4f} px")
         ax.axhline(2 * crlb, color="black", ls=":", lw=1, label="2 × CRLB")
         ax.axhline(0, color="grey", lw=0.5)
+        lo_y, hi_y = ax.get_ylim()
+        ax.set_ylim(lo_y, hi_y + 0.3 * (hi_y - lo_y))  # room for the PASS/FAIL marks
         ax.set_ylabel(f"{title} (px)")
         ax.set_title(f"{title}: all off, each source's contribution, quadrature sum (PASS: within 20 % of all on)")
     axes[0].legend(ncol=3, loc="upper left")

@@ -136,7 +136,7 @@ def markdown(summary: list[dict], terms: list[dict]) -> str:
         out.append("")
     crlb = [r for r in summary if r["subset"] == "all" and r["axis"] == "both" and r["config"] == "sensor_noise"]
     out += ["### sensor noise alone against the CRLB (all landmarks, both axes pooled)", "",
-            "| method | median CRLB (px) | noise sd (px) | median noise sd / CRLB |", "|---|---|---|---|"]
+            "| method | median CRLB (px) | noise sd (px) | rms of noise sd / CRLB |", "|---|---|---|---|"]
     for r in crlb:
         out.append(f"| {r['method']} | {r['crlb']:.4f} | {r['noise_sd']:.4f} [{r['noise_sd_lo']:.4f}, "
                    f"{r['noise_sd_hi']:.4f}] | {r['noise_over_crlb']:.2f} [{r['noise_over_crlb_lo']:.2f}, "

@@ -161,12 +161,17 @@ def _stat(name: str, s: Sample, wc: np.ndarray, gross_px: float) -> np.ndarray:
 def noise_over_crlb(s: Sample, gross_px: float) -> np.ndarray:
     """Per landmark-frame and axis (with ≥ 2 core results and a finite CRLB) noise variance / CRLB²."""
     core = np.abs(s.err) <= gross_px
-    out = []
-    for k in np.unique(s.group[core]):
-        sel = core & (s.group == k)
-        if sel.sum() >= 2 and np.isfinite(s.crlb[sel]).any():
-            out.append(np.var(s.err[sel], ddof=1) / np.nanmedian(s.crlb[sel]) ** 2)
-    return np.asarray(out, float)
+    g, x = s.group[core], s.err[core]
+    if g.size == 0:
+        return np.array([])
+    K = int(g.max()) + 1
+    n = np.bincount(g, minlength=K).astype(float)
+    sx, sxx = np.bincount(g, x, minlength=K), np.bincount(g, x * x, minlength=K)
+    crlb = np.full(K, np.nan)
+    crlb[g] = s.crlb[core]  # one CRLB per landmark-frame and axis (the truth image's)
+    ok = (n >= 2) & np.isfinite(crlb) & (crlb > 0)
+    var = (sxx[ok] - sx[ok] ** 2 / n[ok]) / (n[ok] - 1)
+    return np.clip(var, 0, None) / crlb[ok] ** 2
 
 
 def _ci(reps: np.ndarray) -> tuple[float, float]:
