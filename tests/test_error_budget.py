@@ -16,7 +16,7 @@ from renderlab.errors import UserError
 from renderlab.scenario import load_scenario
 from renderlab.studies.retina_vs_spc import budget as B
 from renderlab.studies.retina_vs_spc import budget_stats as S
-from renderlab.studies.retina_vs_spc.budget_report import compute, write_report
+from renderlab.studies.retina_vs_spc.budget_report import write_report
 from renderlab.studies.retina_vs_spc.budget_tables import COLUMNS, write_tables
 
 REPO = Path(__file__).resolve().parents[1]
@@ -139,3 +139,32 @@ def test_published_budget_regenerates_from_its_tables(tmp_path):
     assert (PUBLISHED / "report" / "error_budget.svg").is_file()
     manifest = json.loads((PUBLISHED / "budget.json").read_text())
     assert manifest["command"].startswith("python -m renderlab.studies.retina_vs_spc.budget run")
+
+
+def test_sensor_noise_switch_gives_the_mean_of_the_noisy_exposures():
+    """[retina_vs_spc] sensor_noise = false: the DN is the noise-free exposure, i.e. the mean of many noisy
+    re-exposures of the same radiance (to their standard error), rounded; true: a new draw per seed."""
+    from dataclasses import dataclass
+    from types import SimpleNamespace
+
+    from renderlab.campaign.perturb import draw_perturbation
+    from renderlab.scenario.campaign import PerturbationConfig
+    from renderlab.sensor import SensorOptions
+    from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
+
+    @dataclass
+    class Frame:
+        radiance: np.ndarray
+        dn: np.ndarray
+
+    rad = np.random.default_rng(3).uniform(2.0, 30.0, (8, 8)).astype(np.float32)
+    rec = {"index": 0, "camera": {"model": "pinhole", "width": 8, "height": 8, "fx": 50.0, "fy": 50.0, "cx": 3.5,
+                                  "cy": 3.5}, "sun": {"direction_render": [0.0, 0.0, 1.0]}, "sensor": {"exposure_s": 0.5 * SensorOptions().exposure_s}}
+    ts = SimpleNamespace(path=Path("fake"), frames=[rec], load=lambda i: Frame(rad, np.zeros((8, 8), np.uint16)))
+    draw = draw_perturbation(PerturbationConfig(), np.random.SeedSequence(0))
+    opts = SensorOptions()
+    quiet = BelievedTruthSet(ts, draw, opts, [0], noise=False).load(0).dn
+    noisy = np.array([BelievedTruthSet(ts, draw, opts, [s]).load(0).dn for s in range(300)], float)
+    assert quiet.dtype == np.uint16 and np.all(noisy.std(0) > 1)  # the noise is well above quantisation
+    assert np.all(np.abs(quiet - noisy.mean(0)) <= 4 * noisy.std(0) / np.sqrt(300) + 0.5)
+    assert not np.array_equal(noisy[0], noisy[1])
