@@ -9,7 +9,7 @@
   the quadrature sum, all-on and sum / all-on (joint cluster bootstrap), ``check`` PASS when sum / all-on is
   within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off);
 * ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
-  residual of the exact models comes from;
+  residual of the exact models comes from; and the sensor-noise-alone rms noise sd / CRLB in the same groups;
 * ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure.
 """
 
@@ -106,8 +106,17 @@ def _breakdown(S, cols, runs, methods, gross_px) -> list[dict]:
                         "landmark_frames": int(np.unique(s.cluster).size),
                         "robust_sigma": S.weighted_stat("robust_sigma", s, ones, gross_px),
                         "bias_rms": S.weighted_stat("bias_rms", s, ones, gross_px),
-                        "crlb": float(np.nanmedian(s.crlb)) if np.isfinite(s.crlb).any() else float("nan")})
+                        "crlb": float(np.nanmedian(s.crlb)) if np.isfinite(s.crlb).any() else float("nan"),
+                        "noise_over_crlb_sensor_noise": _noise_ratio(S, cols, runs, m, mask, gross_px)})
     return out
+
+
+def _noise_ratio(S, cols, runs, method, mask, gross_px) -> float:
+    """rms of noise sd / CRLB of the sensor-noise-alone configuration over the rows of ``mask`` (NaN if absent)."""
+    if runs.get("sensor_noise", 0) < 2:
+        return float("nan")
+    r = S.noise_over_crlb(S.sample(cols, "sensor_noise", method, mask, "both", runs["sensor_noise"]), gross_px)
+    return float(np.sqrt(np.mean(r))) if r.size else float("nan")
 
 
 def _cell(rows, method, term, stat) -> str:
