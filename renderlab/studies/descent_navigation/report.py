@@ -25,12 +25,15 @@ def _write_csv(rows: list[dict], path: Path) -> None:
 
 
 def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
-    """Errors of every run (thin) and ±3σ RMS of the filter (dashed) per method (columns) and site axis (rows)."""
+    """Errors of every run that kept track (thin) and ±3σ RMS of the filter (dashed) per method (columns) and site
+    axis (rows); the runs that lost track are counted in the title, not drawn (their errors reach 10–300 m)."""
     from renderlab.report.style import method_colors, plt, save
+    from renderlab.studies.descent_navigation.scoring import tracked
 
     cols, unit = (POS, "m") if kind == "position" else (VEL, "m/s")
     sig = [c.replace("err_", "sig_") for c in cols]
-    c = columns(ftab, ("run", "method", "frame", "t_s", *cols, *sig))
+    every = columns(ftab, ("run", "method"))
+    c = columns(tracked(ftab), ("run", "method", "frame", "t_s", *cols, *sig))
     methods = sorted(set(c["method"].tolist()))
     colors = method_colors(methods)
     pyplot = plt()
@@ -48,7 +51,9 @@ def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
             ax.plot(ts, -three, "--", color=colors[m], lw=1.5)
             ax.set_ylabel(f"{'ENU'[i]} {kind} error ({unit})")
             if i == 0:
-                ax.set_title(m)
+                n_all = len(set(every["run"][every["method"] == m].tolist()))
+                n_ok = len(set(c["run"][c["method"] == m].tolist()))
+                ax.set_title(f"{m}: {n_ok} runs ({n_all - n_ok} lost track, not drawn)", fontsize=9)
                 ax.plot([], [], color="0.55", lw=0.8, label="each run")
                 ax.legend(loc="upper right", fontsize=7)
             if i == 2:
@@ -129,5 +134,7 @@ def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
     imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f.endswith(".png"))
     note = ("<p>ANEES/6 and ANIS/dof: 1 is consistent; intervals are 95 % bootstraps over whole runs (the images of "
             "a run are correlated). Touchdown proxy: position error norm at the last image (50 m). Track lost: "
-            "a run with ≥ N consecutive images without an accepted landmark (N = track_loss_frames).</p>")
+            "a run with ≥ N consecutive images without an accepted landmark (N = track_loss_frames). Consistency, the "
+            "landmark statistics and the figures are over the runs that kept track; ANEES/ANIS over every run are the "
+            "*_all columns of descent_summary.csv.</p>")
     return [("Descent navigation", _html_table(summary) + note + imgs)]

@@ -1,5 +1,7 @@
 """Scores of the descent campaign from its tables alone: consistency per method and image, per-method summary.
 
+Consistency is scored over the runs that never lost track (a run that lost track is counted in ``track_lost_runs``
+and its NEES/NIS reported apart as ``*_all``: a diverged run's NEES, 10⁴–10⁵, would otherwise be the average).
 Per method and image time (runs are independent, so the run average of a χ² variable has the band of χ²(N·dof)/N):
 ANEES = mean over runs of NEES (6 dof), band χ²₀.₀₂₅,₀.₉₇₅(6N)/N; ANIS = Σ NIS / Σ dof over the runs (dof varies
 with the landmarks kept), band χ²(Σ dof)/Σ dof; position RMS error and the RMS of the filter's 3σ. Per method:
@@ -32,8 +34,23 @@ def chi2_band_sum(dof_total: float) -> tuple[float, float]:
     return float(chi2.ppf(0.025, dof_total) / dof_total), float(chi2.ppf(0.975, dof_total) / dof_total)
 
 
+def tracked(ftab):
+    """The rows of the runs (per method) that never lost track — where filter consistency is defined; the runs that
+    lost track are counted apart (``track_lost_runs``)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    lost = ftab.filter(pc.field("track_lost"))
+    bad = {(m, r) for m, r in zip(lost.column("method").to_pylist(), lost.column("run").to_pylist())}
+    keys = zip(ftab.column("method").to_pylist(), ftab.column("run").to_pylist())
+    return ftab.filter(pa.array([k not in bad for k in keys]))
+
+
 def timeseries(ftab) -> list[dict]:
-    """One row per method and image (the prior excluded): consistency and error statistics (module docstring)."""
+    """One row per method and image (the prior excluded): consistency and error statistics over the runs that kept
+    track (module docstring); ``track_lost_runs`` counts the others."""
+    all_lost = columns(ftab, ("method", "frame", "track_lost"))
+    ftab = tracked(ftab)
     c = columns(ftab, ("method", "frame", "t_s", "nees", "nis", "dof", "n_kept", "track_lost", *POS, *VEL,
                        "sig_e_m", "sig_n_m", "sig_u_m"))
     out = []
@@ -60,7 +77,9 @@ def timeseries(ftab) -> list[dict]:
                         "vel_rms_mps": float(np.sqrt(np.mean(np.sum(vel**2, 1)))) if n else math.nan,
                         **{f"pos3sig_{a}_m": float(3 * np.sqrt(np.mean(sig[:, j] ** 2))) if n else math.nan
                            for j, a in enumerate("enu")},
-                        "mean_kept": float(np.mean(c["n_kept"][s])), "track_lost_runs": int(c["track_lost"][s].sum())})
+                        "mean_kept": float(np.mean(c["n_kept"][s])),
+                        "track_lost_runs": int(all_lost["track_lost"][(all_lost["method"] == m)
+                                                                     & (all_lost["frame"] == k)].sum())})
     return out
 
 
@@ -79,29 +98,46 @@ def _per_run(c, m, value, reduce) -> np.ndarray:
     return np.array([reduce(value, (c["method"] == m) & (c["run"] == r)) for r in runs], float)
 
 
+def _consistency(c, m) -> tuple[np.ndarray, np.ndarray]:
+    """Per-run time-mean NEES/6 and NIS/dof of method m over its images."""
+    img = (c["method"] == m) & (c["frame"] >= 0)
+    nees_run = _per_run(c, m, None, lambda _, s: np.nanmean(c["nees"][s & img]) / 6.0)
+    nis_run = _per_run(c, m, None, lambda _, s: np.nansum(c["nis"][s & img]) / max(c["dof"][s & img].sum(), 1))
+    return nees_run, nis_run
+
+
 def method_summary(ftab, ltab, ts_rows) -> list[dict]:
-    """One row per method (module docstring)."""
+    """One row per method (module docstring): consistency and landmark statistics over the runs that kept track
+    (``*_all``: every run), errors at the last image over every run."""
     from renderlab.stats.bootstrap import cluster_bootstrap
 
+    keep = columns(tracked(ftab), ("run", "method", "frame", "nees", "nis", "dof"))
     c = columns(ftab, ("run", "method", "frame", "nees", "nis", "dof", "track_lost", "n_gated", "n_flagged",
                        "n_results", "n_kept", *POS, *VEL))
-    lc = columns(ltab, ("run", "method", "err_s", "err_l", "kept", "has_result")) if ltab is not None else None
+    lc = columns(tracked(ltab) if ltab is not None and "track_lost" in ltab.column_names else ltab,
+                 ("run", "method", "err_s", "err_l", "kept", "has_result")) if ltab is not None else None
+    if lc is not None:                      # landmark statistics over the runs that kept track, as the consistency
+        ok = {(m, r) for m, r in zip(keep["method"].tolist(), keep["run"].tolist())}
+        sel = np.array([(m, r) in ok for m, r in zip(lc["method"].tolist(), lc["run"].tolist())], bool)
+        lc = {k: v[sel] for k, v in lc.items()}
     out = []
     for m in sorted(set(c["method"].tolist())):
         img = (c["method"] == m) & (c["frame"] >= 0)
         last = img & (c["frame"] == c["frame"][img].max())
-        nees_run = _per_run(c, m, None, lambda _, s: np.nanmean(c["nees"][s & img]) / 6.0)
-        nis_run = _per_run(c, m, None, lambda _, s: np.nansum(c["nis"][s & img]) / max(c["dof"][s & img].sum(), 1))
+        nees_run, nis_run = _consistency(keep, m)
+        nees_all, nis_all = _consistency(c, m)
         td = np.sqrt(sum(c[a][last] ** 2 for a in POS))
         tdv = np.sqrt(sum(c[a][last] ** 2 for a in VEL))
         rows = [r for r in ts_rows if r["method"] == m and r["frame"] >= 0]
-        row = {"method": m, "n_runs": int(last.sum()), "anees_over_6": float(np.nanmean(nees_run)),
+        row = {"method": m, "n_runs": int(last.sum()), "n_tracked_runs": int(len(nees_run)),
+               "anees_over_6": float(np.nanmean(nees_run)),
                "anees_over_6_lo": _run_bootstrap(nees_run)[0], "anees_over_6_hi": _run_bootstrap(nees_run)[1],
                "anees_inside_frac": float(np.mean([bool(r["anees_inside"]) for r in rows])),
                "anis_per_dof": float(np.nanmean(nis_run)), "anis_per_dof_lo": _run_bootstrap(nis_run)[0],
                "anis_per_dof_hi": _run_bootstrap(nis_run)[1],
                "anis_inside_frac": float(np.mean([bool(r["anis_inside"]) for r in rows if r["anis_inside"] is not None]
                                                  or [False])),
+               "anees_over_6_all": float(np.nanmean(nees_all)), "anis_per_dof_all": float(np.nanmean(nis_all)),
                "touchdown_pos_err_median_m": float(np.nanmedian(td)),
                "touchdown_pos_err_p95_m": float(np.nanpercentile(td, 95)),
                "touchdown_pos_err_rms_m": float(np.sqrt(np.nanmean(td**2))),
