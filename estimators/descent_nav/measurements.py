@@ -60,14 +60,16 @@ def pixel_model(x: np.ndarray, z: np.ndarray, ctx: dict, who: str):
 
 def pixel_covariance(camera, points_body_m, position_m, R_body_from_cam, sigma_px: float,
                      sigma_att_rad: float) -> np.ndarray:
-    """R of eq. M3 (2k, 2k): independent pixel noise plus the star-tracker error common to the image."""
+    """R of eq. M3 (2k, 2k): independent pixel noise (σ_px: one value, or one per landmark (k,)) plus the
+    star-tracker error common to the image."""
     xc = (np.asarray(points_body_m, float) - np.asarray(position_m, float)) @ np.asarray(R_body_from_cam, float)
     Jp = camera.project_jacobian(xc)                  # (k, 2, 3)
     sk = np.zeros((len(xc), 3, 3))
     sk[:, 0, 1], sk[:, 0, 2], sk[:, 1, 2] = -xc[:, 2], xc[:, 1], -xc[:, 0]
     sk[:, 1, 0], sk[:, 2, 0], sk[:, 2, 1] = xc[:, 2], -xc[:, 1], xc[:, 0]
     Jt = (Jp @ sk).reshape(-1, 3)                     # eq. M2
-    return sigma_px**2 * np.eye(2 * len(xc)) + sigma_att_rad**2 * Jt @ Jt.T
+    var = np.repeat(np.broadcast_to(np.asarray(sigma_px, float) ** 2, (len(xc),)), 2)
+    return np.diag(var) + sigma_att_rad**2 * Jt @ Jt.T
 
 
 def _basis(e: np.ndarray) -> np.ndarray:

@@ -6,7 +6,8 @@ The truth's gravity (point mass ``gm_true_m3_s2`` + J2 ``j2_true`` about the spi
 (Busch et al. 2011) of bulk density 1.3 g/cm³ (C-type): GM = 2.9 m³/s², an oblate top-shape J2 of 0.05, and an
 onboard GM 10 % high. ``sigma_px`` is the pixel noise the filter declares for every method (overridden per method by
 ``sigma_px_by_method``); it is the same knob for every method so that a method's bias or excess noise shows up as
-filter inconsistency (NEES/NIS outside their bands) instead of being tuned away.
+filter inconsistency (NEES/NIS outside their bands) instead of being tuned away. ``sigma_ground_m`` adds a landmark
+error fixed on the ground (the maplets' mapping error does not shrink with the GSD), σ_i² = σ_px² + (σ_g/GSD_i)².
 """
 
 from __future__ import annotations
@@ -29,6 +30,11 @@ class DescentNavigationConfig(Strict):
         "copy of the filter on the same images, star-tracker and accelerometer draws and initial estimate")
     sigma_px: Positive = Field(0.3, description="Declared landmark pixel noise of the filter, per axis [px]")
     sigma_px_by_method: dict[str, Positive] = Field({}, description="Per-method override of sigma_px [px]")
+    sigma_ground_m: NonNegative = Field(0.0, description="Declared landmark error on the ground: each landmark's "
+                                        "pixel variance is sigma_px^2 + (sigma_ground_m / GSD)^2, GSD = predicted "
+                                        "range / fx [m]")
+    sigma_ground_m_by_method: dict[str, NonNegative] = Field({}, description="Per-method override of "
+                                                             "sigma_ground_m [m]")
     star_tracker_sigma_arcsec: NonNegative = Field(10.0, description="Star-tracker attitude error 1 sigma per "
                                                    "camera axis, drawn per image [arcsec]")
     initial_position_sigma_m: Positive = Field(1.0, description="Initial position error 1 sigma per axis [m]")
@@ -65,3 +71,6 @@ class DescentNavigationConfig(Strict):
 
     def sigma_for(self, method: str) -> float:
         return float(self.sigma_px_by_method.get(method, self.sigma_px))
+
+    def ground_sigma_for(self, method: str) -> float:
+        return float(self.sigma_ground_m_by_method.get(method, self.sigma_ground_m))

@@ -4,7 +4,8 @@ Per image k (time t_k): the filter is propagated from the previous image with th
 per ``1/accel_rate_hz``, eq. D5 of :mod:`estimators.descent_nav.dynamics`); the landmark method gets the a-priori
 pose (position = the filter's, attitude = the star tracker's) and per landmark the search distance n_σ·√λ_max of the
 projected covariance (the filter's position block and the star tracker's σ; Wright et al. eq. 1–4 projection);
-the landmarks it measures ((s, l) = pred + (Δs, Δl)) update the filter (kind ``"pixel"``, R of eq. M3, the
+the landmarks it measures ((s, l) = pred + (Δs, Δl)) update the filter (kind ``"pixel"``, R of eq. M3 with
+σ_i² = σ_px² + (σ_ground/GSD_i)² per landmark, the
 method's outlier flags in ``context["flagged"]``), whose χ² gate rejects what does not fit.
 Landmarks attempted: those the a-priori pose predicts inside the image whose GSD ratio (predicted range / fx /
 maplet spacing) lies in ``gsd_ratio_range``, at most ``max_landmarks`` per image, GSD ratio closest to 1 first.
@@ -117,7 +118,10 @@ def _measure(impl, inp, k, filt, cfg, mopts):
         return sel, results, None
     pts = inp.centres[sel[good]]
     z = np.array([[results[i].meas_s, results[i].meas_l] for i in good]).reshape(-1)
-    R = pixel_covariance(fr.camera, pts, x[:3], inp.R_star[k], cfg.sigma_for(impl.name), inp.sigma_st_rad)
+    gsd = ((pts - x[:3]) @ inp.R_star[k])[:, 2] / fr.camera.fx          # predicted GSD per landmark, m/px
+    sg = cfg.ground_sigma_for(impl.name)
+    sig = np.sqrt(cfg.sigma_for(impl.name) ** 2 + (sg / gsd) ** 2) if sg > 0 else cfg.sigma_for(impl.name)
+    R = pixel_covariance(fr.camera, pts, x[:3], inp.R_star[k], sig, inp.sigma_st_rad)
     ctx = {"points_body_m": pts, "R_body_from_cam": inp.R_star[k], "camera": fr.camera,
            "flagged": np.array([results[i].outlier for i in good], bool)}
     return sel, results, FilterMeasurement("pixel", z, R, ctx)
