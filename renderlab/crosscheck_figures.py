@@ -313,3 +313,18 @@ def write_report(folder: Path, out_dir: Path) -> list[Path]:
         return done
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+class _CrosscheckFolder:
+    """The ``renderlab crosscheck`` folder as a result-folder kind (:mod:`renderlab.contracts.result_folder`)."""
+
+    name = "crosscheck"
+
+    def recognises(self, folder: Path) -> bool:
+        return is_crosscheck_folder(folder)
+
+    def write_report(self, folder: Path, out_dir: Path | None) -> list[Path]:
+        return write_report(folder, Path(out_dir) if out_dir is not None else Path(folder))
+
+
+RESULT_FOLDER = _CrosscheckFolder()

@@ -59,10 +59,15 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",
         "cycles": "renderlab.render.cycles_backend:CyclesBackend",
     }),
+    "result_folders": ("renderlab.result_folders", {  # renderlab.contracts.result_folder.ResultFolderKind objects
+        "crosscheck": "renderlab.crosscheck_figures:RESULT_FOLDER",
+        "error_budget": "renderlab.studies.retina_vs_spc.budget_report:RESULT_FOLDER",
+    }),
 }
 
 _LABELS = {"landmark_methods": "landmark method", "filters": "filter", "studies": "study", "worlds": "world kind",
-           "renderers": "renderer", "scenario_sections": "scenario section"}
+           "renderers": "renderer", "scenario_sections": "scenario section",
+           "result_folders": "result-folder kind"}
 
 
 def _load_target(target: str, what: str) -> Any:
@@ -158,6 +163,7 @@ studies = REGISTRIES["studies"]
 worlds = REGISTRIES["worlds"]
 renderers = REGISTRIES["renderers"]
 scenario_sections = REGISTRIES["scenario_sections"]
+result_folders = REGISTRIES["result_folders"]
 
 #: world kind → the study a campaign runs when ``campaign.study`` is empty
 DEFAULT_STUDY: dict[str, str] = {"analytic": "analytic_pointing", "ev5": "retina_vs_spc", "earth": "coastline_ekf",

@@ -1,5 +1,6 @@
 """``renderlab report CAMPAIGN_DIR [--out DIR]`` (summary CSVs, figures and index.html from a campaign's tables; for a
-``renderlab crosscheck`` folder its crosscheck.md and figure from its two tables, into the folder by default) and
+registered result-folder kind — a ``renderlab crosscheck`` folder, an error budget — its own report from its
+tables, :mod:`renderlab.contracts.result_folder`) and
 ``renderlab publish CAMPAIGN_DIR --out RESULTS_DIR`` (the raw tables as a study folder, then its report)."""
 
 from __future__ import annotations
@@ -21,6 +22,20 @@ def add_parser(subparsers) -> None:
     q.set_defaults(command_module=__name__, publish=True)
 
 
+def _result_folder_kind(folder: Path):
+    """The first registered result-folder kind (:mod:`renderlab.contracts.result_folder`) that recognises
+    ``folder``, else None (a campaign or published study folder)."""
+    from renderlab.plugins import result_folders
+
+    if not folder.is_dir():
+        return None
+    for name in result_folders.names():
+        kind = result_folders.get(name)
+        if kind.recognises(folder):
+            return kind
+    return None
+
+
 def run(args) -> int:
     from renderlab.campaign.publish import is_published, publish_campaign
     from renderlab.errors import UserError
@@ -32,10 +47,12 @@ def run(args) -> int:
         print(f"renderlab: published {out} (tables/, campaign.json, runs.json); report {page}")
         return 0
     src = Path(args.campaign)
-    from renderlab.crosscheck_figures import is_crosscheck_folder, write_report
-
-    if is_crosscheck_folder(src):  # a renderlab crosscheck folder: its page and figure from its two tables
-        files = write_report(src, Path(args.out) if args.out else src)
+    if not src.is_dir():
+        raise UserError(f"{src}: no such folder (renderlab report reads a campaign, published study or result "
+                        "folder)")
+    kind = _result_folder_kind(src)
+    if kind is not None:  # a registered result-folder kind: its report from its own tables
+        files = kind.write_report(src, Path(args.out) if args.out else None)
         print(f"renderlab: wrote {', '.join(f.name for f in files)} into {files[0].parent}")
         return 0
     if args.out is None and not is_published(src):

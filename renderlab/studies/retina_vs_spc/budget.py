@@ -291,7 +291,9 @@ def main(argv: list[str] | None = None) -> int:
         else:
             from renderlab.studies.retina_vs_spc.budget_report import write_report
 
-            write_report(args.folder)
+            out = write_report(args.folder)
+            print(f"renderlab: wrote {out} (budget_summary.csv, budget_terms.csv, budget_table.md, "
+                  "error_budget.png/.svg)")
     except UserError as err:
         print(f"renderlab: error: {err}", file=sys.stderr)
         return 2

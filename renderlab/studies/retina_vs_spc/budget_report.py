@@ -172,8 +172,9 @@ def _probe_markdown(rows: list[dict]) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_report(folder: Path) -> Path:
-    """Write ``folder/report/`` from ``folder/tables/`` alone (staged: all or nothing); returns the report folder."""
+def write_report(folder: Path, out_dir: Path | None = None) -> Path:
+    """Write ``out_dir`` (default ``folder/report/``) from ``folder/tables/`` alone (staged: all or nothing);
+    returns the report folder."""
     from renderlab.campaign import store
     from renderlab.studies.retina_vs_spc.budget_figure import budget_figure
     from renderlab.studies.retina_vs_spc.budget_tables import read_tables
@@ -184,7 +185,8 @@ def write_report(folder: Path) -> Path:
     meas, configs = read_tables(folder)
     summary, terms, breakdown = compute(meas, configs)
     probe = _probe(folder)
-    with store.staged_folder(folder / "report", "the error-budget report") as stage:
+    out_dir = Path(out_dir) if out_dir is not None else folder / "report"
+    with store.staged_folder(out_dir, "the error-budget report") as stage:
         _write_csv(stage / "budget_summary.csv", summary)
         _write_csv(stage / "budget_terms.csv", terms)
         _write_csv(stage / "budget_breakdown.csv", breakdown)
@@ -194,6 +196,21 @@ def write_report(folder: Path) -> Path:
             md += _probe_markdown(probe)
         (stage / "budget_table.md").write_text(md, encoding="utf-8")
         budget_figure(summary, terms, stage / "error_budget")
-    print(f"renderlab: wrote {folder / 'report'} (budget_summary.csv, budget_terms.csv, budget_table.md, "
-          "error_budget.png/.svg)")
-    return folder / "report"
+    return out_dir
+
+
+class _BudgetFolder:
+    """An error-budget folder (``budget.json`` + ``tables/``) as a result-folder kind
+    (:mod:`renderlab.contracts.result_folder`): ``renderlab report FOLDER`` regenerates its report."""
+
+    name = "error_budget"
+
+    def recognises(self, folder: Path) -> bool:
+        return (Path(folder) / "budget.json").is_file()
+
+    def write_report(self, folder: Path, out_dir: Path | None) -> list[Path]:
+        out = write_report(folder, out_dir)
+        return sorted(out.iterdir())
+
+
+RESULT_FOLDER = _BudgetFolder()
