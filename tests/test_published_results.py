@@ -18,8 +18,9 @@ REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "results"
 COASTLINE = ["coastline_ekf", "coastline_ekf/sensitivity_1pt_5mrad", "coastline_ekf/image_in_the_loop",
              "coastline_ekf/truth_not_model/j2_rk4", "coastline_ekf/truth_not_model/zonal_dop853"]
+TRUTH_PERTURBED = ["retina_vs_spc_truth_perturbed", "retina_vs_spc_truth_perturbed/nominal"]
 PUBLISHED = sorted({p for p in RESULTS.iterdir() if p.is_dir() and is_published(p)}
-                   | {RESULTS / c for c in COASTLINE if is_published(RESULTS / c)})
+                   | {RESULTS / c for c in COASTLINE + TRUTH_PERTURBED if is_published(RESULTS / c)})
 
 
 def test_the_retina_vs_spc_study_is_published_with_its_tables():
@@ -54,3 +55,22 @@ def test_report_regenerates_from_the_published_tables(folder, tmp_path, capsys):
     figures = {p.name for p in (folder / "report").glob("*.png")}
     assert figures and figures == {p.name for p in (copy / "report").glob("*.png")}
     assert figures == {p.with_suffix(".png").name for p in (folder / "report").glob("*.svg")}, "PNG + SVG"
+
+
+def test_the_truth_perturbed_retina_vs_spc_campaign_is_published_beside_its_nominal_companion():
+    """>= 100 runs that each moved the true pose (their own renders), and the companion with the same seeds and the
+    nominal truth: the same knowledge draws run by run, no truth perturbation."""
+    import pyarrow.parquet as pq
+
+    pert = RESULTS / "retina_vs_spc_truth_perturbed"
+    nom = pert / "nominal"
+    assert pert in PUBLISHED and nom in PUBLISHED  # both regenerate from their tables (test above)
+    p = pq.read_table(pert / "tables" / "perturbations.parquet").to_pydict()
+    n = pq.read_table(nom / "tables" / "perturbations.parquet").to_pydict()
+    assert len(set(p["run"])) >= 100 and len(set(n["run"])) >= 100
+    assert all(abs(p[f"dpos_{a}"][k]) > 0 and abs(p[f"att_rotvec_{a}"][k]) > 0 for k in range(len(p["run"])) for a in "xyz")
+    assert not any(n[f"dpos_{a}"][k] or n[f"att_rotvec_{a}"][k] for k in range(len(n["run"])) for a in "xyz")
+    by_run = {r: k for k, r in enumerate(p["run"])}
+    for k, r in enumerate(n["run"]):
+        for c in ("focal_scale", "spacing_scale", "dpp_s", "sun_rotvec_x", "ddist_k1"):
+            assert n[c][k] == p[c][by_run[r]], c
