@@ -50,6 +50,9 @@ def main(argv=None) -> int:
     t = time.perf_counter()
     world = LoadedWorld(truth, base)
     print(f"world plan (once per process): {time.perf_counter() - t:.1f} s, {len(world.plan.frames)} frames per run")
+    t = time.perf_counter()
+    world.backend_for(world.plan.frames[0])
+    print(f"scene load (once per process): {time.perf_counter() - t:.1f} s")
     times = {"loaded": [], "per run": []}
     with tempfile.TemporaryDirectory() as tmp:
         for rep in range(args.repeats):
