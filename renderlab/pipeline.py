@@ -61,8 +61,6 @@ def render_truthset(
     The world's :class:`renderlab.worlds.base.WorldPlan` supplies the frames, the scene(s), per-frame
     metadata and truth-table rows; this function owns seeds, the renderer, the sensor and the files.
     """
-    from tqdm import tqdm
-
     from renderlab.worlds.base import make_plan  # noqa: F401
 
     seed = scenario.render.seed if seed is None else int(seed)
@@ -78,42 +76,47 @@ def render_truthset(
     plan = make_plan(scenario, base_dir)
     specs = plan.frames if frames is None else plan.frames[:frames]
     head["render_frame"] = plan.render_frame
-    opts = SensorOptions(**scenario.sensor.options_dict())
     children = np.random.SeedSequence(seed).spawn(len(specs))
-    backend, key_loaded, writer = None, object(), None
-    rows: dict[str, list[dict]] = {}
+    loaded = {"key": object(), "backend": None, "scene": None}
+
+    def backend_for(spec):
+        key = plan.scene_key(spec)
+        if loaded["backend"] is None or key != loaded["key"]:
+            loaded["scene"] = plan.scene(key)
+            loaded["backend"], loaded["key"] = make_backend(scenario, loaded["scene"], renderer), key
+        return loaded["backend"], loaded["scene"]
+
+    return write_frames(out_dir, scenario, plan, specs, children, backend_for, head=head, overwrite=overwrite,
+                        progress=progress)
+
+
+def write_frames(out_dir: Path, scenario: Scenario, plan, specs: list, seeds: list, backend_for, *, head: dict,
+                 overwrite: bool = False, progress: bool = False) -> Path:
+    """The render loop shared by :func:`render_truthset` and the per-pose truth cache
+    (:func:`renderlab.campaign.cache.render_frames`): for each frame spec and its ``SeedSequence`` (split into
+    the renderer's sample pattern and the sensor noise), render with ``backend_for(spec) -> (backend, scene)``,
+    auto-expose on the first frame, expose, and write the frame, the plan's metadata and truth tables and a
+    contact sheet into a truth set at ``out_dir`` (staged: all or nothing). ``head`` is the manifest's head."""
+    from tqdm import tqdm
+
+    opts = SensorOptions(**scenario.sensor.options_dict())
+    writer, rows = None, {}
     try:
-        for spec, child in tqdm(list(zip(specs, children)), desc="render", unit="frame", disable=not progress):
-            key = plan.scene_key(spec)
-            if backend is None or key != key_loaded:
-                scene = plan.scene(key)
-                backend, key_loaded = make_backend(scenario, scene, renderer), key
+        for spec, child in tqdm(list(zip(specs, seeds)), desc="render", unit="frame", disable=not progress):
+            backend, scene = backend_for(spec)
             if writer is None:
-                writer = TruthSetWriter(
-                    out_dir,
-                    {**head, "renderer": {"name": backend.name, "version": backend.version, "variant": backend.variant}},
-                    overwrite=overwrite,
-                ).__enter__()
+                info = {"name": backend.name, "version": backend.version, "variant": backend.variant}
+                writer = TruthSetWriter(out_dir, {**head, "renderer": info}, overwrite=overwrite).__enter__()
                 plan.write_static(writer)
             render_ss, sensor_ss = child.spawn(2)
             out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
             lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)  # mono sensor
-            if spec.index == specs[0].index and scenario.sensor.auto_exposure:
+            if spec is specs[0] and scenario.sensor.auto_exposure:
                 t_exp = exposure_for_peak(lum, opts, fraction=scenario.sensor.auto_exposure_fraction)
                 opts = with_exposure(opts, t_exp)
             sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
-            meta = {
-                "camera": spec.camera.to_dict(),
-                "pose": {
-                    "position_m": [float(v) for v in spec.pose.position_m],
-                    "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)],
-                },
-                "sun": spec.sun.to_dict(),
-                **plan.frame_meta(spec, scene),
-                "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
-                           "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)},
-            }
-            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn, meta, dn_bits=opts.bits)
+            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn,
+                             _frame_meta(spec, plan, scene, opts), dn_bits=opts.bits)
             for name, new_rows in plan.frame_rows(spec, out).items():
                 rows.setdefault(name, []).extend(new_rows)
         for name, table_rows in rows.items():
@@ -125,6 +128,21 @@ def render_truthset(
         raise
     writer.__exit__(None, None, None)
     return Path(out_dir)
+
+
+def _frame_meta(spec, plan, scene, opts) -> dict:
+    """A frame's manifest record: camera, pose (render frame), Sun, the plan's metadata, the sensor settings."""
+    return {
+        "camera": spec.camera.to_dict(),
+        "pose": {
+            "position_m": [float(v) for v in spec.pose.position_m],
+            "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)],
+        },
+        "sun": spec.sun.to_dict(),
+        **plan.frame_meta(spec, scene),
+        "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
+                   "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)},
+    }
 
 
 def _rows_to_table(rows: list[dict]):

@@ -216,47 +216,14 @@ def cached_frames_truthset(scenario, base_dir: Path, cache_root: Path, specs: li
 
 
 def render_frames(world: LoadedWorld, out_dir: Path, specs: list, *, note: dict | None = None) -> Path:
-    """Render ``specs`` from ``world`` into a truth set at ``out_dir`` (written atomically): the loop of
-    :func:`renderlab.pipeline.render_truthset` (same seeds, auto-exposure on the first frame, sensor, files,
-    the plan's metadata and truth tables) with the world's loaded renderer."""
-    from renderlab.geometry.rotations import quat_xyzw
-    from renderlab.pipeline import _contact_sheet_png, _rows_to_table
-    from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
-    from renderlab.truthset import TruthSetWriter
+    """Render ``specs`` from ``world`` into a truth set at ``out_dir`` (written atomically) by the render loop of
+    :func:`renderlab.pipeline.render_truthset` (:func:`renderlab.pipeline.write_frames`: same seeds,
+    auto-exposure on the first frame, sensor, files, the plan's metadata and truth tables) with the world's
+    loaded renderer."""
+    from renderlab.pipeline import write_frames
 
     sc, plan = world.scenario, world.plan
     head = {"scenario": sc.to_dict(), "seed": int(sc.render.seed), "render_frame": plan.render_frame,
             "frame_specs_note": note or {}}
-    opts = SensorOptions(**sc.sensor.options_dict())
-    writer, rows = None, {}
-    try:
-        for spec in specs:
-            backend, scene = world.backend_for(spec)
-            if writer is None:
-                info = {"name": backend.name, "version": backend.version, "variant": backend.variant}
-                writer = TruthSetWriter(out_dir, {**head, "renderer": info}).__enter__()
-                plan.write_static(writer)
-            render_ss, sensor_ss = world.render_seed(spec.index).spawn(2)
-            out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
-            lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)
-            if spec is specs[0] and sc.sensor.auto_exposure:
-                opts = with_exposure(opts, exposure_for_peak(lum, opts, fraction=sc.sensor.auto_exposure_fraction))
-            sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
-            meta = {"camera": spec.camera.to_dict(),
-                    "pose": {"position_m": [float(v) for v in spec.pose.position_m],
-                             "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)]},
-                    "sun": spec.sun.to_dict(), **plan.frame_meta(spec, scene),
-                    "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
-                               "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)}}
-            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn, meta, dn_bits=opts.bits)
-            for name, new_rows in plan.frame_rows(spec, out).items():
-                rows.setdefault(name, []).extend(new_rows)
-        for name, table_rows in rows.items():
-            writer.add_table(name, _rows_to_table(table_rows))
-        writer.add_file("contact_sheet.png", _contact_sheet_png(writer))
-    except BaseException as exc:
-        if writer is not None:
-            writer.__exit__(type(exc), exc, exc.__traceback__)
-        raise
-    writer.__exit__(None, None, None)
-    return Path(out_dir)
+    seeds = [world.render_seed(spec.index) for spec in specs]
+    return write_frames(out_dir, sc, plan, specs, seeds, world.backend_for, head=head)
