@@ -26,8 +26,9 @@ def add_parser(subparsers) -> None:
                    help="a-priori attitude 1-sigma per axis, deg (default 0.05)")
     p.add_argument("--n-sigma", type=float, default=3.0, help="search distance in sigma (default 3)")
     p.add_argument("--max-search-px", type=int, default=48, help="largest search distance, px (default 48)")
-    p.add_argument("--peak", choices=["retina_3x3", "parabola_1d", "quadric_2d", "gaussian", "upsampled"],
-                   help="peak finder (default: retina_3x3 for retina, quadric_2d for spc)")
+    p.add_argument("--peak", metavar="FINDER",
+                   help="sub-pixel peak finder of estimators.retina.peaks (retina_3x3, parabola_1d, quadric_2d, "
+                        "gaussian_2d, gaussian, upsampled; default: the method's own, retina_3x3 for retina)")
     p.add_argument("--min-correlation", type=float, default=0.3, help="correlation threshold (default 0.3)")
     p.add_argument("--photometry", choices=["fitted", "fixed"], default="fitted",
                    help="both methods' McEwen weight: L(phase) fitted to the body's catalogued law (default) or exp(-phase/60 deg)")
@@ -51,6 +52,11 @@ def run(args) -> int:
 
     if args.seed < 0:
         raise UserError(f"--seed must be >= 0, got {args.seed}")
+    if args.peak is not None:
+        from estimators.retina.peaks import FINDERS
+
+        if args.peak not in FINDERS:
+            raise UserError(f"--peak: unknown peak finder {args.peak!r} (choose from {', '.join(FINDERS)})")
     for name in ("sigma_pos_m", "sigma_att_deg", "n_sigma", "psf_sigma_px"):
         v = getattr(args, name)
         if not math.isfinite(v) or v < 0:
