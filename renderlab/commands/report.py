@@ -48,8 +48,8 @@ def run(args) -> int:
         return 0
     src = Path(args.campaign)
     if not src.is_dir():
-        raise UserError(f"{src}: no such folder (renderlab report reads a campaign, published study or result "
-                        "folder)")
+        raise UserError(f"{src} is not a campaign folder: no such folder (renderlab report reads a campaign, "
+                        "published study or result folder)")
     kind = _result_folder_kind(src)
     if kind is not None:  # a registered result-folder kind: its report from its own tables
         files = kind.write_report(src, Path(args.out) if args.out else None)
