@@ -19,31 +19,10 @@ import pyarrow.parquet as pq
 import pytest
 
 from renderlab.cli import main
+from tiny_ev5 import TINY_EV5_WORLD
 
-TINY = """name = "ev5_tiny_perturbed"
-[world]
-kind = "ev5"
-seed = 5
-facet_m = 4.0
-[world.site]
-extent_m = 30.0
-cell_m = 0.05
-taper_m = 1.0
-crater_max_m = 3.0
-boulder_min_m = 0.3
-[[world.landmarks]]
-name = "regional"
-count = 8
-spacing_m = 0.2
-size = 15
-radius_m = 6.0
-[[world.landmarks]]
-name = "site"
-count = 8
-spacing_m = 0.1
-size = 15
-radius_m = 2.5
-[trajectory]
+TINY = f"""name = "ev5_tiny_perturbed"
+{TINY_EV5_WORLD}[trajectory]
 kind = "ev5_descent"
 altitudes_m = [65.0, 45.0]
 [camera]
