@@ -145,9 +145,14 @@ def rasterize_facets(tri, val, x0, cell, n, out_h, out_v):  # pragma: no cover -
 def grid_faces(n: int) -> np.ndarray:
     """(2(n−1)², 3) int32 faces of an n × n vertex grid (index j·n + i), counter-clockwise seen
     from +z when columns run along +x and rows along +y: (v00, v01, v11) and (v00, v11, v10)."""
-    j, i = np.meshgrid(np.arange(n - 1, dtype=np.int32), np.arange(n - 1, dtype=np.int32), indexing="ij")
-    v00 = (j * n + i).ravel()
-    v01, v10, v11 = v00 + 1, v00 + n, v00 + n + 1
+    return rect_faces(n, n)
+
+
+def rect_faces(ny: int, nx: int) -> np.ndarray:
+    """Faces of an ny × nx vertex grid (index j·nx + i), in the convention of :func:`grid_faces`."""
+    j, i = np.meshgrid(np.arange(ny - 1, dtype=np.int32), np.arange(nx - 1, dtype=np.int32), indexing="ij")
+    v00 = (j * nx + i).ravel()
+    v01, v10, v11 = v00 + 1, v00 + nx, v00 + nx + 1
     out = np.empty((2 * len(v00), 3), np.int32)
     out[0::2] = np.column_stack([v00, v01, v11])
     out[1::2] = np.column_stack([v00, v11, v10])

@@ -43,6 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from renderlab.worlds.ev5.terrain import rect_faces
+
 
 @dataclass(frozen=True, order=True)
 class TileKey:
@@ -55,17 +57,6 @@ class TileKey:
     @property
     def name(self) -> str:
         return f"r{self.row}c{self.col}L{self.level}"
-
-
-def rect_faces(ny: int, nx: int) -> np.ndarray:
-    """Faces of an ny × nx vertex grid (index j·nx + i), the diagonal convention of ``terrain.grid_faces``."""
-    j, i = np.meshgrid(np.arange(ny - 1, dtype=np.int32), np.arange(nx - 1, dtype=np.int32), indexing="ij")
-    v00 = (j * nx + i).ravel()
-    v01, v10, v11 = v00 + 1, v00 + nx, v00 + nx + 1
-    out = np.empty((2 * len(v00), 3), np.int32)
-    out[0::2] = np.column_stack([v00, v01, v11])
-    out[1::2] = np.column_stack([v00, v11, v10])
-    return out
 
 
 def decimation_error(h: np.ndarray, stride: int) -> tuple[float, float]:
