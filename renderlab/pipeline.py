@@ -26,6 +26,7 @@ def make_backend(scenario: Scenario, scene, renderer: str):
         spp=scenario.render.spp,
         max_depth=scenario.render.max_depth,
         pixel_filter=scenario.render.pixel_filter,
+        shadows=scenario.render.shadows,
         near_clip_m=scenario.render.near_clip_m,
         far_clip_m=scenario.render.far_clip_m,
     )

@@ -18,7 +18,8 @@ pickle, multilayer float EXR). Mapping to the lab's conventions:
 * Radiance: ``spp`` samples with a 1-px box filter (each sample uniform over the pixel, as in the
   Mitsuba backend), direct sunlight (max_depth = 2 only), photometric laws as OSL shaders
   (``osl/rl_photometry.osl``, the laws of :mod:`renderlab.photometry`). ``pixel_filter = "center"``
-  uses the centre render's radiance instead.
+  uses the centre render's radiance instead. ``shadows = false``: no body casts a shadow (every object's
+  shadow-ray visibility off, ``Object.visible_shadow``).
 * Truth AOVs: a second render with 1 sample and a 0.01-px box filter (Cycles' minimum: the sample lies
   within ±0.005 px of the pixel centre): Position (render frame), Normal (shading normal), IndexOB
   (object ``pass_index`` = body id + 1, 0 = miss → id −1). Cycles' Z pass is planar depth; like the
@@ -269,7 +270,8 @@ class CyclesBackend:
         # worker's folder, so nothing is written into the package (and parallel workers never race)
         osl_copy = self.workdir / OSL_PATH.name
         shutil.copyfile(OSL_PATH, osl_copy)
-        (self.workdir / "scene.json").write_text(json.dumps({"bodies": bodies, "osl_path": str(osl_copy)}))
+        (self.workdir / "scene.json").write_text(json.dumps({"bodies": bodies, "osl_path": str(osl_copy),
+                                                              "shadows": bool(settings.shadows)}))
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         self._proc = subprocess.Popen(
             [sys.executable, "-m", "renderlab.render.cycles_job", str(self.workdir)],

@@ -12,7 +12,8 @@ Cycles settings that would corrupt truth are all set explicitly: Standard view t
 float EXR, box pixel filter (width from the job: 1 px for radiance, 0.01 px ≈ the pixel centre for the
 truth AOVs), no adaptive sampling, no denoiser, fixed seed, sun of angle 0 with strength = irradiance
 (W m⁻²; Cycles' sun strength is irradiance: a 0.5-albedo Lambert plane facing a 1000 W m⁻² sun
-renders 0.5·1000/π), no shadow-terminator offsets, black world, no metadata stamps.
+renders 0.5·1000/π), no shadow-terminator offsets, black world, no metadata stamps; ``render.shadows =
+false`` makes every body invisible to shadow rays (``Object.visible_shadow``).
 """
 
 from __future__ import annotations
@@ -137,7 +138,7 @@ def _material(bpy, body: dict, arrays, osl_path: str, has_attr: bool, has_map: b
     return mat, scr
 
 
-def _add_body(bpy, sc, body: dict, arrays, osl_path: str):
+def _add_body(bpy, sc, body: dict, arrays, osl_path: str, shadows: bool = True):
     k = body["key"]
     V = np.asarray(arrays[f"v_{k}"], np.float64)
     F = np.asarray(arrays[f"f_{k}"], np.int64)
@@ -165,6 +166,7 @@ def _add_body(bpy, sc, body: dict, arrays, osl_path: str):
     ob = bpy.data.objects.new(body["name"], me)
     sc.collection.objects.link(ob)
     ob.pass_index = int(body["body_id"]) + 1
+    ob.visible_shadow = bool(shadows)  # render.shadows = false: no shadow rays stop at this body
     for attr in ("shadow_terminator_offset", "shadow_terminator_geometry_offset"):
         if hasattr(ob, attr):
             setattr(ob, attr, 0.0)
@@ -181,7 +183,7 @@ def build(workdir: Path):
     desc = json.loads((workdir / "scene.json").read_text())
     arrays = np.load(workdir / "scene.npz", allow_pickle=False)
     sc = _reset_scene(bpy)
-    scripts = [_add_body(bpy, sc, body, arrays, desc["osl_path"]) for body in desc["bodies"]]
+    scripts = [_add_body(bpy, sc, body, arrays, desc["osl_path"], desc.get("shadows", True)) for body in desc["bodies"]]
     light = bpy.data.lights.new("rl_sun", "SUN")
     light.angle = 0.0
     sun = bpy.data.objects.new("rl_sun", light)

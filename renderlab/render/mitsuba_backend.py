@@ -69,6 +69,9 @@ class MitsubaBackend:
     #: ``"drjit"``: primary rays generated in the kernel (JIT variants, the default); ``"numpy"``: the former
     #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks
     ray_path = "drjit"
+    #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) where it applies, else ``path``;
+    #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before issue 19), kept for the benchmarks
+    integrator = "auto"
     #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
     samples_per_pass = MAX_SAMPLES_PER_PASS
 
@@ -77,8 +80,10 @@ class MitsubaBackend:
         import drjit as dr
 
         from renderlab.render.mitsuba_bsdf import register_bsdfs
+        from renderlab.render.mitsuba_direct import integrator_dict, register_direct_sun
 
         register_bsdfs(mi)
+        register_direct_sun(mi)
         self.mi, self.dr, self.settings = mi, dr, settings
         self.origin = np.zeros(3) if scene.origin_m is None else np.asarray(scene.origin_m, np.float64).reshape(3)
         self.variant = mi.variant()
@@ -88,7 +93,7 @@ class MitsubaBackend:
         self.scalar = self.variant.startswith("scalar")
         desc = {
             "type": "scene",
-            "integrator": {"type": "path", "max_depth": settings.max_depth, "hide_emitters": True},
+            "integrator": integrator_dict(settings.max_depth, settings.shadows, self.integrator),
             "sun": {"type": "directional", "direction": [0.0, 0.0, -1.0], "irradiance": 1.0},
         }
         keys = {}

@@ -128,6 +128,7 @@ class RenderSettings:
     spp: int = 16
     max_depth: int = 2
     pixel_filter: str = "box"  # "box" (spp samples uniform over the pixel) or "center" (one sample)
+    shadows: bool = True  # False: no cast shadows (shadow rays off; direct sunlight, max_depth 2, only)
     near_clip_m: float = 1e-3
     far_clip_m: float = 1e7
 

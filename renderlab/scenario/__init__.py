@@ -110,6 +110,8 @@ class RenderConfig(_Strict):
                                                           "sunlight only (single bounce)")
     pixel_filter: Literal["box", "center"] = Field("box", description="Pixel footprint: box = samples spread over "
                                                    "the pixel; center = one sample at the pixel centre (validation)")
+    shadows: bool = Field(True, description="Cast shadows (false: every surface facing the sun is lit, shadow rays "
+                          "off; needs max_depth = 2)")
     near_clip_m: Positive = Field(1e-3, description="Near clip distance [m]")
     far_clip_m: Positive = Field(1e7, description="Far clip distance, above near_clip_m [m]")
     seed: Annotated[int, Field(ge=0)] = Field(0, description="Seed of the sample pattern and the sensor noise")
@@ -127,6 +129,8 @@ class RenderConfig(_Strict):
     def _clips(self):
         if self.far_clip_m <= self.near_clip_m:
             raise ValueError(f"far_clip_m ({self.far_clip_m}) must exceed near_clip_m ({self.near_clip_m})")
+        if not self.shadows and self.max_depth != 2:
+            raise ValueError(f"shadows = false needs max_depth = 2 (direct sunlight), got max_depth {self.max_depth}")
         return self
 
 
