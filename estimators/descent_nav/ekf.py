@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.descent_nav import dynamics
+from estimators.descent_nav.map_states import MODES, MapStates, landmark_context, map_jacobian
 from estimators.descent_nav.measurements import model
 from renderlab.errors import UserError
 
@@ -42,6 +43,12 @@ class DescentNavOptions:
         Reject landmarks the method flagged as outliers (``context["flagged"]``).
     max_step_s : float
         Longest RK4 step, s.
+    map_states : str
+        Landmark map-error states (:mod:`.map_states`): ``"off"`` (none: the map is exact), ``"estimate"``
+        (augmented-state EKF, eqs. L1–L4) or ``"consider"`` (Schmidt–Kalman: carried, never updated). On, a
+        ``"pixel"`` measurement needs ``context["landmark_ids"]`` and ``context["landmark_cov_m2"]``.
+    map_keep_updates : int
+        A landmark's map states are marginalised after this many consecutive updates without it (eq. L3).
     """
 
     gm_m3_s2: float = 0.0
@@ -51,6 +58,8 @@ class DescentNavOptions:
     gate_probability: float = 1.0 - 1e-6
     reject_flagged: bool = True
     max_step_s: float = 10.0
+    map_states: str = "off"
+    map_keep_updates: int = 3
 
     def __post_init__(self):
         w = np.asarray(self.omega_rad_s, float)
@@ -65,6 +74,10 @@ class DescentNavOptions:
             raise UserError(f"{NAME}: gate_probability must be in (0, 1], got {self.gate_probability!r}")
         if not (self.max_step_s > 0 and math.isfinite(self.max_step_s)):
             raise UserError(f"{NAME}: max_step_s must be positive, got {self.max_step_s!r}")
+        if self.map_states not in MODES:
+            raise UserError(f"{NAME}: map_states must be one of {', '.join(MODES)}, got {self.map_states!r}")
+        if not (isinstance(self.map_keep_updates, int) and self.map_keep_updates >= 1):
+            raise UserError(f"{NAME}: map_keep_updates must be an integer >= 1, got {self.map_keep_updates!r}")
 
 
 @dataclass(frozen=True)
@@ -97,42 +110,76 @@ def _gate_statistics(nu: np.ndarray, S: np.ndarray, groups: list) -> np.ndarray:
 
 class DescentEKF:
     """Onboard descent EKF (module docstring). ``set_input(u)`` holds the accelerometer's reading (body frame,
-    m/s²) until the next call; call it once per accelerometer sample, then ``propagate`` to that sample's end."""
+    m/s²) until the next call; call it once per accelerometer sample, then ``propagate`` to that sample's end.
+    ``x``, ``P``: the navigation state [r, v] and its covariance; with map states, ``xa``, ``Pa`` are the whole
+    augmented state and ``map_ids`` the landmarks whose map errors it holds (in that order)."""
 
     def __init__(self, options: DescentNavOptions | None = None):
         self.options = options or DescentNavOptions()
         self._omega = np.asarray(self.options.omega_rad_s, float)
         self._gate, self._q = {}, {}
-        self.t = self.x = self.P = None
+        self.t = self._x = self._P = None
         self.u = np.zeros(3)
+        self._maps = MapStates(self.options.map_keep_updates)
+
+    @property
+    def x(self):
+        return None if self._x is None else self._x[:6]
+
+    @property
+    def P(self):
+        return None if self._P is None else self._P[:6, :6]
+
+    @property
+    def xa(self):
+        return self._x
+
+    @property
+    def Pa(self):
+        return self._P
+
+    @property
+    def map_ids(self) -> list[int]:
+        return list(self._maps.ids)
+
+    @property
+    def map_reaugmented(self) -> int:
+        """Landmarks augmented again after their states were marginalised (:mod:`.map_states`)."""
+        return self._maps.reaugmented
 
     def initialize(self, t0_s: float, x0, P0) -> None:
         self.t = float(_finite(t0_s, (), "t0_s"))
-        self.x = _finite(x0, (6,), "x0")
+        x = _finite(x0, (6,), "x0")
         P = _finite(P0, (6, 6), "P0")
         if not np.allclose(P, P.T) or np.linalg.eigvalsh(0.5 * (P + P.T))[0] <= 0:
             raise UserError(f"{NAME}: P0 must be symmetric positive definite")
-        self.P = 0.5 * (P + P.T)
+        self._x, self._P = x, 0.5 * (P + P.T)
+        self._maps.reset()
 
     def _check(self):
-        if self.x is None:
+        if self._x is None:
             raise UserError(f"{NAME}: initialize the filter before propagating or updating it")
 
     def set_input(self, u_mps2) -> None:
         self.u = _finite(u_mps2, (3,), "the input acceleration")
 
     def propagate(self, t_s: float) -> None:
+        """Eqs. D1–D5; map states constant (eq. L4: Φ_a = blkdiag(Φ, I))."""
         self._check()
         dt = float(t_s) - self.t
         if dt == 0.0:
             return
         o = self.options
-        self.x, phi = dynamics.propagate(self.x, dt, o.gm_m3_s2, self._omega, self.u, o.max_step_s)
+        x, phi = dynamics.propagate(self._x[:6], dt, o.gm_m3_s2, self._omega, self.u, o.max_step_s)
         if dt not in self._q:
             self._q[dt] = dynamics.white_acceleration_q(dt, o.q_acc_m2_s3) + dynamics.held_input_q(dt,
                                                                                                 o.sigma_input_mps2)
-        P = phi @ self.P @ phi.T + self._q[dt]
-        self.P = 0.5 * (P + P.T)
+        P = self._P.copy()
+        P[:6, :6] = phi @ self._P[:6, :6] @ phi.T + self._q[dt]
+        P[:6, 6:] = phi @ self._P[:6, 6:]
+        P[6:, :6] = P[:6, 6:].T
+        self._x = np.concatenate([x, self._x[6:]])
+        self._P = 0.5 * (P + P.T)
         self.t = float(t_s)
 
     def _threshold(self, dof: int) -> float:
@@ -143,34 +190,67 @@ class DescentEKF:
             self._gate[dof] = math.inf if p >= 1.0 else float(chi2.ppf(p, dof))
         return self._gate[dof]
 
+    def _with_maps(self, kind: str, context: dict):
+        """(context with map-corrected points, slot of each landmark or None): augments new landmarks (eq. L2)."""
+        if self.options.map_states == "off" or kind != "pixel" or "points_body_m" not in context:
+            return context, None
+        pts = np.asarray(context["points_body_m"], float)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            return context, None                     # the measurement model gives the one-line error
+        ids, covs = landmark_context(context, len(pts), NAME)
+        self._x, self._P = self._maps.augment(self._x, self._P, ids, covs)
+        slots = self._maps.slots(ids)
+        dp = self._x[6:].reshape(-1, 3)[slots] if len(self._x) > 6 else np.zeros((len(pts), 3))
+        return {**context, "points_body_m": pts + dp}, slots
+
+    def _close_maps(self, context: dict, slots, kept: np.ndarray) -> None:
+        """Drop the landmarks augmented now but not kept (nothing learnt: exact), then the stale ones (eq. L3)."""
+        if slots is None:
+            if self.options.map_states != "off":
+                self._x, self._P = self._maps.remove(self._x, self._P, self._maps.end_update([]))
+            return
+        ids = np.asarray(context["landmark_ids"]).reshape(-1)
+        fresh = [int(j) for j, k in zip(slots, kept) if not k and self._maps.seen[j] == self._maps.count]
+        self._x, self._P = self._maps.remove(self._x, self._P, fresh, forget=True)
+        used = ids[kept]
+        self._x, self._P = self._maps.remove(self._x, self._P, self._maps.end_update(used))
+
     def update(self, t_s: float, kind: str, z, R, context: dict) -> DescentUpdate:
-        """Propagate to ``t_s`` and update with one measurement of ``kind`` (eqs. U1–U4)."""
+        """Propagate to ``t_s`` and update with one measurement of ``kind`` (eqs. U1–U4; map states L1–L3)."""
         self.propagate(t_s)
         z = np.array(z, dtype=float).reshape(-1)
         if not np.all(np.isfinite(z)):
             raise UserError(f"{NAME}: measurement z has non-finite values")
-        nu, H, Rm, groups = model(kind, self.x, z, np.array(R, dtype=float) if R is not None else None,
-                                  context, NAME)
+        context = context or {}
+        ctx, slots = self._with_maps(kind, context)
+        nu, H6, Rm, groups = model(kind, self._x[:6], z, np.array(R, dtype=float) if R is not None else None,
+                                   ctx, NAME)
         if Rm is None or Rm.shape != (len(nu), len(nu)) or not np.all(np.isfinite(Rm)):
             raise UserError(f"{NAME}: R must be a finite ({len(nu)}, {len(nu)}) covariance for this {kind!r} "
                             f"measurement")
+        n = len(self._x)
+        H = map_jacobian(H6, slots, n) if slots is not None else np.hstack([H6, np.zeros((len(nu), n - 6))])
         k = len(groups)
         flagged = np.zeros(k, bool)
         if self.options.reject_flagged and "flagged" in context:
             flagged = np.asarray(context["flagged"], bool).reshape(-1)
             if flagged.shape != (k,):
                 raise UserError(f"{NAME}: context 'flagged' must have one entry per landmark ({k})")
-        S = H @ self.P @ H.T + Rm
+        S = H @ self._P @ H.T + Rm
         d2 = _gate_statistics(nu, S, groups)
         gated = ~flagged & (d2 > np.array([self._threshold(len(g)) for g in groups]))
         kept = ~flagged & ~gated
         if not kept.any():
+            self._close_maps(context, slots, kept)
             return DescentUpdate(math.nan, 0, kept, flagged, gated, d2)
         rows = np.concatenate([g for g, keep in zip(groups, kept) if keep])
         nu, H, Rk, S = nu[rows], H[rows], Rm[np.ix_(rows, rows)], S[np.ix_(rows, rows)]
-        K = np.linalg.solve(S, H @ self.P).T
-        IKH = np.eye(6) - K @ H
-        self.x = self.x + K @ nu
-        P = IKH @ self.P @ IKH.T + K @ Rk @ K.T
-        self.P = 0.5 * (P + P.T)
+        K = np.linalg.solve(S, H @ self._P).T
+        if self.options.map_states == "consider":
+            K[6:] = 0.0                              # Schmidt–Kalman: the map states are considered, not estimated
+        IKH = np.eye(n) - K @ H
+        self._x = self._x + K @ nu
+        P = IKH @ self._P @ IKH.T + K @ Rk @ K.T
+        self._P = 0.5 * (P + P.T)
+        self._close_maps(context, slots, kept)
         return DescentUpdate(float(nu @ np.linalg.solve(S, nu)), len(rows), kept, flagged, gated, d2)

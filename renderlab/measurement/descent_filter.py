@@ -9,6 +9,10 @@ Options: None (defaults), a :class:`estimators.descent_nav.DescentNavOptions`, o
 ``update`` returns the NIS over the landmarks the χ² gate kept and dof = 2 per kept landmark (``accepted`` False
 when all were rejected); :attr:`last` holds the estimator's :class:`~estimators.descent_nav.DescentUpdate` (which
 landmarks were kept, flagged, gated). ``set_input(u)`` passes the accelerometer's reading (body frame, m/s²).
+With the option ``map_states`` on (``"estimate"`` or ``"consider"``) a ``"pixel"`` measurement also needs context
+``landmark_ids`` (k,) and ``landmark_cov_m2`` (k, 3, 3) (the declared map covariance, body frame); ``x`` and ``P``
+stay the navigation state [r, v] (6,) and its (6, 6) covariance, :attr:`xa` / :attr:`Pa` / :attr:`map_ids` give
+the augmented state.
 """
 
 from __future__ import annotations
@@ -60,6 +64,19 @@ class DescentNavFilter:
         return None if self._f.P is None else self._f.P.copy()
 
     @property
+    def xa(self):
+        """The whole state: [r, v] and the map errors of :attr:`map_ids` (3 each, body frame, m)."""
+        return None if self._f.xa is None else self._f.xa.copy()
+
+    @property
+    def Pa(self):
+        return None if self._f.Pa is None else self._f.Pa.copy()
+
+    @property
+    def map_ids(self) -> list[int]:
+        return self._f.map_ids
+
+    @property
     def t_s(self):
         return self._f.t
 
@@ -77,6 +94,6 @@ class DescentNavFilter:
         if not isinstance(measurement, FilterMeasurement):
             raise UserError(f"descent_ekf: update needs a FilterMeasurement, got {type(measurement).__name__}")
         self.last = self._f.update(t_s, measurement.kind, measurement.z, measurement.R, measurement.context)
-        if not (np.all(np.isfinite(self._f.x)) and np.all(np.isfinite(self._f.P))):
+        if not (np.all(np.isfinite(self._f.xa)) and np.all(np.isfinite(self._f.Pa))):
             raise UserError("descent_ekf: the state or covariance became non-finite (diverged)")
         return FilterUpdate(nis=self.last.nis, dof=self.last.dof, accepted=bool(self.last.dof > 0))
