@@ -10,7 +10,11 @@
   within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off);
 * ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
   residual of the exact models comes from; and the sensor-noise-alone rms noise sd / CRLB in the same groups;
-* ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure.
+* ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure;
+* with ``tables/budget_navigation.parquet`` (:mod:`.budget_navigation`): ``budget_navigation.csv`` (each
+  source's contribution to the descent filter's touchdown-proxy error), ``budget_navigation_validation.csv``
+  (geometric all-on vs the rendered closed-loop campaign) and ``budget_navigation.png``/``.svg``
+  (:mod:`.budget_navigation_report`).
 """
 
 from __future__ import annotations
@@ -194,6 +198,11 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
         if probe:
             _write_csv(stage / "budget_supersample.csv", probe)
             md += _probe_markdown(probe)
+        from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
+
+        sources = [s for s in configs.column("source").to_pylist() if s]
+        nav = NR.write(folder, stage, sources, _write_csv)
+        md += ("\n" + nav) if nav else ""
         (stage / "budget_table.md").write_text(md, encoding="utf-8")
         budget_figure(summary, terms, stage / "error_budget")
     return out_dir
