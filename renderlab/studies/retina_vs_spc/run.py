@@ -35,12 +35,12 @@ truth image over the landmark's footprint (:func:`renderlab.campaign.scoring.reg
 
 from __future__ import annotations
 
-import functools
 import math
 from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.maplets import respaced_maplets
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
 
@@ -95,30 +95,6 @@ class BelievedTruthSet(ReexposedTruthSet):
             raise UserError(self.no_radiance.format(path=self.path, i=i))
         dn = np.rint(expected_dn(np.asarray(fr.radiance, np.float64), self.sensor_options(i)))
         return dataclasses.replace(fr, dn=dn.astype(np.uint16))
-
-
-@functools.lru_cache(maxsize=2)
-def _site(world_json: str, base_dir: str):
-    from renderlab.worlds.ev5 import build_model
-    from renderlab.worlds.ev5.config import EV5World
-
-    return build_model(EV5World.model_validate_json(world_json), Path(base_dir)).site
-
-
-def respaced_maplets(maplets, world, base_dir, scale: float, rng: np.random.Generator) -> list:
-    """The catalog rebuilt at ``spacing·scale`` from the site DEM (same centres/frames, fresh mapping error)."""
-    from renderlab.geometry.maplet import Maplet
-    from renderlab.worlds.ev5.landmarks import cell_means, correlated_error
-
-    site = _site(world.model_dump_json(), str(Path(base_dir).resolve()))
-    out = []
-    for m in maplets:
-        n, sp = m.heights_m.shape[0], m.spacing_m * scale
-        h, a = cell_means(site, m.center_m, m.R_body_from_maplet, sp, n)
-        h = h + correlated_error(n, world.mapping_error_m, world.mapping_error_corr_cells, rng)
-        a = a / a.mean() * (1.0 + world.albedo_error_rms * rng.standard_normal(a.shape))
-        out.append(Maplet(m.landmark_id, m.center_m, m.R_body_from_maplet, float(sp), h, a))
-    return out
 
 
 def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict) -> dict:
