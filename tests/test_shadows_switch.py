@@ -105,7 +105,7 @@ def test_shadows_off_gives_the_closed_form_unshadowed_radiance(renderer):
 @pytest.mark.parametrize("laws", [("lambert", "lommel_seeliger"), ("hapke", "mcewen")])
 def test_direct_sun_integrator_renders_the_path_depth_2_image(laws):
     sets = [f"world.bodies.1.law=\"{laws[0]}\"", f"world.bodies.2.law=\"{laws[1]}\""]
-    direct, _, _, be_d = _render(sets, integrator="direct")
+    direct, _, _, be_d = _render(sets)  # the default ("auto") at max_depth 2
     path, _, _, be_p = _render(sets, integrator="path")
     assert type(be_d.scene.integrator()).__name__ == "DirectSun"
     assert "PathIntegrator" in str(be_p.scene.integrator())
@@ -129,6 +129,7 @@ def test_shadows_false_needs_direct_sunlight():
     with pytest.raises(UserError, match="needs the direct-sun integrator"):
         integrator_dict(2, False, "path")
     assert integrator_dict(3, True)["type"] == "path"
+    assert integrator_dict(2, True)["type"] == "rl_direct_sun" and integrator_dict(2, True, "path")["type"] == "path"
 
 
 def test_truth_cache_never_reuses_a_shadowed_render_for_shadow_free_truth(tmp_path):
@@ -147,3 +148,28 @@ def test_truth_cache_never_reuses_a_shadowed_render_for_shadow_free_truth(tmp_pa
     L = {k: TruthSet.open(p).load(0).radiance for k, p in paths.items()}
     brighter = L[False] > L[True] + 1.0
     assert brighter.sum() > 20 and np.all(L[False] >= L[True] - 1e-3)  # the sphere's shadow lit, nothing darker
+
+
+def test_scalar_fallback_direct_sun_matches_path_and_switches_shadows_off():
+    """The scalar variant (the fallback without LLVM) runs the same integrator ray by ray (misses included)."""
+    from renderlab.pipeline import frame_specs, make_backend
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.worlds.analytic import build_scene
+
+    out = {}
+    for integrator, shadows in (("auto", True), ("path", True), ("auto", False)):
+        sc = scenario_from_dict(scenario_dict(render={"variant": "scalar_rgb", "spp": 1, "pixel_filter": "center",
+                                                      "shadows": shadows, "near_clip_m": 0.01, "far_clip_m": 1000.0}))
+        MitsubaBackend.integrator = integrator
+        try:
+            backend = make_backend(sc, build_scene(sc.world, REPO / "scenes"), "mitsuba")
+        finally:
+            MitsubaBackend.integrator = "auto"
+        assert backend.scalar
+        out[integrator, shadows] = backend.render(frame_specs(sc)[0], seed=1).radiance
+    direct, path, off = out["auto", True], out["path", True], out["auto", False]
+    assert (direct == 0).sum() > 50  # misses and the sphere's shadow are in view
+    np.testing.assert_allclose(direct, path, rtol=0, atol=1e-5 * path.max())
+    lit_by_switch = off > direct + 1.0
+    assert lit_by_switch.sum() > 20 and np.all(off >= direct - 1e-3)

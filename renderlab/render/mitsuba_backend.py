@@ -7,8 +7,11 @@ in the kernel (:mod:`renderlab.render.mitsuba_rays`: a pinhole's inverse pixel m
 exact; with distortion a float64 :meth:`CameraModel.unproject` of the pixel-centre grid once per camera,
 bilinear inside the pixel, ≤ 3e-3 px) in one wavefront of W·H·spp samples, like ``mi.render``. ``ray_path = "numpy"`` keeps
 the former path (every sample's (s, l) through :meth:`CameraModel.unproject` in numpy, one wavefront
-per sample) for the benchmarks. Mitsuba's integrator (``path``; ``max_depth = 2`` is direct sunlight
-only) evaluates the radiance along the rays.
+per sample) for the benchmarks. The integrator evaluates the radiance along the rays: for direct sunlight
+(``max_depth = 2``) the lab's ``rl_direct_sun`` (:mod:`renderlab.render.mitsuba_direct`: primary and shadow
+ray, one BSDF evaluation; ``shadows = False`` drops the shadow ray), for longer paths Mitsuba's ``path``;
+``integrator = "path"`` keeps ``path`` at ``max_depth = 2`` too (the integrator before issue 19: a third,
+BSDF-sampled ray per sample that cannot reach the delta sun, and a second BSDF evaluation), for the benchmarks.
 
 * Box pixel filter: sample j of pixel (s, l) is at (s, l) + frac(r2_j + u_pix) − ½, with r2_j the
   R2 low-discrepancy sequence and u_pix one uniform shift per pixel (Cranley–Patterson rotation).
@@ -69,7 +72,7 @@ class MitsubaBackend:
     #: ``"drjit"``: primary rays generated in the kernel (JIT variants, the default); ``"numpy"``: the former
     #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks
     ray_path = "drjit"
-    #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) where it applies, else ``path``;
+    #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) for max_depth 2, else ``path``;
     #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before issue 19), kept for the benchmarks
     integrator = "auto"
     #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
@@ -264,16 +267,18 @@ class MitsubaBackend:
         return out
 
     def _truth_aovs(self, frame: FrameSpec, hits):
-        """Position (3, N; render origin added back), normal (3, N), float64 range and body id from centre-ray
-        hits (valid, P (3, N), N (3, N), registry id)."""
+        """Position (N, 3) float64 (render origin added back), normal (N, 3) float32, float64 range and body id
+        from centre-ray hits (valid, P (3, N), N (3, N), registry id); NaN / −1 where nothing was hit."""
         valid, P, N, reg = hits
-        ids = np.where(valid, self._id_lut[np.clip(reg, 0, len(self._id_lut) - 1)], -1).astype(np.int32)
-        P, N = np.array(P, np.float64), np.array(N, np.float64)
-        P[:, ~valid] = np.nan
-        N[:, ~valid] = np.nan
-        d = P - (np.asarray(frame.pose.position_m, float) - self.origin)[:, None]
-        rng_m = np.sqrt(np.einsum("ij,ij->j", d, d))
-        P += self.origin[:, None]
+        miss = ~np.asarray(valid, bool)
+        ids = self._id_lut[np.clip(reg, 0, len(self._id_lut) - 1)].astype(np.int32)
+        ids[miss] = -1
+        P = np.asarray(P).T.astype(np.float64)  # (N, 3) contiguous
+        d = P - (np.asarray(frame.pose.position_m, float) - self.origin)
+        rng_m = np.sqrt(np.einsum("ij,ij->i", d, d))
+        P += self.origin
+        N = np.asarray(N).T.astype(np.float32)
+        P[miss], N[miss], rng_m[miss] = np.nan, np.nan, np.nan
         return P, N, rng_m, ids
 
     def _camera_rays(self, camera) -> CameraRays:
@@ -308,7 +313,8 @@ class MitsubaBackend:
         pose = FramePose(mi, dr, frame.pose.rotation.as_matrix(),
                          np.asarray(frame.pose.position_m, float) - self.origin,
                          self.settings.near_clip_m, self.settings.far_clip_m)
-        si = self.scene.ray_intersect(cr.world_rays(cr.centre_directions(dr.arange(mi.UInt32, W * H)), pose))
+        si = self.scene.ray_intersect(cr.world_rays(cr.centre_directions(dr.arange(mi.UInt32, W * H)), pose),
+                                      ray_flags=mi.RayFlags.All, coherent=True)  # camera rays: Embree's coherent mode
         truth = [si.is_valid(), si.p, si.sh_frame.n, dr.reinterpret_array(mi.UInt32, si.shape)]
         ss = np.random.SeedSequence(seed)
         if self.settings.pixel_filter == "center":
@@ -323,8 +329,8 @@ class MitsubaBackend:
             total = self._radiance_pass(cr, pose, shift, sum(passes[:k]), m, int(seeds[k]))
             dr.eval(total, *(truth if k == 0 else ()))  # the truth AOVs with the first pass
             acc += np.array(total, dtype=np.float64).reshape(channels, W * H)
-        valid, P, N, reg = (np.array(truth[0], dtype=bool), np.array(truth[1], dtype=np.float64),
-                            np.array(truth[2], dtype=np.float64), np.array(truth[3], dtype=np.int64))
+        valid, P, N, reg = (np.array(truth[0], dtype=bool), np.array(truth[1]), np.array(truth[2]),
+                            np.array(truth[3], dtype=np.int64))
         return self._frame(frame, acc / sum(passes), (valid, P, N, reg))
 
     def render(self, frame: FrameSpec, seed: int) -> RenderedFrame:
@@ -365,8 +371,8 @@ class MitsubaBackend:
         radiance = radiance[0].reshape(H, W) if len(radiance) == 1 else radiance.T.reshape(H, W, 3)
         return RenderedFrame(
             radiance=radiance,
-            position=np.ascontiguousarray(P.T, np.float32).reshape(H, W, 3),
-            normal=np.ascontiguousarray(N.T, np.float32).reshape(H, W, 3),
+            position=P.astype(np.float32).reshape(H, W, 3),
+            normal=N.reshape(H, W, 3),
             range_m=rng_m.reshape(H, W),
             body_id=ids.reshape(H, W),
         )

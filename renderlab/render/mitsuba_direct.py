@@ -28,8 +28,8 @@ Use
 :func:`register_direct_sun` once per Mitsuba variant (after
 :func:`renderlab.render.variant.init_mitsuba`), then ``{"type": "rl_direct_sun", "shadows": False}`` in a
 scene dict, or ``mi.load_dict`` it and pass it to ``mi.render(scene, integrator=...)``. The lab's
-:class:`renderlab.render.mitsuba_backend.MitsubaBackend` uses it where shadows are off
-(:func:`integrator_dict`). It supports
+:class:`renderlab.render.mitsuba_backend.MitsubaBackend` uses it whenever ``max_depth = 2``
+(:func:`integrator_dict`; ``MitsubaBackend.integrator = "path"`` selects Mitsuba's ``path`` for comparisons). It supports
 one directional emitter (the lab's sun); with several emitters Mitsuba's emitter sampling picks one per
 sample and the estimate stays unbiased.
 """
@@ -43,6 +43,8 @@ _registered: set[str] = set()
 def _build_class(mi, dr):
     """The integrator class for the active variant (it must subclass that variant's SamplingIntegrator)."""
 
+    scalar = not dr.is_jit_v(mi.Float)
+
     class DirectSun(mi.SamplingIntegrator):
         def __init__(self, props):
             mi.SamplingIntegrator.__init__(self, props)
@@ -52,6 +54,8 @@ def _build_class(mi, dr):
         def sample(self, scene, sampler, ray, medium=None, active=True):
             si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=True, active=active)
             valid = si.is_valid() & active
+            if scalar and not valid:  # scalar variants: no BSDF (null pointer) without a hit
+                return mi.Spectrum(0.0), False, []
             bsdf = si.bsdf(ray)
             ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(valid), self.shadows, valid)
             lit = valid & (ds.pdf != 0.0)
@@ -85,11 +89,11 @@ KINDS = ("auto", "path", "direct")
 def integrator_dict(max_depth: int, shadows: bool, kind: str = "auto") -> dict:
     """The scene's integrator for ``kind``: ``"direct"``, ``rl_direct_sun`` (direct sunlight, ``max_depth = 2``);
     ``"path"``, Mitsuba's ``path`` (the lab's integrator before issue 19, kept for the benchmarks); ``"auto"``,
-    ``rl_direct_sun`` where shadows are off, else ``path``. Shadows can be switched off only with
-    ``rl_direct_sun``."""
+    ``rl_direct_sun`` for direct sunlight (``max_depth = 2``), ``path`` for longer light paths. Shadows can be
+    switched off only with ``rl_direct_sun``."""
     if kind not in KINDS:
         raise ValueError(f"integrator kind must be one of {KINDS}, got {kind!r}")
-    if max_depth == 2 and (kind == "direct" or (kind == "auto" and not shadows)):
+    if max_depth == 2 and kind in ("direct", "auto"):
         return {"type": NAME, "shadows": bool(shadows)}
     if not shadows:
         from renderlab.errors import UserError
