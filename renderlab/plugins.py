@@ -29,6 +29,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
     "landmark_methods": ("renderlab.landmark_methods", {
         "retina": "renderlab.measurement.builtin_methods:RetinaMethod",
         "retina_refined": "renderlab.measurement.builtin_methods:RetinaRefinedMethod",
+        "retina_ml": "renderlab.measurement.builtin_methods:RetinaMlMethod",
         "spc": "renderlab.measurement.builtin_methods:SpcMethod",
     }),
     "filters": ("renderlab.filters", {

@@ -39,6 +39,9 @@ knob                  default       turn it when
 ``recentre_passes``   0             re-centred passes after the finder (:mod:`.recentre`: the template moved by
                                     the sub-pixel estimate, eq. 9 and the finder again at zero offset); 2 with
                                     ``gaussian_2d`` is the lab's refined step (``retina_refined``)
+``refine``            ""            a refinement of :data:`~.ml_shift.REFINEMENTS` after those: ``ml_shift``, the
+                                    maximum-likelihood shift by Gauss–Newton on the template (:mod:`.ml_shift`;
+                                    with ``gaussian_2d``: the ``retina_ml`` method); "" = none
 ====================  ============  ========================================================================
 
 Use
@@ -68,6 +71,7 @@ import numpy as np
 from estimators import flags as F
 from estimators.retina.correlation import correlation_surface
 from estimators.retina.maplet_mesh import MapletMesh
+from estimators.retina.ml_shift import REFINEMENTS
 from estimators.retina.peaks import locate_peak
 from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
 from estimators.retina.recentre import recentred_shift
@@ -92,6 +96,13 @@ class RetinaOptions:
         Final output phase threshold (module docstring).
     recentre_passes : int
         Re-centred peak passes after the finder (:func:`~.recentre.recentred_shift`); 0 = the finder alone.
+    refine : str
+        Refinement after the finder and passes, a name of :data:`~.ml_shift.REFINEMENTS`; "" = none.
+
+    Raises
+    ------
+    ValueError
+        An unknown refinement (an unknown finder is refused by :func:`~.peaks.locate_peak`).
     """
 
     template: TemplateOptions = field(default_factory=TemplateOptions)
@@ -101,6 +112,13 @@ class RetinaOptions:
     outlier_k: float = 5.0
     outlier_floor_px: float = 1.0
     recentre_passes: int = 0
+    refine: str = ""
+
+    def __post_init__(self):
+        from estimators.retina.ml_shift import REFINEMENTS
+        if self.refine and self.refine not in REFINEMENTS:
+            raise ValueError(f"unknown peak refinement {self.refine!r} (choose from {', '.join(REFINEMENTS)}, "
+                             "or '' for none)")
 
 
 @dataclass
@@ -183,6 +201,9 @@ def measure_landmark(image: np.ndarray, mesh: MapletMesh, camera: CameraModel, p
                 out.ds, out.dl = recentred_shift(image, tpl.image, tpl.valid, tpl.s0, tpl.l0, peak.ds, peak.dl,
                                                  options.peak, options.recentre_passes, image_valid,
                                                  options.min_pixels)
+            if options.refine:
+                out.ds, out.dl = REFINEMENTS[options.refine](image, tpl.image, tpl.valid, tpl.s0, tpl.l0, out.ds,
+                                                             out.dl, image_valid, options.min_pixels)
         return out
     finally:
         out.t_ms = (time.perf_counter() - t0) * 1e3

@@ -65,9 +65,10 @@ def rendered_locking_curve(fractions, methods=tuple(FINDERS), seeds=(5, 6, 7), s
             pred = project_point(cam, ap, M.center_m)
             true_shift = truth - pred
             for m in methods:
-                finder, passes = STEPS[m]
+                finder, passes, refine = STEPS[m]
                 r = measure_landmark(img, mesh, cam, ap, sun, search_px,
-                                     RetinaOptions(template=template, peak=finder, recentre_passes=passes),
+                                     RetinaOptions(template=template, peak=finder, recentre_passes=passes,
+                                                   refine=refine),
                                      image_valid=valid)
                 if not r.has_result:
                     raise RuntimeError(f"no result for finder {m} at shift {f} (flags {r.flags})")

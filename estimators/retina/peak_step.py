@@ -19,11 +19,18 @@ relative to the template. Two kinds:
 :func:`estimates` correlates the template with the image (eq. 9, search radius ``radius``) plus Gaussian pixel
 noise of σ = std(template over its footprint) / SNR (:func:`noise_sigma`; the template, the prediction, stays
 noise-free as onboard) and runs every step of :data:`STEPS`: each finder of :data:`~.peaks.FINDERS` on the
-integer maximum, and the re-centred passes of :mod:`.recentre`. Estimate − true shift is the step's error: its
-mean over noise-free cases at many fractions is the pixel-locking curve, its spread over noise draws is compared
-with the registration Cramér–Rao bound (the benchmark uses :func:`renderlab.campaign.scoring.registration_crlb`,
-independent code, on the noise-free image over the template's footprint).
+integer maximum, the re-centred passes of :mod:`.recentre` and the maximum-likelihood shift of :mod:`.ml_shift`.
+Estimate − true shift is the step's error: its mean over noise-free cases at many fractions is the pixel-locking
+curve, its spread over noise draws is compared with a Cramér–Rao bound.
 
+Which bound: on a texture case every image pixel is observed and the registration CRLB of
+:func:`renderlab.campaign.scoring.registration_crlb` (finite-difference gradients of the noise-free image) is
+the bound. A rendered case's image is zero and masked outside the maplet's footprint; finite differences across
+that border count the step from terrain to the masked zeros as signal, which no estimator can use (the pixels
+beyond it are not observed): on the benchmark's EV5 templates that bound is 2–4× too small (measured, issue 20).
+:func:`rendered_crlb` is the Fisher information of the rendered model itself (ML-3 of :mod:`.ml_shift`):
+the derivative of every observed pixel with respect to the shift from templates re-rendered at ±``h_px``
+(finely supersampled, so the pixel integral is smooth in the shift), gain and offset as nuisance parameters.
 Tuning
 ------
 ``radius`` (search distance, px; 3 = a 7 × 7 surface); the shifts, SNRs and noise draws are the caller's.
@@ -47,15 +54,28 @@ step). J. P. Lewis, "Fast normalized cross-correlation", Vision Interface 1995 (
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from estimators.retina.correlation import correlation_surface
 from estimators.retina.peaks import FINDERS, locate_peak, shifted_texture
 
-#: the steps compared: every finder of :data:`~.peaks.FINDERS` alone (0 passes), and re-centred
-#: (:mod:`.recentre`, 2 passes) on the two 2-D fits: name → (finder, passes)
-STEPS = {**{m: (m, 0) for m in FINDERS}, "quadric_2d_rc": ("quadric_2d", 2), "gaussian_2d_rc": ("gaussian_2d", 2)}
+
+
+class Step(NamedTuple):
+    """A peak step: the finder of :data:`~.peaks.FINDERS`, re-centred passes (:mod:`.recentre`) after it, and a
+    refinement of :data:`~.ml_shift.REFINEMENTS` after those ("" = none)."""
+
+    finder: str
+    passes: int = 0
+    refine: str = ""
+
+
+#: the steps compared: every finder of :data:`~.peaks.FINDERS` alone (0 passes), re-centred (:mod:`.recentre`,
+#: 2 passes) on the two 2-D fits, and the maximum-likelihood shift (:mod:`.ml_shift`) from ``gaussian_2d``
+STEPS = {**{m: Step(m) for m in FINDERS}, "quadric_2d_rc": Step("quadric_2d", 2), "gaussian_2d_rc": Step("gaussian_2d", 2),
+         "ml_shift": Step("gaussian_2d", 0, "ml_shift")}
 
 
 @dataclass(frozen=True)
@@ -110,6 +130,49 @@ def rendered_case(mesh, camera, true_pose, sun_body, shift_sl, template_options=
     return Case(img, ok, tpl.image, tpl.valid, tpl.s0, tpl.l0, (float(d[0]), float(d[1])))
 
 
+def _pasted(case: Case, shape) -> tuple[np.ndarray, np.ndarray]:
+    img, ok = np.zeros(shape), np.zeros(shape, bool)
+    h, w = case.template.shape
+    img[case.l0:case.l0 + h, case.s0:case.s0 + w] = case.template
+    ok[case.l0:case.l0 + h, case.s0:case.s0 + w] = case.valid
+    return img, ok
+
+
+def rendered_crlb(mesh, camera, true_pose, sun_body, shift_sl, sigma: float, h_px: float = 0.1,
+                  supersample: int = 9) -> tuple[float, float]:
+    """Cramér–Rao bound (1σ, px) of (Δs, Δl) for the rendered case of ``shift_sl`` in white noise of σ ``sigma``:
+    the Fisher information (ML-3 of :mod:`.ml_shift`) with each observed pixel's derivative from the
+    prediction re-rendered at ``shift_sl`` ± ``h_px`` on each axis (``supersample``² rays per pixel, so the pixel
+    values are smooth in the shift), over the image's footprint where all four renders are valid; gain and
+    offset as nuisance parameters (module docstring). ``(inf, inf)`` when a render fails or J is singular."""
+    from estimators.retina.predict import TemplateOptions
+
+    base = rendered_case(mesh, camera, true_pose, sun_body, (0.0, 0.0))
+    if base is None:
+        return float("inf"), float("inf")
+    opts = TemplateOptions(supersample=int(supersample))
+    ok = base.image_valid.copy()
+    grads = []
+    for ax in (0, 1):
+        pair = []
+        for sgn in (1.0, -1.0):
+            sh = np.array(shift_sl, float)
+            sh[ax] += sgn * h_px
+            c = rendered_case(mesh, camera, true_pose, sun_body, tuple(sh), opts)
+            if c is None:
+                return float("inf"), float("inf")
+            img, v = _pasted(c, base.image.shape)
+            pair.append((img, c.shift[ax]))
+            ok &= v
+        grads.append((pair[0][0] - pair[1][0]) / (pair[0][1] - pair[1][1]))
+    J = np.column_stack([grads[0][ok], grads[1][ok], base.image[ok], np.ones(int(ok.sum()))])
+    info = J.T @ J / float(sigma) ** 2
+    if np.linalg.cond(info) > 1e14:
+        return float("inf"), float("inf")
+    cov = np.linalg.inv(info)
+    return float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
+
+
 def noise_sigma(case: Case, snr: float) -> float:
     """Pixel noise σ of a given SNR: std of the template over its footprint / SNR."""
     return float(np.std(case.template[case.valid]) / snr)
@@ -119,14 +182,19 @@ def estimate(step: str, C, image, case: Case, image_valid=None) -> tuple[float, 
     """(Δs, Δl) of one step on the surface C of the case's template in ``image``; NaN on the search border."""
     from estimators.retina.recentre import recentred_shift
 
-    finder, passes = STEPS[step]
+    from estimators.retina.ml_shift import REFINEMENTS
+
+    finder, passes, refine = STEPS[step]
     p = locate_peak(C, finder)
     if p is None or p.on_border:
         return np.nan, np.nan
-    if passes == 0:
-        return p.ds, p.dl
-    return recentred_shift(image, case.template, case.valid, case.s0, case.l0, p.ds, p.dl, finder, passes,
-                           image_valid, 64)
+    ds, dl = p.ds, p.dl
+    if passes:
+        ds, dl = recentred_shift(image, case.template, case.valid, case.s0, case.l0, ds, dl, finder, passes,
+                                 image_valid, 64)
+    if refine:
+        ds, dl = REFINEMENTS[refine](image, case.template, case.valid, case.s0, case.l0, ds, dl, image_valid, 64)
+    return ds, dl
 
 
 def estimates(case: Case, steps=tuple(STEPS), snr: float | None = None, rng: np.random.Generator | None = None,

@@ -1,6 +1,7 @@
 """The lab's own landmark methods behind the :class:`~renderlab.contracts.landmark.LandmarkMethod` contract:
 Retina (:mod:`estimators.retina`), Retina with the refined peak step (``retina_refined``: the 2-D Gaussian fit
-``gaussian_2d`` of :mod:`estimators.retina.peaks` instead of the paper's 3×3 step) and the SPC-style method
+``gaussian_2d`` of :mod:`estimators.retina.peaks` instead of the paper's 3×3 step), Retina with the
+maximum-likelihood shift (``retina_ml``: :mod:`estimators.retina.ml_shift` after ``gaussian_2d``) and the SPC-style method
 (:mod:`estimators.spc`).
 
 The estimators stay self-contained (numpy/numba, their own result type with a bit mask of
@@ -52,6 +53,8 @@ class RetinaMethod:
     default_peak = "retina_3x3"
     #: re-centred peak passes after the finder (:mod:`estimators.retina.recentre`); 0 = the finder alone
     recentre_passes = 0
+    #: refinement after those (:data:`estimators.retina.ml_shift.REFINEMENTS`); "" = none
+    refine = ""
 
     def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
         from estimators.retina import RetinaOptions, TemplateOptions
@@ -60,8 +63,9 @@ class RetinaMethod:
                                                               psf_sigma_px=options.psf_sigma_px,
                                                               L_table=tuple(options.L_table)),
                                      peak=options.peak or self.default_peak, min_correlation=options.min_correlation,
-                                     recentre_passes=self.recentre_passes)
-        self.peak = self.options.peak + (f"+recentre{self.recentre_passes}" if self.recentre_passes else "")
+                                     recentre_passes=self.recentre_passes, refine=self.refine)
+        self.peak = (self.options.peak + (f"+recentre{self.recentre_passes}" if self.recentre_passes else "")
+                     + (f"+{self.refine}" if self.refine else ""))
         self._meshes: dict[int, tuple] = {}
 
     def _mesh(self, maplet):
@@ -92,6 +96,17 @@ class RetinaRefinedMethod(RetinaMethod):
     name = "retina_refined"
     default_peak = "gaussian_2d"
     recentre_passes = 2
+
+
+class RetinaMlMethod(RetinaMethod):
+    """Retina with the maximum-likelihood shift: the ``gaussian_2d`` peak, then Gauss–Newton on the template's own
+    pixels, gain and offset (:mod:`estimators.retina.ml_shift`), chosen from the bias and noise-vs-CRLB tables of
+    ``benchmarks/bench_retina_peak_step.py``; everything else as :class:`RetinaMethod`. The ``peak`` column reads
+    ``gaussian_2d+ml_shift``."""
+
+    name = "retina_ml"
+    default_peak = "gaussian_2d"
+    refine = "ml_shift"
 
 
 class SpcMethod:
