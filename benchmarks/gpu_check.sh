@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # GPU check of the Mitsuba render path (issue 19), one short run on a machine with an NVIDIA GPU:
-#   1. the renderer tests with every LLVM variant request sent to CUDA (RENDERLAB_MITSUBA_DEVICE=cuda);
+#   1. the renderer tests with every LLVM variant request sent to CUDA (RENDERLAB_MITSUBA_DEVICE=cuda), the
+#      direct-sun integrator and the shadows switch (tests/test_shadows_switch.py) included;
 #   2. GPU image = LLVM image to 1e-5 relative (benchmarks/bench_mitsuba_gpu_vs_llvm.py, 1024², mono + RGB,
 #      box 16 spp and centre 1 spp), with seconds per frame of both;
-#   3. the lab path vs mi.render on the GPU (benchmarks/bench_mitsuba_lab_vs_render.py, 1024², 16 spp).
+#      (the lab's default integrator: rl_direct_sun, renderlab/render/mitsuba_direct.py);
+#   3. the lab path vs mi.render on the GPU (benchmarks/bench_mitsuba_lab_vs_render.py, 1024², 16 spp): rl_direct_sun
+#      and Mitsuba's path in the lab path and in mi.render, and Mitsuba's own direct integrator, side by side.
 # Needs the project environment (./setup.sh) and a CUDA driver. Figures go to $OUT (default $TMPDIR/renderlab_gpu_check);
 # exit status 0 when everything passed, 1 when a step failed, 2 when there is no usable GPU.
 # Run from anywhere:  bash benchmarks/gpu_check.sh        (about 5 minutes; each step has its own timeout)
@@ -28,8 +31,8 @@ step() {  # name, timeout (s), command...
 }
 step tests 240 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest -q -p no:cacheprovider \
   tests/test_mitsuba_rays.py tests/test_backend_conformance.py tests/test_render_trimesh.py tests/test_mitsuba_bsdf.py \
-  -k "not cycles"
+  tests/test_shadows_switch.py -k "not cycles"
 step gpu_vs_llvm 150 $PY benchmarks/bench_mitsuba_gpu_vs_llvm.py --size 1024 --json "$OUT/gpu_vs_llvm.json"
-step lab_vs_render_cuda 120 $PY benchmarks/bench_mitsuba_lab_vs_render.py --variant cuda_ad_mono --size 1024 --repeats 5
+step lab_vs_render_cuda 180 $PY benchmarks/bench_mitsuba_lab_vs_render.py --variant cuda_ad_mono --size 1024 --repeats 5
 echo "gpu_check: $([ $status = 0 ] && echo PASSED || echo FAILED); figures in $OUT/"
 exit $status
