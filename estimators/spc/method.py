@@ -36,6 +36,8 @@ knob                  default     turn it when
 ``min_points``        64          lit grid points that must overlap the extracted image; lower for small maplets
 ``min_image_px``      9.0 px²     smallest image area of the maplet's footprint (``TOO_FEW_PIXELS`` below)
 ``drop_shadowed``     True        False keeps grid points predicted in shadow (their zeros) in the correlation
+``cast_shadows``      True        False skips the horizon march (attached shadows cos i ≤ 0 only): for a truth
+                                  rendered without cast shadows (``render.shadows = false``)
 ``alpha0``            π/3 rad     McEwen β = exp(−α/α0), used when ``L_table`` is empty
 ``ls_weight``         2           Lommel–Seeliger weight c (1: Retina eq. 5 as printed)
 ``L_table``           ()          L(α) fitted to the body's law; give both methods the same table
@@ -103,6 +105,8 @@ class SpcOptions:
         Peak finder (SPC: ``quadric_2d``).
     drop_shadowed : bool
         Throw away grid points predicted in shadow (SPC's practice).
+    cast_shadows : bool
+        Predict cast shadows by the horizon march (False: attached shadows only, cos i ≤ 0).
     outlier_k, outlier_floor_px : float
         Final output phase, as Retina's.
     min_image_px : float
@@ -117,6 +121,7 @@ class SpcOptions:
     min_points: int = 64
     peak: str = "quadric_2d"
     drop_shadowed: bool = True
+    cast_shadows: bool = True
     outlier_k: float = 5.0
     outlier_floor_px: float = 1.0
     min_image_px: float = 9.0
@@ -165,7 +170,7 @@ def predict_maplet(maplet: Maplet, to_cam_m: np.ndarray, sun_m: np.ndarray, opti
     phase = math.acos(float(np.clip(sun_m @ r, -1, 1)))
     img = mcewen_relative(cos_i, cos_r, phase, maplet.albedo, options.alpha0, options.ls_weight,
                           options.L_table or None)
-    shadow = (cos_i <= 0) | approximate_shadow(h, s, sun_m)
+    shadow = (cos_i <= 0) | (approximate_shadow(h, s, sun_m) if options.cast_shadows else False)
     img = np.where(shadow, 0.0, img)
     usable = ~shadow if options.drop_shadowed else np.ones(h.shape, bool)
     return img, usable & (cos_r > 0)
