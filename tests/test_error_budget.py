@@ -31,7 +31,10 @@ def _base():
 def test_configurations_switch_one_source_each_by_scenario_keys():
     base = B.with_section(_base())
     cfgs = {c["config"]: c for c in B.budget_configs(base)}
-    assert list(cfgs) == ["all_off", *B.SOURCES, "all_on"]
+    assert list(cfgs) == ["all_off", *B.SOURCES, "all_on", "no_shadows"]
+    ns = cfgs["no_shadows"]["scenario"]   # all off + no cast shadows in the truth (the methods: budget_shadows)
+    assert ns["render"]["shadows"] is False and not B.stochastic(ns) and cfgs["no_shadows"]["source"] == ""
+    assert all(B._get(ns, k) == B.OFF[k] for k in B.OFF) and base["render"].get("shadows", True) is True
     off = cfgs["all_off"]["scenario"]
     assert off["world"]["law"] == "mcewen" and off["world"]["mapping_error_m"] == 0
     assert off["retina_vs_spc"]["sensor_noise"] is False and not B.stochastic(off)

@@ -21,10 +21,11 @@ maplet_spacing       ``perturbations.maplet_spacing_sigma_frac``
 ==================== ============================================================================
 
 The peak step is not a scenario switch but a method: ``retina`` (3×3 step) beside ``retina_refined`` in every
-configuration (:mod:`.budget_stats` reports the difference). The shadow approximation cannot be switched off:
-the truth renderer has no shadow-free mode, so every configuration has ray-traced cast shadows in the truth
-and each method's own shadowing in its template; :mod:`.budget_stats` measures it instead by splitting the
-"all off" rows by truth shadow fraction.
+configuration (:mod:`.budget_stats` reports the difference). The shadow approximation is measured the same way,
+at all off: configuration ``no_shadows`` is every source off with no cast shadows in the truth
+(``render.shadows = false``) nor in the methods' predictions (:mod:`.budget_shadows` says why both); every
+other configuration has ray-traced cast shadows in the truth and each method's own shadowing in its template.
+``run --only CONFIG ...`` runs just those configurations into an existing folder's tables (the rest kept).
 
 The truth render depends only on the world keys (law, mapping and albedo error: five truth sets, the
 others share the "all off" one through the truth cache). Configurations with no random draw (sensor
@@ -130,6 +131,9 @@ def budget_configs(base: dict, methods=METHODS) -> list[dict]:
     for src, (desc, keys) in SOURCES.items():
         add(src, src, f"{desc} alone", {**OFF, **{k: _get(base, k) for k in keys}})
     add("all_on", "", "every source on (the published campaign's scenario)", {})
+    from renderlab.studies.retina_vs_spc import budget_shadows as SH
+
+    add(SH.CONFIG, "", SH.DESCRIPTION, {**OFF, **SH.OVERRIDES})     # the shadow term, at all off (.budget_shadows)
     return out
 
 
@@ -166,7 +170,11 @@ def _one_run(task):
     if all(p.is_file() for p in done):  # finished by an earlier, interrupted call (same scenario, seed, run)
         return name, index, pq.read_table(done[0]), pq.read_table(done[1]), 0.0
     scenario = scenario_from_dict(sc_dict, f"error budget configuration {name}")
-    out = run(scenario, Path(base_dir), index, run_seed_sequence(seed, index), Path(workdir))
+    from renderlab.studies.retina_vs_spc import budget_shadows as SH
+    from renderlab.studies.retina_vs_spc.run import section
+
+    methods = SH.factories(section(scenario).methods) if name == SH.CONFIG else None
+    out = run(scenario, Path(base_dir), index, run_seed_sequence(seed, index), Path(workdir), methods=methods)
     tabs = []
     for key, path in zip(("measurements", "perturbations"), done):
         t = out[key]
@@ -204,8 +212,10 @@ def _tasks(configs, base_dir, runs, seed, workdir) -> tuple[list, list]:
     return first, sorted(rest, key=lambda task: task[3])  # run-major: every configuration advances together
 
 
-def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir: Path, command: str) -> None:
-    """Run every configuration (progress on stderr), write the tables and ``budget.json``, then the report."""
+def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir: Path, command: str,
+               only: list[str] | None = None) -> None:
+    """Run every configuration (progress on stderr), write the tables and ``budget.json``, then the report.
+    ``only``: run just these configurations and merge them into ``out``'s existing tables (:func:`_merge`)."""
     import concurrent.futures as cf
 
     import pyarrow as pa
@@ -219,6 +229,15 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
     base = scenario.to_dict()
     seed = int(base.get("campaign", {}).get("seed", 0))
     configs = budget_configs(base)
+    if only:
+        from renderlab.studies.retina_vs_spc.budget_tables import read_tables
+
+        unknown = sorted(set(only) - {c["config"] for c in configs})
+        if unknown:
+            raise UserError(f"--only: no configuration {unknown[0]!r} (known: "
+                            f"{', '.join(c['config'] for c in configs)})")
+        read_tables(out)  # an existing budget folder to merge into, before anything runs
+        configs = [c for c in configs if c["config"] in only]
     first, rest = _tasks(configs, base_dir, runs, seed, workdir)
     total, done, t0 = len(first) + len(rest), 0, time.perf_counter()
     meas, pert = [], []
@@ -230,13 +249,49 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
                 pert.append(p)
                 print(f"[{done}/{total}] {name} run {i}: {m.num_rows} rows, {dt:.1f} s "
                       f"(elapsed {time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
-    write_tables(out, configs, pa.concat_tables(meas, promote_options="default"),
-                 pa.concat_tables(pert, promote_options="default"),
-                 {"command": command, "scenario": scenario_path.name, "seed": seed, "runs": runs,
-                  "wall_s": round(time.perf_counter() - t0, 1), "workers": workers})
+    manifest = {"command": command, "scenario": scenario_path.name, "seed": seed, "runs": runs,
+                "wall_s": round(time.perf_counter() - t0, 1), "workers": workers}
+    m, p = pa.concat_tables(meas, promote_options="default"), pa.concat_tables(pert, promote_options="default")
+    if only:
+        _merge(out, configs, m, p, manifest)
+    else:
+        write_tables(out, configs, m, p, manifest)
     from renderlab.studies.retina_vs_spc.budget_report import write_report
 
     write_report(out)
+
+
+def _merge(out: Path, configs: list[dict], meas, pert, manifest: dict) -> None:
+    """Replace the rows of ``configs`` in ``out``'s three tables by the new ones (other configurations and
+    tables untouched; each file written to a temporary sibling, then renamed) and add the command to
+    ``budget.json`` under ``incremental``."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    from renderlab.studies.retina_vs_spc.budget_tables import (COLUMNS, CONFIGS, MANIFEST, MEASUREMENTS,
+                                                               PERTURBATIONS, TABLES)
+
+    names = pa.array([c["config"] for c in configs], pa.string())
+    new_cfg = pa.table({"config": names, "source": [c["source"] for c in configs],
+                        "description": [c["description"] for c in configs],
+                        "runs": pa.array([int(c["runs"]) for c in configs], pa.int64()),
+                        "overrides": [json.dumps(c["overrides"], sort_keys=True) for c in configs]})
+    merged = {}
+    for name, new in ((MEASUREMENTS, meas.select(list(COLUMNS))), (CONFIGS, new_cfg), (PERTURBATIONS, pert)):
+        old = pq.read_table(Path(out) / TABLES / f"{name}.parquet")
+        keep = old.filter(pc.invert(pc.is_in(old.column("config").cast(pa.string()), value_set=names)))
+        merged[name] = pa.concat_tables([keep, new.select(keep.column_names) if name != PERTURBATIONS else new],
+                                        promote_options="default")
+    for name, table in merged.items():
+        path = Path(out) / TABLES / f"{name}.parquet"
+        tmp = path.with_name(f".{path.name}.tmp")
+        pq.write_table(table, tmp)
+        tmp.replace(path)
+    mpath = Path(out) / MANIFEST
+    man = json.loads(mpath.read_text(encoding="utf-8"))
+    man.setdefault("incremental", []).append({**manifest, "configs": [c["config"] for c in configs]})
+    mpath.write_text(json.dumps(man, indent=2, sort_keys=True) + "\n", encoding="utf-8")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -251,6 +306,8 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--workers", type=int, default=2, help="worker processes")
     r.add_argument("--workdir", type=Path, default=Path("/tmp/renderlab_error_budget"),
                    help="scratch folder (truth cache)")
+    r.add_argument("--only", nargs="+", metavar="CONFIG",
+                   help="run only these configurations and merge them into --out's existing tables")
     g = sub.add_parser("report", help="make the table and figure again from FOLDER/tables alone")
     g.add_argument("folder", type=Path)
     q = sub.add_parser("probe", help="Retina's template supersampling on the all-off truth (.budget_probe) into "
@@ -313,7 +370,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "run":
             cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
-            run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd)
+            run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only)
         elif args.command == "probe":
             run_probe(args.folder, args.scenario, args.workdir)
         elif args.command == "navigation":

@@ -7,7 +7,8 @@
   rms and noise sd with 95 % cluster-bootstrap intervals (landmark-frames), median CRLB, noise / CRLB;
 * ``budget_terms.csv`` — per method, subset, axis and statistic: all-off value, each source's contribution,
   the quadrature sum, all-on and sum / all-on (joint cluster bootstrap), ``check`` PASS when sum / all-on is
-  within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off);
+  within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off); with the
+  ``no_shadows`` configuration, ``shadow_approximation`` (all off vs no cast shadows, :mod:`.budget_shadows`);
 * ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
   residual of the exact models comes from; and the sensor-noise-alone rms noise sd / CRLB in the same groups;
 * ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure;
@@ -28,7 +29,9 @@ from renderlab.errors import UserError
 
 N_BOOT_SUMMARY, N_BOOT_JOINT, SEED = 1000, 500, 20
 TERMS_ORDER = ("all_off", "sensor_noise", "mapping_error", "albedo_error", "photometric_law", "apriori_pose",
-               "camera_knowledge", "sun_knowledge", "maplet_spacing", "peak_step", "quadrature_sum", "all_on")
+               "camera_knowledge", "sun_knowledge", "maplet_spacing", "peak_step", "shadow_approximation",
+               "quadrature_sum", "all_on")
+SHADOW_CONFIG = "no_shadows"  # renderlab.studies.retina_vs_spc.budget_shadows.CONFIG
 BANDS = (("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf))
 
 
@@ -67,23 +70,27 @@ def compute(meas, configs, gross_px: float = 1.0) -> tuple[list, list, list]:
                     summary.append({"config": c, "method": m, "subset": sub, "axis": axis, **row})
                 rows = S.budget_rows(samp[m], sources, weights, gross_px)
                 if m == "retina" and "retina_refined" in samp:
-                    rows += _peak_rows(S, samp, weights, gross_px)
+                    rows += _peak_rows(S, samp["retina"]["all_off"], samp["retina_refined"]["all_off"], weights,
+                                       gross_px)
+                if SHADOW_CONFIG in samp[m]:
+                    rows += _peak_rows(S, samp[m]["all_off"], samp[m][SHADOW_CONFIG], weights, gross_px,
+                                       "shadow_approximation")
                 for r in rows:
                     r.update(method=m, subset=sub, axis=axis)
                 terms += _with_check(rows)
     return summary, terms, _breakdown(S, cols, runs, methods, gross_px)
 
 
-def _peak_rows(S, samp, weights, gross_px) -> list[dict]:
-    """Retina's 3×3 step against ``retina_refined``, all else off: signed √(v²(3×3) − v²(refined))."""
+def _peak_rows(S, a, b, weights, gross_px, name: str = "peak_step") -> list[dict]:
+    """A term measured at all off, signed √(v²(a) − v²(b)): ``peak_step`` (a = Retina's 3×3 step, b =
+    ``retina_refined``) or ``shadow_approximation`` (a = all off, b = ``no_shadows``, :mod:`.budget_shadows`)."""
     out = []
-    a, b = samp["retina"]["all_off"], samp["retina_refined"]["all_off"]
     for st in S.STATS:
         def term(w):
             d = np.asarray(S.weighted_stat(st, a, w, gross_px)) ** 2 - np.asarray(S.weighted_stat(st, b, w, gross_px)) ** 2
             return np.sign(d) * np.sqrt(np.abs(d))
         lo, hi = S._ci(term(weights))
-        out.append({"statistic": st, "term": "peak_step", "value": float(term(np.ones(weights.shape[1]))), "lo": lo,
+        out.append({"statistic": st, "term": name, "value": float(term(np.ones(weights.shape[1]))), "lo": lo,
                     "hi": hi})
     return out
 

@@ -148,8 +148,10 @@ def check(scenario) -> None:
         plugins.landmark_methods.get(name, where="retina_vs_spc.methods: ")
 
 
-def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
-    """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``."""
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir, methods=None) -> dict:
+    """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``. ``methods``: landmark
+    methods (names, objects or factories, :func:`renderlab.measurement.runner.make_method`) instead of the
+    section's names (the error budget's shadow-free onboard variants, :mod:`.budget_shadows`)."""
     import pyarrow as pa
 
     from renderlab.campaign.perturb import draw_perturbation
@@ -178,7 +180,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     opts = MeasureOptions(sigma_pos_m=sig_p, sigma_att_rad=sig_r, campaign=scenario.name, run=int(run_index))
     apriori_state = ss_apriori.generate_state(4)
     tables = [measure_truthset(believed, maplets, m, opts, np.random.default_rng(apriori_state))
-              for m in section(scenario).methods]
+              for m in (section(scenario).methods if methods is None else methods)]
     meas = pa.concat_tables(tables)
     truth = ts.read_table("landmark_truth").to_pydict()
     extras = landmark_extras(ts, believed, maplets, truth)
