@@ -20,7 +20,9 @@ relative albedo) between where the a-priori pose predicts it and where the image
    grid" (``retina_3x3``; :mod:`.peaks`, with the other finders and the pixel-locking curve, :mod:`.locking`).
    The lab's refined step (``peak="gaussian_2d"``, ``recentre_passes=2``: a 2-D Gaussian fit, then the template
    moved by the sub-pixel estimate and the fit repeated at zero offset, :mod:`.recentre`) locks ≈ 0.01 px where
-   the 3×3 step locks 0.04–0.07 px (:mod:`.peak_step`, ``benchmarks/bench_retina_peak_step.py``).
+   the 3×3 step locks 0.04–0.07 px (:mod:`.peak_step`, ``benchmarks/bench_retina_peak_step.py``). The
+   maximum-likelihood step (``refine="ml_shift"`` after ``gaussian_2d``, the ``retina_ml`` method: Gauss–Newton on
+   the template's own pixels with gain and offset, :mod:`.ml_shift`) comes closest to the Cramér–Rao bound.
 5. **Final output phase**: shifts inconsistent with the frame's median shift are flagged ``OUTLIER`` for the
    filter, not dropped (:mod:`.landmarks`).
 
@@ -28,7 +30,8 @@ Modules: :mod:`.maplet_mesh` (pre-processing), :mod:`.raytrace` (numba ray–fac
 :mod:`.predict` (projection eqs. 1–4, search distance, synthetic image eqs. 5–8), :mod:`.correlation`
 (eq. 9), :mod:`.peaks` (sub-pixel peak finders, pixel-locking curve), :mod:`.landmarks` (per landmark and
 per frame, final output phase), :mod:`.raster` (the default rasterised synthetic image), :mod:`.locking`
-(pixel-locking curve on Retina-rendered maplets), :mod:`.recentre` (re-centred peak passes), :mod:`.peak_step`
+(pixel-locking curve on Retina-rendered maplets), :mod:`.recentre` (re-centred peak passes), :mod:`.ml_shift`
+(maximum-likelihood shift), :mod:`.peak_step`
 (bias and noise of the peak steps on cases with a known shift). No result is a bit in :mod:`estimators.flags`.
 
 Tuning
