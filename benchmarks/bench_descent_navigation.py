@@ -7,7 +7,8 @@ Usage (the truth set of a descent campaign, e.g. the truth cache of ``results/de
         [--images 5] [--repeats 200]
 
 (a) Filter: ``set_input + propagate`` over one 1-s accelerometer sample and ``update`` with k = 8 landmark pixels
-(the study's cap), median and minimum of ``--repeats`` interleaved calls.
+(the study's cap), median and minimum of ``--repeats`` interleaved calls, for each map-state mode side by side
+(``off``: the filter without map states; ``estimate`` / ``consider``: 8 landmarks' map errors, 30 states).
 (b) Closed loop: one run of every method of the scenario on the first ``--images`` images of the truth set (the
 study's own loop, :func:`renderlab.studies.descent_navigation.loop.run_method`, fresh filter), wall time per image
 split into landmark measurement and everything else (filter, selection, bookkeeping).
@@ -43,6 +44,9 @@ BUDGET_MS = 1000.0 / 3.0
 
 
 def filter_steps(repeats: int) -> None:
+    """(a) per map-state mode (off = the filter before map states; estimate; consider), interleaved call by call:
+    propagate 1 s, the first update with 8 new landmarks (augmentation: 6 → 30 states), then propagate 1 s and
+    update again with the same 8 (30 states, the steady state of the descent)."""
     from estimators.descent_nav import DescentEKF, DescentNavOptions, pixel_covariance
     from renderlab.geometry.camera import CameraModel
     from renderlab.geometry.rotations import look_at
@@ -54,25 +58,41 @@ def filter_steps(repeats: int) -> None:
     pts = ground + rng.normal(0, 5.0, (8, 3))
     r = ground + 120 * up
     R = look_at(r, ground, np.array([0.0, 0.0, 1.0])).as_matrix()
-    f = DescentEKF(DescentNavOptions(gm_m3_s2=2.9, omega_rad_s=(0, 0, 4.7e-4), q_acc_m2_s3=1e-10,
-                                     sigma_input_mps2=2e-5))
+    modes = ("off", "estimate", "consider")
+    filters = {m: DescentEKF(DescentNavOptions(gm_m3_s2=2.9, omega_rad_s=(0, 0, 4.7e-4), q_acc_m2_s3=1e-10,
+                                               sigma_input_mps2=2e-5, map_states=m)) for m in modes}
     z = cam.project((pts - r) @ R).reshape(-1)
-    ctx = {"points_body_m": pts, "R_body_from_cam": R, "camera": cam}
+    ctx = {"points_body_m": pts, "R_body_from_cam": R, "camera": cam, "landmark_ids": np.arange(8),
+           "landmark_cov_m2": np.repeat((np.eye(3) * 0.01**2)[None], 8, 0)}
     Rm = pixel_covariance(cam, pts, r, R, 0.3, 5e-5)
-    prop, upd = [], []
+    t = {m: {"prop": [], "first": [], "steady": []} for m in modes}
     for i in range(repeats):
-        f.initialize(0.0, np.r_[r, 0, 0, 0], np.eye(6))
-        t0 = time.perf_counter()
-        f.set_input(np.zeros(3))
-        f.propagate(1.0)
-        t1 = time.perf_counter()
-        f.update(1.0, "pixel", z, Rm, ctx)
-        t2 = time.perf_counter()
-        prop.append((t1 - t0) * 1e3)
-        upd.append((t2 - t1) * 1e3)
-    print(f"(a) filter: propagate 1 s (RK4 + STM, 1 step): median {statistics.median(prop):.3f} ms, min "
-          f"{min(prop):.3f} ms; update k = 8 landmarks (16 rows): median {statistics.median(upd):.3f} ms, min "
-          f"{min(upd):.3f} ms ({repeats} calls)")
+        for m in modes:
+            f = filters[m]
+            f.initialize(0.0, np.r_[r, 0, 0, 0], np.eye(6))
+            t0 = time.perf_counter()
+            f.set_input(np.zeros(3))
+            f.propagate(1.0)
+            t1 = time.perf_counter()
+            f.update(1.0, "pixel", z, Rm, ctx)
+            t2 = time.perf_counter()
+            f.propagate(2.0)
+            t3 = time.perf_counter()
+            f.update(2.0, "pixel", z, Rm, ctx)
+            t4 = time.perf_counter()
+            t[m]["prop"].append((t1 - t0) * 1e3)
+            t[m]["first"].append((t2 - t1) * 1e3)
+            t[m]["steady"].append((t4 - t3) * 1e3)
+    med = {m: {k: statistics.median(v) for k, v in d.items()} for m, d in t.items()}
+    for m in modes:
+        d = t[m]
+        print(f"(a) filter map_states={m:8s} ({6 + (24 if m != 'off' else 0)} states after the first update): "
+              f"propagate 1 s median {med[m]['prop']:.3f} ms (min {min(d['prop']):.3f}); update k = 8, first "
+              f"median {med[m]['first']:.3f} ms (min {min(d['first']):.3f}), steady median {med[m]['steady']:.3f} ms "
+              f"(min {min(d['steady']):.3f}) ({repeats} interleaved calls)")
+    for m in modes[1:]:
+        print(f"(a) ratio {m} / off (medians): propagate {med[m]['prop'] / med['off']['prop']:.2f}x, first update "
+              f"{med[m]['first'] / med['off']['first']:.2f}x, steady update {med[m]['steady'] / med['off']['steady']:.2f}x")
 
 
 class _Scaled:

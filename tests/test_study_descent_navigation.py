@@ -161,3 +161,72 @@ def test_study_refuses_an_unknown_method_before_running(tmp_path, capsys):
                  "--workers", "0", "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert "retna" in err and len(err.splitlines()) == 1 and not (tmp_path / "c").exists()
+
+
+MAPS = TINY.replace('max_landmarks = 6\n', 'max_landmarks = 6\nmap_realisation = "per_run"\nmap_states = "estimate"\n'
+                    'map_keep_updates = 1\nlandmark_error_by_method = {retina = [[0.2, 0.1, 0.02]]}\n')
+
+
+@pytest.fixture(scope="module")
+def campaign_maps(tmp_path_factory):
+    d = tmp_path_factory.mktemp("dnav_maps")
+    (d / "tiny.toml").write_text(MAPS)
+    assert main(["campaign", str(d / "tiny.toml"), "--runs", str(RUNS), "--out", str(d / "camp"), "--workers", "0",
+                 "--quiet"]) == 0
+    assert main(["report", str(d / "camp"), "--out", str(d / "report")]) == 0
+    runs = sorted((d / "camp" / "runs").iterdir())
+    filt = [pq.read_table(r / "descent_filter.parquet").to_pydict() for r in runs]
+    lms = [pq.read_table(r / "descent_landmarks.parquet").to_pydict() for r in runs]
+    ts_dir = next((d / "camp" / "work" / "truth_cache").glob("*/manifest.json")).parent
+    return d, filt, lms, ts_dir
+
+
+def test_map_states_are_the_landmarks_kept_in_the_last_images(campaign_maps):
+    """keep_updates = 1: after each image the filter holds the map errors of exactly the landmarks it kept in that
+    image (recounted from the landmark table), and the landmark rows carry their GSD and maplet spacing."""
+    _, filt, lms, _ = campaign_maps
+    for f, lm in zip(filt, lms):
+        kept = {}
+        for m, k, item, keep in zip(lm["method"], lm["frame"], lm["item"], lm["kept"]):
+            if keep:
+                kept.setdefault((m, k), set()).add(item)
+        for r in _rows(f):
+            if r["frame"] >= 0 and r["n_results"] > 0:
+                assert r["n_map_states"] == len(kept.get((r["method"], r["frame"]), ())), r
+        assert all(g > 0 for g in lm["gsd_m"]) and set(lm["spacing_m"]) <= {0.2, 0.1}
+
+
+def test_per_run_maps_are_fresh_draws_of_the_declared_mapping_error(campaign_maps):
+    """The per-run catalogue (renderlab.campaign.maplets) against the truth set's: same ids, centres, frames and
+    spacing; heights differ by two independent draws of the world's mapping error (rms √2 · 3 cm, the EV5 default),
+    the relative albedo by two draws of its 2 % error; two generators give two different maps."""
+    from renderlab.campaign.maplets import respaced_maplets
+    from renderlab.scenario import load_scenario
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    d, _, _, ts_dir = campaign_maps
+    sc, _ = load_scenario(d / "tiny.toml")
+    cat = read_catalog(ts_dir)
+    a = respaced_maplets(cat, sc.world, d, 1.0, np.random.default_rng(1))
+    b = respaced_maplets(cat, sc.world, d, 1.0, np.random.default_rng(2))
+    dh = np.concatenate([(m.heights_m - c.heights_m).ravel() for m, c in zip(a, cat)])
+    da = np.concatenate([(m.albedo / c.albedo).ravel() - 1 for m, c in zip(a, cat)])
+    assert [m.landmark_id for m in a] == [c.landmark_id for c in cat]
+    assert all(np.allclose(m.center_m, c.center_m) and m.spacing_m == c.spacing_m for m, c in zip(a, cat))
+    assert np.sqrt(np.mean(dh**2)) == pytest.approx(np.sqrt(2) * 0.03, rel=0.2)
+    assert np.sqrt(np.mean(da**2)) == pytest.approx(np.sqrt(2) * 0.02, rel=0.2)
+    assert not np.allclose(a[0].heights_m, b[0].heights_m)
+
+
+def test_report_of_a_map_state_campaign_has_the_independence_scores(campaign_maps):
+    d, *_ = campaign_maps
+    rep = d / "report"
+    rows = list(csv.DictReader(open(rep / "descent_independence.csv")))
+    assert {r["method"] for r in rows} == {"retina", "spc"} and {int(r["frame"]) for r in rows} == {0, 1, 2}
+    for r in rows:
+        rho = float(r["rho_state"])
+        assert 0.0 <= rho <= 1.0
+        n = int(r["n_runs"])
+        assert float(r["n_eff"]) == pytest.approx(n / (1 + (n - 1) * rho**2), rel=1e-5)
+    assert {r["method"] for r in csv.DictReader(open(rep / "descent_bands.csv"))} == {"retina", "spc"}
+    assert (rep / "descent_independence.png").stat().st_size > 1000 and (rep / "descent_independence.svg").is_file()

@@ -15,6 +15,14 @@ camera model (Wright et al. eqs. 1–4) with the star-tracker attitude, eq. M1; 
 image's covariance, eq. M3. Update (:mod:`.ekf`): per-landmark χ² gate on the marginal innovation (eq. U2) plus
 rejection of the method's own outliers (Retina's final output phase), joint Joseph-form update (eq. U3), NIS (U4).
 
+Optional landmark map-error states (:mod:`.map_states`, option ``map_states``): an onboard map's landmark is off
+by an error fixed for the whole descent (the maplet's mapping error), which white pixel noise cannot describe —
+a filter that treats it as white averages it down and becomes over-confident. With ``"estimate"`` each landmark
+in use carries its position error δp (3 states, body frame) with the declared map covariance as prior, eq. L1
+(∂h/∂δp = −∂h/∂r), augmented at its first measurement (L2), marginalised after ``map_keep_updates`` images
+without it (L3), constant in between (L4); ``"consider"`` is the Schmidt–Kalman variant (the map states' gain set
+to zero: carried, never estimated). ``"off"`` (default) is the filter without them.
+
 Tuning
 ------
 ``q_acc_m2_s3`` covers what the onboard model lacks — the truth's gravity differs (GM error, J2) and the
@@ -23,18 +31,26 @@ acceleration × Δt (the descent study's choice is documented in its scenario). 
 accelerometer's per-sample noise. The measurement R (eq. M3) takes the landmark method's pixel noise σ_px — the
 filter is consistent only if σ_px covers the method's actual error, bias included — and the star tracker's σ.
 ``gate_probability`` (default 1 − 10⁻⁶, i.e. 27.6 for 2 dof) rejects gross errors and keeps a correct filter's
-innovations (one false rejection per 10⁶ landmarks).
+innovations (one false rejection per 10⁶ landmarks). With map states, the landmark error splits into the map
+covariance C_i (``context["landmark_cov_m2"]``: the part fixed on the ground for the landmark's whole track) and
+the white σ_px of eq. M3 (what changes from image to image): both come from the map's declared accuracy or from a
+calibration of the landmark method on a campaign other than the one scored (the descent study fits them per method
+and maplet tier, :mod:`renderlab.studies.descent_navigation.calibrate`). ``map_keep_updates`` must exceed the
+longest gap in a landmark's track (a landmark re-augmented after marginalisation forgets its correlations).
 
 Use
 ---
 ``f = DescentEKF(DescentNavOptions(gm_m3_s2=..., omega_rad_s=(0, 0, ω), q_acc_m2_s3=..., sigma_input_mps2=...))``;
 ``f.initialize(t0, x0, P0)``; per accelerometer sample ``f.set_input(u); f.propagate(t)``; per image
 ``f.update(t, "pixel", z, pixel_covariance(cam, points, f.x[:3], R_st, σ_px, σ_st), {"points_body_m": points,
-"R_body_from_cam": R_st, "camera": cam, "flagged": outliers})``. The lab's contract adapter is
+"R_body_from_cam": R_st, "camera": cam, "flagged": outliers})``; with ``map_states="estimate"`` add
+``"landmark_ids": ids, "landmark_cov_m2": C`` (k,), (k, 3, 3) to the context; ``f.x``, ``f.P`` stay [r, v] and
+its covariance, ``f.xa``, ``f.Pa``, ``f.map_ids`` are the augmented state. The lab's contract adapter is
 ``renderlab.measurement.descent_filter.DescentNavFilter`` (registered filter ``descent_ekf``).
 """
 
 from estimators.descent_nav.ekf import DescentEKF, DescentNavOptions, DescentUpdate
+from estimators.descent_nav.map_states import MODES as MAP_STATE_MODES
 from estimators.descent_nav.measurements import pixel_covariance
 
-__all__ = ["DescentEKF", "DescentNavOptions", "DescentUpdate", "pixel_covariance"]
+__all__ = ["DescentEKF", "DescentNavOptions", "DescentUpdate", "MAP_STATE_MODES", "pixel_covariance"]

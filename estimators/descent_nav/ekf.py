@@ -6,6 +6,10 @@ Update (eqs. M1–M5 of :mod:`.measurements`): innovation ν = z − h(x⁻), S 
 own block of S — and, with ``reject_flagged``, when the method flagged it an outlier (Retina's final output phase,
 ``context["flagged"]``). The kept rows update jointly: K = P⁻Hᵀ S⁻¹, x⁺ = x⁻ + Kν, Joseph form
 P⁺ = (I − KH) P⁻ (I − KH)ᵀ + K R Kᵀ (U3); NIS = νᵀ S⁻¹ ν over the kept rows, dof = their number (U4).
+With map states (:mod:`.map_states`) the same equations run on the augmented state: new landmarks augmented before
+the gate (their prior enters S), H of eq. L1, the considered states' gain rows zero in ``"consider"`` mode; landmarks
+augmented now but not kept are dropped again (nothing learnt), those absent for ``map_keep_updates`` updates
+marginalised (L3).
 """
 
 from __future__ import annotations

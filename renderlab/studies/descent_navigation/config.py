@@ -8,11 +8,18 @@ onboard GM 10 % high. ``sigma_px`` is the pixel noise the filter declares for ev
 ``sigma_px_by_method``); it is the same knob for every method so that a method's bias or excess noise shows up as
 filter inconsistency (NEES/NIS outside their bands) instead of being tuned away. ``sigma_ground_m`` adds a landmark
 error fixed on the ground (the maplets' mapping error does not shrink with the GSD), σ_i² = σ_px² + (σ_g/GSD_i)².
+
+The onboard map: ``map_realisation = "shared"`` uses the truth set's maplet catalogue in every run (one map, one
+mapping-error realisation, shared by all runs); ``"per_run"`` rebuilds the catalogue from the site DEM with a fresh
+mapping- and albedo-error draw from the run's seeded generator (:mod:`renderlab.campaign.maplets`), so that runs are
+independent in their map errors too (the truth images stay shared). ``map_states`` switches the filter's landmark
+map-error states (:mod:`estimators.descent_nav.map_states`): their prior is the declared map accuracy,
+``map_sigma_h_m`` per horizontal maplet axis and ``map_sigma_v_m`` along the maplet normal.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
@@ -35,6 +42,24 @@ class DescentNavigationConfig(Strict):
                                         "range / fx [m]")
     sigma_ground_m_by_method: dict[str, NonNegative] = Field({}, description="Per-method override of "
                                                              "sigma_ground_m [m]")
+    map_realisation: Literal["shared", "per_run"] = Field("shared", description="The onboard maplets: the truth "
+                                                          "set's catalogue in every run, or rebuilt per run with "
+                                                          "its own mapping/albedo-error draw")
+    map_states: Literal["off", "estimate", "consider"] = Field("off", description="Landmark map-error states in "
+                                                               "the filter: none, estimated, or considered "
+                                                               "(Schmidt-Kalman)")
+    map_sigma_h_m: Positive = Field(0.02, description="Declared map accuracy: landmark position error 1 sigma per "
+                                    "horizontal maplet axis (prior of the map states) [m]")
+    map_sigma_h_m_by_method: dict[str, Positive] = Field({}, description="Per-method override of map_sigma_h_m "
+                                                         "[m]")
+    landmark_error_by_method: dict[str, list[tuple[Positive, Positive, Positive]]] = Field(
+        {}, description="Per method, rows [spacing_m, sigma_px, map_sigma_h_m]: the declared white pixel noise and "
+        "map accuracy of the landmarks of that maplet spacing (matched within 1 %), overriding sigma_px and "
+        "map_sigma_h_m for them (a calibrated error model per landmark tier)")
+    map_sigma_v_m: Positive | None = Field(None, description="Declared map accuracy along the maplet normal; None: "
+                                           "the method's map_sigma_h_m [m]")
+    map_keep_updates: Annotated[int, Field(ge=1)] = Field(3, description="Map states marginalised after this many "
+                                                          "consecutive images without the landmark")
     star_tracker_sigma_arcsec: NonNegative = Field(10.0, description="Star-tracker attitude error 1 sigma per "
                                                    "camera axis, drawn per image [arcsec]")
     initial_position_sigma_m: Positive = Field(1.0, description="Initial position error 1 sigma per axis [m]")
@@ -71,6 +96,26 @@ class DescentNavigationConfig(Strict):
 
     def sigma_for(self, method: str) -> float:
         return float(self.sigma_px_by_method.get(method, self.sigma_px))
+
+    def map_sigmas_for(self, method: str) -> tuple[float, float]:
+        """(horizontal, normal) declared map σ of ``method``'s landmarks, m."""
+        h = float(self.map_sigma_h_m_by_method.get(method, self.map_sigma_h_m))
+        return h, float(self.map_sigma_v_m if self.map_sigma_v_m is not None else h)
+
+    def landmark_sigmas(self, method: str, spacing_m) -> tuple:
+        """(σ_px (k,), σ_map_h (k,), σ_map_v (k,)) of ``method``'s landmarks of maplet spacings ``spacing_m`` (k,):
+        the row of ``landmark_error_by_method`` whose spacing matches within 1 %, else the method's defaults."""
+        import numpy as np
+
+        sp = np.asarray(spacing_m, float)
+        px = np.full(sp.shape, self.sigma_for(method))
+        h0, v0 = self.map_sigmas_for(method)
+        mh, mv = np.full(sp.shape, h0), np.full(sp.shape, v0)
+        for spacing, s_px, s_map in self.landmark_error_by_method.get(method, []):
+            hit = np.abs(sp / spacing - 1.0) <= 0.01
+            px[hit], mh[hit] = s_px, s_map
+            mv[hit] = self.map_sigma_v_m if self.map_sigma_v_m is not None else s_map
+        return px, mh, mv
 
     def ground_sigma_for(self, method: str) -> float:
         return float(self.sigma_ground_m_by_method.get(method, self.sigma_ground_m))

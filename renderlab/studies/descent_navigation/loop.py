@@ -65,13 +65,16 @@ def select_landmarks(cam, pose, centres, spacing, cfg) -> np.ndarray:
 
 
 def _error_cols(x, P, x_true, R_site) -> dict:
-    """Errors and 1σ in the site frame (east, north, up), NEES."""
+    """Errors and 1σ in the site frame (east, north, up), NEES, and the whitened error L⁻¹e (P = LLᵀ, site frame),
+    whose mean over the runs shows the part of the error common to all runs (:mod:`.independence`)."""
     B = np.zeros((6, 6))
     B[:3, :3] = B[3:, 3:] = R_site.T
     e = B @ (x - x_true)
     sig = np.sqrt(np.diag(B @ P @ B.T))
     d = x - x_true
     out = {"nees": float(d @ np.linalg.solve(P, d))}
+    y = np.linalg.solve(np.linalg.cholesky(B @ P @ B.T), e)     # whitened error (site frame): NEES = |y|²
+    out.update({f"white_{k}": float(v) for k, v in enumerate(y)})
     for k, name in enumerate(("e_m", "n_m", "u_m", "ve_mps", "vn_mps", "vu_mps")):
         out[f"err_{name}"], out[f"sig_{name}"] = float(e[k]), float(sig[k])
     return out
@@ -79,9 +82,10 @@ def _error_cols(x, P, x_true, R_site) -> dict:
 
 def _landmark_rows(inp, method, k, sel, results, upd, cam, true_pose) -> list[dict]:
     rows = []
-    truth_px = cam.project(true_pose.to_camera(inp.centres[sel])) if len(sel) else np.zeros((0, 2))
+    xc = true_pose.to_camera(inp.centres[sel]) if len(sel) else np.zeros((0, 3))
+    truth_px = cam.project(xc) if len(sel) else np.zeros((0, 2))
     j = 0
-    for idx, res, tp in zip(sel, results, truth_px):
+    for idx, res, tp, depth in zip(sel, results, truth_px, xc[:, 2]):
         ok = res.has_result
         ms, ml = (res.meas_s, res.meas_l) if ok else (math.nan, math.nan)
         kept = gated = False
@@ -93,6 +97,7 @@ def _landmark_rows(inp, method, k, sel, results, upd, cam, true_pose) -> list[di
                      "item": int(inp.maplets[idx].landmark_id), "pred_s": float(res.pred_s),
                      "pred_l": float(res.pred_l), "meas_s": ms, "meas_l": ml, "truth_s": float(tp[0]),
                      "truth_l": float(tp[1]), "err_s": ms - float(tp[0]), "err_l": ml - float(tp[1]),
+                     "gsd_m": float(depth / cam.fx), "spacing_m": float(inp.spacing[idx]),
                      "has_result": bool(ok), "reason": res.reason, "outlier": bool(res.outlier), "kept": kept,
                      "gated": gated, "gate_d2": d2, "search_px": int(res.search_px), "t_ms": float(res.t_ms)})
     return rows
@@ -120,11 +125,23 @@ def _measure(impl, inp, k, filt, cfg, mopts):
     z = np.array([[results[i].meas_s, results[i].meas_l] for i in good]).reshape(-1)
     gsd = ((pts - x[:3]) @ inp.R_star[k])[:, 2] / fr.camera.fx          # predicted GSD per landmark, m/px
     sg = cfg.ground_sigma_for(impl.name)
-    sig = np.sqrt(cfg.sigma_for(impl.name) ** 2 + (sg / gsd) ** 2) if sg > 0 else cfg.sigma_for(impl.name)
+    s_px, s_mh, s_mv = cfg.landmark_sigmas(impl.name, inp.spacing[sel[good]])
+    sig = np.sqrt(s_px**2 + (sg / gsd) ** 2) if sg > 0 else s_px
     R = pixel_covariance(fr.camera, pts, x[:3], inp.R_star[k], sig, inp.sigma_st_rad)
     ctx = {"points_body_m": pts, "R_body_from_cam": inp.R_star[k], "camera": fr.camera,
            "flagged": np.array([results[i].outlier for i in good], bool)}
+    if cfg.map_states != "off":
+        ctx.update(map_context([inp.maplets[i] for i in sel[good]], s_mh, s_mv))
     return sel, results, FilterMeasurement("pixel", z, R, ctx)
+
+
+def map_context(maplets, sigma_h_m, sigma_v_m) -> dict:
+    """Landmark ids and the declared map covariance of each (body frame, m²): R_bm diag(σ_h², σ_h², σ_v²) R_bmᵀ
+    (σ per landmark, (k,))."""
+    h, v = np.broadcast_to(sigma_h_m, (len(maplets),)), np.broadcast_to(sigma_v_m, (len(maplets),))
+    return {"landmark_ids": np.array([int(m.landmark_id) for m in maplets], int),
+            "landmark_cov_m2": np.stack([m.R_body_from_maplet @ np.diag([a**2, a**2, b**2]) @ m.R_body_from_maplet.T
+                                         for m, a, b in zip(maplets, h, v)])}
 
 
 def _prior_cols(filt, R_star) -> dict:
@@ -154,7 +171,7 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
     frows = [{**base, "frame": -1, "t_s": float(inp.times[0]), "has_result": False, "reason": "prior",
               **_error_cols(filt.x, filt.P, inp.truth.state(inp.times[0]), inp.R_site), "nis": math.nan, "dof": 0,
               "n_attempted": 0, "n_results": 0, "n_flagged": 0, "n_gated": 0, "n_kept": 0, "search_px_mean": math.nan,
-              "track_lost": False, **_prior_cols(filt, inp.R_star[0]),
+              "track_lost": False, "n_map_states": 0, **_prior_cols(filt, inp.R_star[0]),
               **{f"est_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])}}]
     lrows, misses, lost, diverged = [], 0, False, False
     for k, t in enumerate(inp.times):
@@ -177,14 +194,14 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
         lost = lost or misses >= cfg.track_loss_frames
         reason = "diverged" if diverged else ("ok" if kept else ("all_gated" if upd is not None else "no_measurement"))
         errs = _error_cols(filt.x, filt.P, inp.truth.state(t), inp.R_site) if not diverged else \
-            {c: math.nan for c in frows[0] if c.startswith(("err_", "sig_")) or c == "nees"}
+            {c: math.nan for c in frows[0] if c.startswith(("err_", "sig_", "white_")) or c == "nees"}
         frows.append({**row, "has_result": bool(kept), "reason": reason, **errs,
                       "nis": float(upd.nis) if kept else math.nan, "dof": int(upd.dof) if upd is not None else 0,
                       "n_attempted": int(len(sel)), "n_results": int(sum(r.has_result for r in results)),
                       "n_flagged": int(upd.flagged.sum()) if upd is not None else 0,
                       "n_gated": int(upd.gated.sum()) if upd is not None else 0, "n_kept": kept,
                       "search_px_mean": float(np.mean([r.search_px for r in results])) if results else math.nan,
-                      "track_lost": bool(lost), **prior,
+                      "track_lost": bool(lost), "n_map_states": len(getattr(filt, "map_ids", [])), **prior,
                       **{f"est_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])}})
         lrows += _landmark_rows(inp, impl.name, k, sel, results, upd, inp.cameras[k],
                                 CameraPose(inp.R_true[k], inp.pos_true[k]))

@@ -131,10 +131,16 @@ def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
     _write_csv(ts_rows, out_dir / "descent_timeseries.csv")
     figs = error_figure(ftab, "position", out_dir) + error_figure(ftab, "velocity", out_dir) \
         + consistency_figure(ts_rows, out_dir)
+    extra = ""
+    if "white_0" in ftab.column_names:             # campaigns that wrote the whitened errors (map-state study)
+        from renderlab.studies.descent_navigation.report_independence import independence_section
+
+        extra, more = independence_section(ftab, tables.get("descent_landmarks"), ts_rows, out_dir, _write_csv)
+        figs += more
     imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f.endswith(".png"))
     note = ("<p>ANEES/6 and ANIS/dof: 1 is consistent; intervals are 95 % bootstraps over whole runs (the images of "
             "a run are correlated). Touchdown proxy: position error norm at the last image (50 m). Track lost: "
             "a run with ≥ N consecutive images without an accepted landmark (N = track_loss_frames). Consistency, the "
             "landmark statistics and the figures are over the runs that kept track; ANEES/ANIS over every run are the "
             "*_all columns of descent_summary.csv.</p>")
-    return [("Descent navigation", _html_table(summary) + note + imgs)]
+    return [("Descent navigation", _html_table(summary) + note + extra + imgs)]

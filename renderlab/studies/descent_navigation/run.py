@@ -5,7 +5,9 @@ rendered once along the true trajectory and serves every run, because a run disp
 does not control in the truth — the filter's initial estimate (x0 = truth + N(0, P0)), the star tracker's attitude
 error per image, the accelerometer's noise per sample and the sensor noise (the cached radiance re-exposed with the
 run's own Poisson + read noise, :mod:`renderlab.campaign.reexpose`). Every method of a run sees the same images and
-draws (paired comparison); each drives its own filter (:mod:`.loop`). Truth perturbations (they would change the
+draws (paired comparison); each drives its own filter (:mod:`.loop`). With ``map_realisation = "per_run"`` the run
+also draws its own onboard map (the maplets rebuilt with a fresh mapping/albedo error, the same for all its
+methods). Truth perturbations (they would change the
 rendered image) are refused. Tables: ``descent_filter`` (one row per run, method and image, plus the prior) and
 ``descent_landmarks`` (one row per landmark attempted), reported by :mod:`.report`.
 """
@@ -49,7 +51,8 @@ def filter_options(cfg, omega_rad_s: float) -> dict:
     """The onboard filter's options: its own GM (no J2), the spin, the process and input noise, the gate."""
     return {"gm_m3_s2": cfg.gm_filter_m3_s2, "omega_rad_s": (0.0, 0.0, omega_rad_s), "q_acc_m2_s3": cfg.q_acc_m2_s3,
             "sigma_input_mps2": cfg.accel_sigma_mps2, "gate_probability": cfg.gate_probability,
-            "reject_flagged": cfg.reject_flagged, "max_step_s": 10.0}
+            "reject_flagged": cfg.reject_flagged, "max_step_s": 10.0, "map_states": cfg.map_states,
+            "map_keep_updates": cfg.map_keep_updates}
 
 
 def _accel_intervals(truth, times, cfg, rng) -> list:
@@ -112,14 +115,19 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
     check(scenario)
     cfg = section(scenario)
-    ss_noise, ss_x0, ss_st, ss_acc = seed_sequence.spawn(4)
+    ss_noise, ss_x0, ss_st, ss_acc, ss_map = seed_sequence.spawn(5)    # the first four as before the map draw
     truth_sc = scenario_from_dict(truth_dict(scenario.to_dict()), "descent_navigation truth scenario")
     path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
     ts0 = TruthSet.open(path)
     noise_seeds = [int(s.generate_state(1)[0]) for s in ss_noise.spawn(len(ts0))]
     ts = ReexposedTruthSet(ts0, SensorOptions(**scenario.sensor.options_dict()), noise_seeds, cache=True)
     truth = true_descent(ts0, scenario, cfg)
-    inp = run_inputs(ts, truth, read_catalog(path), cfg, scenario, run_index, (ss_x0, ss_st, ss_acc))
+    maplets = read_catalog(path)
+    if cfg.map_realisation == "per_run":
+        from renderlab.campaign.maplets import respaced_maplets
+
+        maplets = respaced_maplets(maplets, scenario.world, base_dir, 1.0, np.random.default_rng(ss_map))
+    inp = run_inputs(ts, truth, maplets, cfg, scenario, run_index, (ss_x0, ss_st, ss_acc))
     mopts = MeasureOptions(n_sigma=cfg.n_sigma, min_search_px=cfg.min_search_px, max_search_px=cfg.max_search_px,
                            campaign=scenario.name, run=int(run_index))
     L_table, _ = onboard_photometry(ts0, mopts)

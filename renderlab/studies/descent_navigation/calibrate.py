@@ -1,0 +1,110 @@
+r"""The landmark error model the map-state filter declares, fitted on a *calibration* campaign's landmark table
+(never on the campaign it is scored on).
+
+Model, per method, for the kept landmarks of one track (one landmark in one run; images k, GSD g_k = depth / fx,
+error e_k in px per image axis, its bias β removed):
+
+.. math::  e_k - \beta = \mathbf b / g_k + w_k,\qquad \mathbf b \sim N(0, \sigma_{map}^2),\;
+           w_k \sim N(0, \sigma_{px}^2)   \quad (C1)
+
+— a landmark offset **b** fixed on the ground for the whole track (the maplet's mapping-error realisation and the
+method's rendering error of that landmark) plus white pixel noise. In metres, :math:`m_k = (e_k - \beta) g_k`:
+:math:`E[m_k m_{k'}] = \sigma_{map}^2` for two images k ≠ k' of one track (C2): σ_map² is the mean of these
+cross products over all pairs of all tracks (both axes pooled: the offset is horizontal and isotropic). σ_px² is
+the residual variance of the per-track least-squares fit of C1 (b fitted per track and axis; n − 1 dof per track
+and axis; C3), floored at ``floor_px``. β (per axis) is the mean error of the
+method's kept landmarks: the model describes zero-mean errors, so a method's bias is *not* absorbed and still shows
+as filter inconsistency. The normal component of the map error is not seen to first order by a near-nadir camera;
+it is declared equal to the horizontal one.
+
+The fit is made per method and landmark tier (maplet spacing): the error on the ground grows where the mapping
+error's slopes are steep (3 cm rms on 4-cm cells). ``python -m renderlab.studies.descent_navigation.calibrate
+FOLDER`` prints the fit of a published campaign folder as JSON, then as the scenario's ``landmark_error_by_method``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+
+def fit_method(run, item, err_s, err_l, gsd, floor_px: float = 0.02) -> dict:
+    """The fit of eqs. C1–C3 for one method's kept landmarks (arrays of equal length)."""
+    e = np.stack([err_s, err_l], 1).astype(float)
+    ok = np.all(np.isfinite(e), 1) & np.isfinite(gsd) & (gsd > 0)
+    e, g, run, item = e[ok], np.asarray(gsd, float)[ok], np.asarray(run)[ok], np.asarray(item)[ok]
+    beta = e.mean(0)
+    d = e - beta
+    m = d * g[:, None]
+    tracks = defaultdict(list)
+    for j, key in enumerate(zip(run.tolist(), item.tolist())):
+        tracks[key].append(j)
+    cross, n_pairs, rss, n_res = 0.0, 0, 0.0, 0
+    for idx in tracks.values():
+        if len(idx) < 2:
+            continue
+        mm = m[idx]                                          # (n, 2)
+        s = mm.sum(0)
+        cross += float(np.sum(s**2 - np.sum(mm**2, 0)))      # Σ_{k≠k'} m_k m_k', both axes (C2)
+        n_pairs += 2 * len(idx) * (len(idx) - 1)
+        x = 1.0 / g[idx]                                     # C3: e = b x + w, b fitted per track and axis
+        b = (x @ d[idx]) / (x @ x)
+        rss += float(np.sum((d[idx] - np.outer(x, b)) ** 2))
+        n_res += 2 * (len(idx) - 1)
+    var_map = max(cross / n_pairs, 0.0) if n_pairs else math.nan
+    var_px = rss / n_res if n_res else math.nan
+    return {"sigma_map_h_m": math.sqrt(var_map) if math.isfinite(var_map) else math.nan,
+            "sigma_px": max(math.sqrt(max(var_px, 0.0)), floor_px), "sigma_px_fit": math.copysign(
+                math.sqrt(abs(var_px)), var_px) if math.isfinite(var_px) else math.nan, "bias_s_px": float(beta[0]), "bias_l_px": float(beta[1]),
+            "n_landmarks": int(len(e)), "n_tracks": int(sum(len(v) >= 2 for v in tracks.values())),
+            "n_pairs": int(n_pairs // 2)}
+
+
+def fit(ltab, floor_px: float = 0.02) -> dict:
+    """{method: {spacing_m: fit}} over the kept landmarks of a landmark table with ``gsd_m`` and ``spacing_m``: one
+    fit per method and landmark tier (maplet spacing), its bias removed per method and tier."""
+    cols = {n: np.asarray(ltab.column(n).to_numpy(zero_copy_only=False))
+            for n in ("method", "run", "item", "kept", "err_s", "err_l", "gsd_m", "spacing_m")}
+    out = {}
+    for meth in sorted(set(cols["method"].tolist())):
+        out[meth] = {}
+        for sp in sorted(set(cols["spacing_m"].tolist()), reverse=True):
+            k = (cols["method"] == meth) & cols["kept"] & (cols["spacing_m"] == sp)
+            if k.sum() >= 2:
+                out[meth][float(sp)] = fit_method(cols["run"][k], cols["item"][k], cols["err_s"][k],
+                                                  cols["err_l"][k], cols["gsd_m"][k], floor_px)
+    return out
+
+
+def toml_rows(res: dict) -> str:
+    """``landmark_error_by_method`` of the fit, as a TOML inline table (spacing, σ_px, σ_map_h; 3 significant
+    figures)."""
+    parts = []
+    for meth, by in res.items():
+        rows = ", ".join(f"[{sp:g}, {f['sigma_px']:.3g}, {f['sigma_map_h_m']:.3g}]" for sp, f in by.items())
+        parts.append(f"{meth} = [{rows}]")
+    return "landmark_error_by_method = {" + ", ".join(parts) + "}"
+
+
+def main(argv=None) -> int:
+    import pyarrow.parquet as pq
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    if len(args) != 1 or not (Path(args[0]) / "tables" / "descent_landmarks.parquet").is_file():
+        print("usage: python -m renderlab.studies.descent_navigation.calibrate FOLDER (a published descent campaign "
+              "with tables/descent_landmarks.parquet)", file=sys.stderr)
+        return 2
+    res = fit(pq.read_table(Path(args[0]) / "tables" / "descent_landmarks.parquet"))
+    print(json.dumps({m: {str(sp): {k: (round(v, 6) if isinstance(v, float) else v) for k, v in f.items()}
+                          for sp, f in by.items()} for m, by in res.items()}, indent=2))
+    print(toml_rows(res))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
