@@ -115,7 +115,6 @@ class RetinaOptions:
     refine: str = ""
 
     def __post_init__(self):
-        from estimators.retina.ml_shift import REFINEMENTS
         if self.refine and self.refine not in REFINEMENTS:
             raise ValueError(f"unknown peak refinement {self.refine!r} (choose from {', '.join(REFINEMENTS)}, "
                              "or '' for none)")
