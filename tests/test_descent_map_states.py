@@ -189,3 +189,23 @@ def test_bad_map_state_input_gives_one_line_errors(opts, ctx, text):
                                         {"points_body_m": np.array([[200.0, 0, 0]]), "R_body_from_cam": T,
                                          "camera": CAM, **ctx}))
     assert text in str(err.value) and "\n" not in str(err.value)
+
+
+def test_joint_gate_drops_false_matches_that_pass_one_by_one():
+    """Three landmarks shifted by different 10–30 px (false locks) each pass the marginal gate under a wide prior
+    (1 m at 120 m ≈ 10 px), but not together at 0.05 px noise: the joint gate keeps one; correct pixels keep all."""
+    x_true, R_true, pts, u, _ = _case(n_images=1, k=3)
+    T = R_true[1]
+    P0 = np.diag([1.0] * 3 + [1e-4] * 3)
+    z_ok = CAM.project((pts - x_true[1, :3]) @ T)
+    for shift, n_kept in ((np.array([[-10.0, -20.0], [11.0, -16.0], [13.0, -30.0]]), 1), (np.zeros((3, 2)), 3)):
+        for joint in (False, True):
+            f = DescentNavFilter({"gm_m3_s2": GM, "omega_rad_s": tuple(OMEGA), "joint_gate": joint})
+            f.initialize(0.0, x_true[0], P0)
+            f.set_input(u)
+            R = pixel_covariance(CAM, pts, f.x[:3], T, 0.05, 0.0)
+            upd = f.update(DT, FilterMeasurement("pixel", (z_ok + shift).reshape(-1), R,
+                                                 {"points_body_m": pts, "R_body_from_cam": T, "camera": CAM}))
+            assert f.last.kept.sum() == (n_kept if joint else 3)
+            if joint:
+                assert upd.nis <= chi2.ppf(1 - 1e-6, upd.dof)

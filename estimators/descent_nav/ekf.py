@@ -4,7 +4,8 @@ Propagation (eqs. D1–D5 of :mod:`.dynamics`): x⁻ = RK4 of D1 with the held i
 Update (eqs. M1–M5 of :mod:`.measurements`): innovation ν = z − h(x⁻), S = H P⁻ Hᵀ + R (U1). Gate (U2): landmark i
 (its rows g_i) is rejected when d_i = ν_gᵀ S_gg⁻¹ ν_g > χ²_{|g|}(p_gate) — the marginal test of each landmark on its
 own block of S — and, with ``reject_flagged``, when the method flagged it an outlier (Retina's final output phase,
-``context["flagged"]``). The kept rows update jointly: K = P⁻Hᵀ S⁻¹, x⁺ = x⁻ + Kν, Joseph form
+``context["flagged"]``); with ``joint_gate``, the kept landmarks must also pass together (U2b:
+ν_Kᵀ S_KK⁻¹ ν_K ≤ χ²_|K|(p_gate), the worst one dropped until they do). The kept rows update jointly: K = P⁻Hᵀ S⁻¹, x⁺ = x⁻ + Kν, Joseph form
 P⁺ = (I − KH) P⁻ (I − KH)ᵀ + K R Kᵀ (U3); NIS = νᵀ S⁻¹ ν over the kept rows, dof = their number (U4).
 With map states (:mod:`.map_states`) the same equations run on the augmented state: new landmarks augmented before
 the gate (their prior enters S), H of eq. L1, the considered states' gain rows zero in ``"consider"`` mode; landmarks
@@ -53,6 +54,10 @@ class DescentNavOptions:
         ``"pixel"`` measurement needs ``context["landmark_ids"]`` and ``context["landmark_cov_m2"]``.
     map_keep_updates : int
         A landmark's map states are marginalised after this many consecutive updates without it (eq. L3).
+    joint_gate : bool
+        After the per-landmark gate, test the kept landmarks *jointly* (eq. U2b): while their NIS exceeds
+        χ²_dof(p_gate), drop the landmark whose removal lowers it most. Catches false matches that each fit the
+        prior's wide marginal S but not each other (several wrong locks after a large initial error).
     """
 
     gm_m3_s2: float = 0.0
@@ -64,6 +69,7 @@ class DescentNavOptions:
     max_step_s: float = 10.0
     map_states: str = "off"
     map_keep_updates: int = 3
+    joint_gate: bool = False
 
     def __post_init__(self):
         w = np.asarray(self.omega_rad_s, float)
@@ -219,6 +225,25 @@ class DescentEKF:
         used = ids[kept]
         self._x, self._P = self._maps.remove(self._x, self._P, self._maps.end_update(used))
 
+    def _joint_gate(self, nu: np.ndarray, S: np.ndarray, groups: list, kept: np.ndarray) -> np.ndarray:
+        """Landmarks to drop so that the kept ones pass jointly (eq. U2b: ν_Kᵀ S_KK⁻¹ ν_K ≤ χ²_|K|(p_gate)),
+        greedily, the one whose removal lowers the joint NIS most first; (k,) bool."""
+        keep = list(np.flatnonzero(kept))
+        drop = np.zeros(len(groups), bool)
+
+        def nis(idx):
+            rows = np.concatenate([groups[i] for i in idx])
+            return float(nu[rows] @ np.linalg.solve(S[np.ix_(rows, rows)], nu[rows])), len(rows)
+
+        while len(keep) > 1:
+            d, dof = nis(keep)
+            if d <= self._threshold(dof):
+                break
+            worst = min(keep, key=lambda i: nis([j for j in keep if j != i])[0])
+            keep.remove(worst)
+            drop[worst] = True
+        return drop
+
     def update(self, t_s: float, kind: str, z, R, context: dict) -> DescentUpdate:
         """Propagate to ``t_s`` and update with one measurement of ``kind`` (eqs. U1–U4; map states L1–L3)."""
         self.propagate(t_s)
@@ -244,6 +269,9 @@ class DescentEKF:
         d2 = _gate_statistics(nu, S, groups)
         gated = ~flagged & (d2 > np.array([self._threshold(len(g)) for g in groups]))
         kept = ~flagged & ~gated
+        if self.options.joint_gate and kept.sum() > 1:
+            gated |= self._joint_gate(nu, S, groups, kept)
+            kept = ~flagged & ~gated
         if not kept.any():
             self._close_maps(context, slots, kept)
             return DescentUpdate(math.nan, 0, kept, flagged, gated, d2)
