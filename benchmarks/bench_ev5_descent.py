@@ -4,19 +4,28 @@ Each configuration runs in its own child process (so its load, build and peak re
 one after the other in one run of this script, on the same descent frames at the same resolution and spp:
 
 * ``old``: ``world.site.lod = false`` (the full-resolution site in every frame), ``world.build_cache = false``
-  (world built in the process), numpy rays (``MitsubaBackend.ray_path = "numpy"``): the code before issue 19.
-* ``old_drjit`` (with ``--paths``): the full site, Dr.Jit rays (the ray change alone).
-* ``new_cold``: tiles with levels of detail, Dr.Jit rays, world cache empty (built and stored).
-* ``new_warm``: the same in a later process: the world comes from the cache.
+  (world built in the process), numpy rays (``MitsubaBackend.ray_path = "numpy"``), Mitsuba's ``path``
+  integrator at ``max_depth = 2`` (``MitsubaBackend.integrator = "path"``): the code before issue 19.
+* ``old_drjit`` (with ``--paths``): the full site, Dr.Jit rays, ``path`` (the ray change alone).
+* ``new_cold``: tiles with levels of detail, Dr.Jit rays, the direct-sun integrator (``rl_direct_sun``:
+  primary + shadow ray, renderlab/render/mitsuba_direct.py), world cache empty (built and stored).
+* ``new_path``: tiles, Dr.Jit rays, world from the cache, ``path`` (the code before the direct-sun change).
+* ``new_warm``: tiles, Dr.Jit rays, ``rl_direct_sun``, world from the cache: today's code.
 
 Per configuration: world build (or cache load) seconds, Mitsuba scene load seconds, seconds per frame
-(scene update included), facets of the site in each frame, peak resident set of the process, and seconds
-per frame *including its share* of build + load over the descent. Ratios against ``old`` are printed.
+(tile update + render), the tile update (``_set_sun``: tiles written into the mesh, acceleration structure
+rebuilt) and a sun-only parameter update timed apart, facets of the site in each frame, peak resident set
+of the process, and seconds per frame *including its share* of build + load over the descent. Ratios against
+``old`` are printed. ``--floor``: on ``new_warm``'s (and ``old_drjit``'s) frames, ``mi.render`` of the same
+loaded scene (the frame's tiles) with a perspective sensor, radiance only, per integrator (``direct``:
+Mitsuba's C++ direct illumination, one emitter sample, no BSDF sample; ``rl_direct_sun``; ``path``), the
+first frame's calls after an untimed warm-up: what Mitsuba's own renderer needs for these frames on this
+machine, the floor of any lab path. ``--spp-pass``: the wavefront size (samples per pass).
 
 Usage::
 
     .venv/bin/python benchmarks/bench_ev5_descent.py [--world full|medium] [--frames N] [--size PX] [--spp S]
-        [--paths old,new_cold,new_warm]
+        [--paths old,new_cold,new_path,new_warm] [--floor direct,rl_direct_sun] [--spp-pass N]
 
 ``full`` (default): the world of scenes/ev5_descent.toml (1 m global facets, 64 m site at 2 cm cells,
 21.8 M facets); ``medium``: 2 m facets, 5 cm cells. Frames: ``trajectory.frames = N`` spread geometrically
@@ -37,8 +46,54 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-PATHS = {"old": (False, "numpy", False), "old_drjit": (False, "drjit", True),
-         "new_cold": (True, "drjit", True), "new_warm": (True, "drjit", True)}
+#: path → (site levels of detail, ray path, world cache, integrator)
+PATHS = {"old": (False, "numpy", False, "path"), "old_drjit": (False, "drjit", True, "path"),
+         "new_path": (True, "drjit", True, "path"), "new_cold": (True, "drjit", True, "auto"),
+         "new_warm": (True, "drjit", True, "auto")}
+#: mi.render integrators of ``--floor`` (Mitsuba's own renderer on the same loaded scene, radiance only)
+FLOORS = {"direct": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0, "hide_emitters": True},
+          "rl_direct_sun": {"type": "rl_direct_sun"},
+          "path": {"type": "path", "max_depth": 2, "hide_emitters": True}}
+
+
+def _sensor(mi, backend, spec, spp: int):
+    """A perspective sensor of ``spec``'s pinhole camera (square pixels) in the backend's shifted scene."""
+    import math
+
+    import numpy as np
+
+    cam, T = spec.camera, np.eye(4)
+    T[:3, :3] = spec.pose.rotation.as_matrix() @ np.diag([-1.0, -1.0, 1.0])  # Mitsuba: +x left, +y up
+    T[:3, 3] = np.asarray(spec.pose.position_m, float) - backend.origin
+    W, H = cam.width, cam.height
+    return mi.load_dict({
+        "type": "perspective", "fov_axis": "x", "fov": math.degrees(2 * math.atan(W / 2 / cam.fx)),
+        "principal_point_offset_x": (W / 2 - (cam.cx + 0.5)) / W,
+        "principal_point_offset_y": (H / 2 - (cam.cy + 0.5)) / H,
+        "near_clip": backend.settings.near_clip_m, "far_clip": backend.settings.far_clip_m,
+        "to_world": mi.ScalarTransform4f(T.tolist()),
+        "sampler": {"type": "independent", "sample_count": spp},
+        "film": {"type": "hdrfilm", "width": W, "height": H, "rfilter": {"type": "box"}, "pixel_format": "luminance"}})
+
+
+def _floors(backend, spec, spp: int, names: list[str], warm: bool) -> dict:
+    """Seconds of ``mi.render`` of the backend's current scene (this frame's tiles) per integrator in ``names``
+    (``warm``: one untimed call first, so the timed one excludes tracing and kernel compilation)."""
+    import drjit as dr
+    import numpy as np
+
+    mi, out = backend.mi, {}
+    sensor = _sensor(mi, backend, spec, spp)
+    for name in names:
+        integ = mi.load_dict(FLOORS[name])
+        for k in range(2 if warm else 1):
+            t0 = time.perf_counter()
+            img = mi.render(backend.scene, sensor=sensor, integrator=integ, spp=spp, seed=k)
+            dr.eval(img)
+            mean = float(np.array(img).mean())
+            out[name] = time.perf_counter() - t0
+        out[name + "_mean_radiance"] = mean
+    return out
 
 
 def _sets(args, lod: bool, cache: bool) -> list[str]:
@@ -59,8 +114,10 @@ def child(args) -> None:
     from renderlab.scenario import load_scenario
     from renderlab.worlds.ev5 import make_plan
 
-    lod, rays, cache = PATHS[args.child]
-    MitsubaBackend.ray_path = rays
+    lod, rays, cache, integrator = PATHS[args.child]
+    MitsubaBackend.ray_path, MitsubaBackend.integrator = rays, integrator
+    if args.spp_pass:
+        MitsubaBackend.samples_per_pass = args.spp_pass
     sc, base = load_scenario(REPO / "scenes" / "ev5_descent.toml", _sets(args, lod, cache))
     t0 = time.perf_counter()
     plan = make_plan(sc, base)
@@ -69,15 +126,27 @@ def child(args) -> None:
     backend = make_backend(sc, plan.static_scene, "mitsuba")
     t_load = time.perf_counter() - t0
     frames = []
+    floors = [f for f in args.floor.split(",") if f] if args.child in ("new_warm", "old_drjit") else []
     for k, spec in enumerate(plan.frames):
         t0 = time.perf_counter()
-        backend.render(spec, seed=k)
+        backend._set_sun(spec)  # the tile update (when the tile set changed) and the sun, timed apart
+        t_update = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        out = backend.render(spec, seed=k)  # its own _set_sun: same tiles, so the sun only
         dt = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        backend._set_sun(spec)  # same tiles again: what a sun-only parameter update costs
+        t_sun = time.perf_counter() - t0
         meta = plan.frame_meta(spec, plan.static_scene)["ev5"]
         site = meta["lod"]["n_faces"] if "lod" in meta else int(len(plan.model.site.heights_m) - 1) ** 2 * 2
-        frames.append({"altitude_m": meta["altitude_m"], "s": dt, "site_facets": site})
-        print(f"  [{args.child}] frame {k}: {meta['altitude_m']:.0f} m, {dt:.1f} s, site facets {site}",
-              file=sys.stderr, flush=True)
+        rec = {"altitude_m": meta["altitude_m"], "s": dt + t_update, "render_s": dt, "update_s": t_update,
+               "sun_update_s": t_sun, "site_facets": site, "mean_radiance": float(out.radiance.mean())}
+        if floors:
+            rec["mi_render_s"] = _floors(backend, spec, args.spp, floors, warm=(k == 0))
+        frames.append(rec)
+        print(f"  [{args.child}] frame {k}: {meta['altitude_m']:.0f} m, {dt + t_update:.1f} s (tile update "
+              f"{t_update:.2f} s, render {dt:.1f} s, sun-only update {t_sun:.2f} s), site facets {site}"
+              + (f", mi.render {rec['mi_render_s']}" if floors else ""), file=sys.stderr, flush=True)
     print(json.dumps({"path": args.child, "build_s": t_build, "load_s": t_load, "frames": frames,
                       "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,
                       "n_global_facets": int(len(plan.model.shape.faces))}))
@@ -89,7 +158,10 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--size", type=int, default=1024)
     ap.add_argument("--spp", type=int, default=16)
-    ap.add_argument("--paths", default="old,new_cold,new_warm")
+    ap.add_argument("--paths", default="old,new_cold,new_path,new_warm")
+    ap.add_argument("--floor", default="direct,rl_direct_sun",
+                    help="mi.render integrators timed on new_warm's (and old_drjit's) frames; '' for none")
+    ap.add_argument("--spp-pass", type=int, default=0, help="MitsubaBackend.samples_per_pass (0: its default)")
     ap.add_argument("--child", choices=list(PATHS), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -101,16 +173,22 @@ def main() -> None:
         env = {**os.environ, "RENDERLAB_CACHE": cache}
         for name in args.paths.split(","):
             cmd = [sys.executable, __file__, "--child", name, "--world", args.world, "--frames", str(args.frames),
-                   "--size", str(args.size), "--spp", str(args.spp)]
+                   "--size", str(args.size), "--spp", str(args.spp), "--floor", args.floor,
+                   "--spp-pass", str(args.spp_pass)]
             out = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, text=True, check=True).stdout
             results[name] = r = json.loads(out.strip().splitlines()[-1])
-            per = [f["s"] for f in r["frames"]]
+            per, upd = [f["s"] for f in r["frames"]], [f["update_s"] for f in r["frames"]]
             share = (r["build_s"] + r["load_s"] + sum(per)) / len(per)
             r["per_frame_s"], r["with_share_s"] = sum(per) / len(per), share
             print(f"{name:9s}: build {r['build_s']:.1f} s, load {r['load_s']:.1f} s, frames "
                   f"{', '.join(f'{x:.1f}' for x in per)} s (mean {r['per_frame_s']:.1f}); with its share of build + "
                   f"load {share:.1f} s/frame; peak RSS {r['peak_rss_gb']:.2f} GB; site facets per frame "
-                  f"{[f['site_facets'] for f in r['frames']]}", flush=True)
+                  f"{[f['site_facets'] for f in r['frames']]}; tile updates "
+                  f"{', '.join(f'{u:.2f}' for u in upd)} s", flush=True)
+            for f in r["frames"]:
+                if "mi_render_s" in f:
+                    print(f"    {f['altitude_m']:.0f} m: lab {f['s']:.1f} s; mi.render (same scene, radiance only) "
+                          + ", ".join(f"{k} {v:.1f} s" for k, v in f["mi_render_s"].items() if k in FLOORS), flush=True)
     if "old" in results:
         o = results["old"]
         for name, r in results.items():
@@ -118,6 +196,17 @@ def main() -> None:
                 print(f"old / {name}: per frame {o['per_frame_s'] / r['per_frame_s']:.1f}x, including the share of "
                       f"build + load {o['with_share_s'] / r['with_share_s']:.1f}x, peak RSS "
                       f"{o['peak_rss_gb']:.2f} -> {r['peak_rss_gb']:.2f} GB")
+        if "new_warm" in results and any("mi_render_s" in f for f in results["new_warm"]["frames"]):
+            fr = results["new_warm"]["frames"]
+            for name in [n for n in FLOORS if n in fr[0].get("mi_render_s", {})]:
+                mean = sum(f["mi_render_s"][name] for f in fr) / len(fr)
+                print(f"old / mi.render {name} (new_warm's scene): per frame {o['per_frame_s'] / mean:.1f}x "
+                      f"(mi.render {mean:.1f} s/frame, the floor of any lab path on this scene; 10x needs "
+                      f"{o['per_frame_s'] / 10:.1f} s)")
+    if "new_path" in results and "new_warm" in results:
+        a, b = results["new_path"], results["new_warm"]
+        print(f"new_path / new_warm (the integrator alone): per frame {a['per_frame_s'] / b['per_frame_s']:.2f}x")
+    print(json.dumps({"results": results}), file=sys.stderr)
     print(f"load average at the end {os.getloadavg()[0]:.1f}")
 
 

@@ -13,8 +13,10 @@ different seeds (only pixels whose footprint is not uniform — edges, the spher
 light from a hard sun is otherwise exact). *Equal noise*: the Cycles time at the sample count whose
 noise equals Mitsuba's at ``--spp`` (log-log interpolation between the measured Cycles sample counts).
 
-``mitsuba-numpy`` is the same Mitsuba backend with ``ray_path = "numpy"`` (the former path: numpy rays per
-sample), timed in the same run for the before/after ratio (``--skip-numpy`` leaves it out).
+``mitsuba`` renders with the lab's direct-sun integrator (``rl_direct_sun``, renderlab/render/mitsuba_direct.py);
+``mitsuba-path`` is the same backend with Mitsuba's ``path`` integrator (``max_depth = 2``: the integrator before
+the direct-sun change); ``mitsuba-numpy`` adds ``ray_path = "numpy"`` (numpy rays per sample: the code before
+issue 19), timed in the same run for the before/after ratios (``--skip-numpy`` leaves it out).
 
 Run:  .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py                 # 256 px, 16 spp
       .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py --size 64 --repeats 1   # smoke
@@ -42,13 +44,20 @@ def _scenario(size: int, spp: int):
 
 
 def _backend(renderer: str, size: int, spp: int):
-    """``renderer`` is a registered renderer, or ``mitsuba-numpy``: Mitsuba's former numpy ray path."""
+    """``renderer`` is a registered renderer, ``mitsuba-path`` (Mitsuba's ``path`` integrator instead of the
+    direct-sun one) or ``mitsuba-numpy`` (``path`` and the former numpy ray path: the code before issue 19)."""
     from renderlab.pipeline import make_backend
+    from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.worlds.base import make_plan
 
     sc, base = _scenario(size, spp)
     plan = make_plan(sc, base)
-    be = make_backend(sc, plan.scene(0), "mitsuba" if renderer == "mitsuba-numpy" else renderer)
+    old = renderer in ("mitsuba-numpy", "mitsuba-path")
+    MitsubaBackend.integrator = "path" if old else "auto"
+    try:
+        be = make_backend(sc, plan.scene(0), "mitsuba" if old else renderer)
+    finally:
+        MitsubaBackend.integrator = "auto"
     if renderer == "mitsuba-numpy":
         be.ray_path = "numpy"
     return be, plan.frames[0]
@@ -63,7 +72,8 @@ def main() -> None:
     ap.add_argument("--skip-numpy", action="store_true", help="do not time Mitsuba's former numpy ray path")
     args = ap.parse_args()
     cyc_spp = sorted({int(v) for v in args.cycles_spp.split(",")} | {args.spp})
-    configs = ([("mitsuba", args.spp)] + ([] if args.skip_numpy else [("mitsuba-numpy", args.spp)])
+    configs = ([("mitsuba", args.spp), ("mitsuba-path", args.spp)]
+               + ([] if args.skip_numpy else [("mitsuba-numpy", args.spp)])
                + [("cycles", s) for s in cyc_spp])
     backends = {}
     for name, spp in configs:
@@ -91,8 +101,9 @@ def main() -> None:
     for c in configs:
         print(f"{c[0]:13s} {c[1]:5d} {med[c]:17.3f} {noise[c]:26.4f}")
     m = configs[0]
+    print(f"\nMitsuba path integrator / direct-sun integrator time = {med[('mitsuba-path', args.spp)] / med[m]:.2f}")
     if ("mitsuba-numpy", args.spp) in med:
-        print(f"\nMitsuba former numpy ray path / Dr.Jit ray path time = {med[('mitsuba-numpy', args.spp)] / med[m]:.2f}")
+        print(f"Mitsuba before issue 19 (numpy rays, path) / now time = {med[('mitsuba-numpy', args.spp)] / med[m]:.2f}")
     print(f"\nequal samples ({args.spp} spp): Cycles / Mitsuba time = {med[('cycles', args.spp)] / med[m]:.2f}")
     cs = [c for c in configs if c[0] == "cycles"]
     ln, lt = np.log([noise[c] for c in cs]), np.log([med[c] for c in cs])
