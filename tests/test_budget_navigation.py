@@ -151,3 +151,27 @@ def test_navigation_command_refuses_a_folder_without_tables(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not an error-budget folder" in err[0]
     assert not any(tmp_path.iterdir())
+
+
+def test_navigation_command_writes_tables_and_report_and_only_reproduces_rows(tmp_path):
+    """Two runs end to end through the CLI, then ``--only all_on`` again: the same rows (same seeds), the rest kept."""
+    import shutil
+
+    folder = tmp_path / "budget"
+    (folder / "tables").mkdir(parents=True)
+    for name in ("budget_measurements", "budget_configs"):
+        shutil.copy(BUDGET / f"{name}.parquet", folder / "tables")
+    shutil.copy(BUDGET.parent / "budget.json", folder)
+    args = ["navigation", str(folder), "--scenario", str(DESCENT / "scenario.toml"), "--runs", "2", "--workers", "1",
+            "--mappings", "pixel"]
+    assert B.main(args) == 0
+    first = pq.read_table(folder / "tables" / "budget_navigation.parquet")
+    n_cfg = len(set(pq.read_table(BUDGET / "budget_configs.parquet").column("config").to_pylist()))
+    assert first.num_rows == 2 * (1 + n_cfg * 4)
+    assert B.main(args + ["--only", "all_on"]) == 0
+    again = pq.read_table(folder / "tables" / "budget_navigation.parquet")
+    key = lambda t: sorted(zip(*[t.column(c).to_pylist() for c in ("mapping", "config", "method", "run", "err_norm_m")]))
+    assert key(again) == key(first)
+    report = {p.name for p in (folder / "report").iterdir()}
+    assert {"budget_navigation.csv", "budget_navigation_validation.csv", "budget_navigation.png"} <= report
+    assert "### navigation: geometric all-on vs the rendered" in (folder / "report" / "budget_table.md").read_text()

@@ -323,12 +323,19 @@ def _parser() -> argparse.ArgumentParser:
     n.add_argument("--runs", type=int, default=200)
     n.add_argument("--seed", type=int, default=2027, help="seed of the injected landmark errors")
     n.add_argument("--workers", type=int, default=2)
+    n.add_argument("--mappings", nargs="+", default=None, help="mappings of the budget's statistics onto the "
+                   "descent's altitudes (default: altitude ground pixel; .budget_navigation)")
+    n.add_argument("--only", nargs="+", metavar="CONFIG", help="fly only these configurations and replace their "
+                   "rows in FOLDER/tables/budget_navigation.parquet")
     return p
 
 
-def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, workers: int) -> None:
+def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, workers: int, only=None,
+                   mappings=None) -> None:
     """Fly the navigation budget (:func:`.budget_navigation.navigation_tables`) into ``folder/tables``, then the
-    report."""
+    report; ``only``: those configurations' rows replaced in the existing table (same runs and seed)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
     from renderlab.studies.retina_vs_spc.budget_navigation import RENDERED, TABLE, NavBudgetOptions, \
@@ -336,7 +343,14 @@ def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, work
     from renderlab.studies.retina_vs_spc.budget_report import write_report
     from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 
-    nav, rendered = navigation_tables(folder, scenario_path, NavBudgetOptions(runs=runs, seed=seed), workers)
+    opts = NavBudgetOptions(runs=runs, seed=seed, **({"mappings": tuple(mappings)} if mappings else {}))
+    nav, rendered = navigation_tables(folder, scenario_path, opts, workers, only)
+    if only:
+        old = pq.read_table(Path(folder) / TABLES / f"{TABLE}.parquet")
+        if sorted(set(old.column("run").to_pylist())) != list(range(runs)):
+            raise UserError(f"--only: the existing navigation table does not have runs 0..{runs - 1}")
+        keep = old.filter(pc.invert(pc.is_in(old.column("config"), value_set=pa.array(list(only), pa.string()))))
+        nav = pa.concat_tables([keep, nav.select(keep.column_names)])
     for name, table in ((TABLE, nav), (RENDERED, rendered)):
         out = Path(folder) / TABLES / f"{name}.parquet"
         tmp = out.with_name(f".{out.name}.tmp")
@@ -374,7 +388,7 @@ def main(argv: list[str] | None = None) -> int:
         elif args.command == "probe":
             run_probe(args.folder, args.scenario, args.workdir)
         elif args.command == "navigation":
-            run_navigation(args.folder, args.scenario, args.runs, args.seed, args.workers)
+            run_navigation(args.folder, args.scenario, args.runs, args.seed, args.workers, args.only, args.mappings)
         else:
             from renderlab.studies.retina_vs_spc.budget_report import write_report
 

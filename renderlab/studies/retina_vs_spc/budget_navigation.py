@@ -51,7 +51,8 @@ Tuning
 
 Use
 ---
-``python -m renderlab.studies.retina_vs_spc.budget navigation results/error_budget --runs 200`` writes
+``python -m renderlab.studies.retina_vs_spc.budget navigation results/error_budget --runs 200`` (``--only
+CONFIG ...``: just those configurations, replacing their rows) writes
 ``tables/budget_navigation.parquet`` (one row per mapping, configuration, method and run: touchdown-proxy error
 at the last image, east / north / up in the site frame, the filter's 1σ, NEES, track loss, the injected model)
 and ``tables/budget_navigation_rendered.parquet`` (the rendered campaign's touchdown rows, for the validation),
@@ -330,23 +331,25 @@ def _injected(model: ErrorModel | None, fx: float, depth_m: float) -> dict:
 
 
 def _fly_run(args) -> list[dict]:
-    """Worker: every (mapping, configuration, method) of run ``run`` → rows."""
-    run, seed = args
+    """Worker: every (mapping, configuration, method) of run ``run`` (and, with ``floor``, the descent without
+    landmark error) → rows."""
+    run, seed, floor = args
     geom, models = _WORKER["geom"], _WORKER["models"]
     draws = run_draws(geom, run)
     beta, eps = landmark_draws(geom, seed, run)
     depth = float(np.linalg.norm(geom.pos_true[-1] - geom.truth.origin_m))
     rows = [{"mapping": "", "config": NONE_CONFIG, "method": NONE_METHOD, "run": run,
-             **_injected(None, geom.camera.fx, depth), **fly(geom, draws, None, beta, eps, "retina")}]
+             **_injected(None, geom.camera.fx, depth), **fly(geom, draws, None, beta, eps, "retina")}] if floor else []
     for m in models:
         rows.append({"mapping": m.mapping, "config": m.config, "method": m.method, "run": run,
                      **_injected(m, geom.camera.fx, depth), **fly(geom, draws, m, beta, eps, m.method)})
     return rows
 
 
-def navigation_tables(folder, scenario_path, opts: NavBudgetOptions, workers: int = 2) -> tuple:
+def navigation_tables(folder, scenario_path, opts: NavBudgetOptions, workers: int = 2, only=None) -> tuple:
     """(navigation table, rendered touchdown table) of a budget folder's tables flown along ``scenario_path``'s
-    descent (module docstring); progress on stderr."""
+    descent (module docstring); progress on stderr. ``only``: fly just these configurations (no floor) — the
+    same seeds give the rows a full run would, so they can replace those of an existing table."""
     import concurrent.futures as cf
     import sys
     import time
@@ -357,14 +360,22 @@ def navigation_tables(folder, scenario_path, opts: NavBudgetOptions, workers: in
 
     if opts.runs < 2:
         raise UserError(f"--runs must be >= 2, got {opts.runs}")
+    bad = sorted(set(opts.mappings) - set(MAPPINGS))
+    if bad:
+        raise UserError(f"--mappings: {bad[0]!r} is not one of {', '.join(MAPPINGS)}")
     meas, configs = read_tables(folder)
     geom = descent_geometry(scenario_path)
     models = [m for mp in opts.mappings
               for m in error_models(meas, configs, geom.camera.fx, geom.cfg.gsd_ratio_range, mp, opts.gross_px)]
+    if only:
+        unknown = sorted(set(only) - {m.config for m in models})
+        if unknown:
+            raise UserError(f"--only: the budget has no configuration {unknown[0]!r}")
+        models = [m for m in models if m.config in only]
     rows, t0 = [], time.perf_counter()
     with cf.ProcessPoolExecutor(max_workers=max(1, workers), initializer=_init_worker,
                                 initargs=(str(scenario_path), models)) as pool:
-        for i, r in enumerate(pool.map(_fly_run, [(run, opts.seed) for run in range(opts.runs)])):
+        for i, r in enumerate(pool.map(_fly_run, [(run, opts.seed, not only) for run in range(opts.runs)])):
             rows += r
             if (i + 1) % 10 == 0 or i + 1 == opts.runs:
                 print(f"[{i + 1}/{opts.runs}] runs flown ({len(r)} descents each, "

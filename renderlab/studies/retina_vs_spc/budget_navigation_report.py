@@ -4,7 +4,8 @@ Statistics of the touchdown-proxy position error δr (last image, 50 m; site eas
 of one mapping × method: ``rms_3d`` = √(mean |δr|²) and ``rms_e``/``rms_n``/``rms_u`` per axis. A source's
 contribution is ``sign(d)·√|d|``, d = v²(source alone) − v²(all off) — the same rule as the per-landmark budget
 (:mod:`.budget_stats`) — the quadrature sum √(v²(all off) + Σ d) is checked against v(all on) (PASS within 20 %);
-``peak_step`` (``retina`` only) is the 3×3 step against ``retina_refined`` at all off, and ``floor`` the
+``peak_step`` (``retina`` only) is the 3×3 step against ``retina_refined`` at all off, ``shadow_approximation`` all off against ``no_shadows``
+(:mod:`.budget_shadows`; neither enters the sum: both are inside all off), and ``floor`` the
 descent without landmark error (inside every other value, not a term of the sum). Runs that diverged in any
 configuration of the mapping × method are left out of it (counted in ``runs_lost``). **Intervals**: 95 %
 percentile bootstrap over **runs** (runs are independent; every configuration and method of a run shares its
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 N_BOOT, SEED, TOL = 1000, 21, 0.2
+SHADOW_CONFIG = "no_shadows"  # .budget_shadows.CONFIG: its term is at all off, like the peak step
 STATS = ("rms_3d", "rms_e", "rms_n", "rms_u")
 AXES = {"rms_3d": ("e", "n", "u"), "rms_e": ("e",), "rms_n": ("n",), "rms_u": ("u",)}
 
@@ -66,6 +68,8 @@ def terms(table, sources: list[str]) -> list[dict]:
             rows = {c: _by(cols, mp, c, meth) for c in names}
             if meth == "retina" and _by(cols, mp, "all_off", "retina_refined")["run"].size:
                 rows["refined_off"] = _by(cols, mp, "all_off", "retina_refined")
+            if _by(cols, mp, SHADOW_CONFIG, meth)["run"].size:
+                rows[SHADOW_CONFIG] = _by(cols, mp, SHADOW_CONFIG, meth)
             rows["floor"] = floor_rows
             runs = floor_rows["run"]
             ok = np.ones(runs.size, bool)
@@ -95,6 +99,8 @@ def _term_values(sq: dict, have: list, mean) -> dict:
     t = {"floor": np.sqrt(v2["floor"]), "all_off": np.sqrt(v2["all_off"]), **{s: _signed_root(x) for s, x in d.items()}}
     if "refined_off" in v2:
         t["peak_step"] = _signed_root(v2["all_off"] - v2["refined_off"])
+    if SHADOW_CONFIG in v2:
+        t["shadow_approximation"] = _signed_root(v2["all_off"] - v2[SHADOW_CONFIG])
     t["quadrature_sum"] = np.sqrt(np.clip(q, 0, None))
     t["all_on"] = np.sqrt(v2["all_on"])
     with np.errstate(invalid="ignore", divide="ignore"):
