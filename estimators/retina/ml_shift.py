@@ -37,6 +37,12 @@ linearised covariance σ̂² [𝒥σ²]⁻¹ (σ̂² from the residual), the est
 model error too, so at high SNR it is conservative (measured on 48² textures at SNR 50: 1.4–2.8× the spread,
 whose ratio to the exact-gradient CRLB is 0.97–1.05).
 
+What remains (measured on the benchmark's 15 EV5 templates, prediction = image, SNR 20, 100 draws each): the
+spread is 1.00× the bound of the model the step uses (ML-3 with the spline's derivatives), and that bound is
+1.14× the Fisher bound of the rendered scene (:func:`~.peak_step.rendered_crlb`; 1.18× even for a 9 × 9-ray
+template). The spline of a sampled template under-states how a sharp scene's pixels change with a sub-pixel
+shift; only derivatives from the renderer itself (templates re-rendered at shifted poses) would close that gap.
+
 Tuning
 ------
 :class:`MlShiftOptions`: ``iterations`` (Gauss–Newton steps, 10; it converges in 2–3 from a ``gaussian_2d``
