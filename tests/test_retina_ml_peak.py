@@ -137,6 +137,8 @@ def test_bad_input_is_one_clear_error():
         ml_shift(c.image, c.template, c.valid, c.s0, c.l0, np.nan, 0.0)
     with pytest.raises(ValueError, match="iterations >= 1"):
         MlShiftOptions(iterations=0)
+    with pytest.raises(ValueError, match="fill 'nearest' or 'mean'"):
+        MlShiftOptions(fill="zero")
     with pytest.raises(ValueError, match="unknown peak refinement 'newton'.*ml_shift"):
         RetinaOptions(refine="newton")
 

@@ -94,9 +94,9 @@ class MlShiftOptions:
 
     def __post_init__(self):
         if self.iterations < 1 or self.erode_px < 0 or not self.tol_px > 0 or not self.max_move_px > 0 \
-                or self.min_pixels < 5:
-            raise ValueError("MlShiftOptions: iterations >= 1, erode_px >= 0, tol_px > 0, max_move_px > 0 and "
-                             f"min_pixels >= 5 required (got {self})")
+                or self.min_pixels < 5 or self.fill not in ("nearest", "mean"):
+            raise ValueError("MlShiftOptions: iterations >= 1, erode_px >= 0, tol_px > 0, max_move_px > 0, "
+                             f"min_pixels >= 5 and fill 'nearest' or 'mean' required (got {self})")
 
 
 @dataclass(frozen=True)
