@@ -49,7 +49,7 @@ Tuning
 start), ``tol_px`` (stop when the step is smaller, 1e-4 px), ``erode_px`` (footprint erosion, 0 px; 1–2 px keep
 the spline's support on predicted pixels at the price of their information: measured on the benchmark's 15 EV5
 templates, 25 draws, σ/CRLB at SNR 20 1.06 / 1.12 / 1.23 for 0 / 1 / 2 px, max |bias| 0.010 / 0.008 / 0.007 px),
-``fill`` (``nearest``; ``mean`` fills with the footprint mean as :mod:`.recentre` does: 0.035 px bias at 0 px
+``fill`` (``nearest``; ``mean`` fills with the footprint mean as :mod:`.recentre` does: 0.032 px bias at 0 px
 erosion), ``max_move_px`` (farther than this from the start = no convergence, the start is kept, 1.5 px),
 ``min_pixels`` (fewer usable pixels = the start is kept).
 
