@@ -10,7 +10,8 @@ P⁺ = (I − KH) P⁻ (I − KH)ᵀ + K R Kᵀ (U3); NIS = νᵀ S⁻¹ ν over
 With map states (:mod:`.map_states`) the same equations run on the augmented state: new landmarks augmented before
 the gate (their prior enters S), H of eq. L1, the considered states' gain rows zero in ``"consider"`` mode; landmarks
 augmented now but not kept are dropped again (nothing learnt), those absent for ``map_keep_updates`` updates
-marginalised (L3).
+marginalised (L3). With ``iterations`` > 1 the update is the iterated EKF (U5; Bar-Shalom, Li & Kirubarajan 2001,
+§10.5.2): x_{i+1} = x⁻ + K_i (z − h(x_i) − H_i (x⁻ − x_i)), H_i and K_i at x_i, P⁺ by U3 with the last K_i, H_i.
 """
 
 from __future__ import annotations
@@ -58,6 +59,9 @@ class DescentNavOptions:
         After the per-landmark gate, test the kept landmarks *jointly* (eq. U2b): while their NIS exceeds
         χ²_dof(p_gate), drop the landmark whose removal lowers it most. Catches false matches that each fit the
         prior's wide marginal S but not each other (several wrong locks after a large initial error).
+    iterations : int
+        Gauss–Newton iterations of the update (eq. U5, the iterated EKF); 1 = the EKF. The gate and NIS use the
+        prior's linearisation.
     """
 
     gm_m3_s2: float = 0.0
@@ -70,6 +74,7 @@ class DescentNavOptions:
     map_states: str = "off"
     map_keep_updates: int = 3
     joint_gate: bool = False
+    iterations: int = 1
 
     def __post_init__(self):
         w = np.asarray(self.omega_rad_s, float)
@@ -86,6 +91,8 @@ class DescentNavOptions:
             raise UserError(f"{NAME}: max_step_s must be positive, got {self.max_step_s!r}")
         if self.map_states not in MODES:
             raise UserError(f"{NAME}: map_states must be one of {', '.join(MODES)}, got {self.map_states!r}")
+        if not (isinstance(self.iterations, int) and 1 <= self.iterations <= 50):
+            raise UserError(f"{NAME}: iterations must be an integer in [1, 50], got {self.iterations!r}")
         if not (isinstance(self.map_keep_updates, int) and self.map_keep_updates >= 1):
             raise UserError(f"{NAME}: map_keep_updates must be an integer >= 1, got {self.map_keep_updates!r}")
 
@@ -201,17 +208,26 @@ class DescentEKF:
         return self._gate[dof]
 
     def _with_maps(self, kind: str, context: dict):
-        """(context with map-corrected points, slot of each landmark or None): augments new landmarks (eq. L2)."""
+        """Slot of each landmark in the state, or None without map states; augments new landmarks (eq. L2)."""
         if self.options.map_states == "off" or kind != "pixel" or "points_body_m" not in context:
-            return context, None
+            return None
         pts = np.asarray(context["points_body_m"], float)
         if pts.ndim != 2 or pts.shape[1] != 3:
-            return context, None                     # the measurement model gives the one-line error
+            return None                              # the measurement model gives the one-line error
         ids, covs = landmark_context(context, len(pts), NAME)
         self._x, self._P = self._maps.augment(self._x, self._P, ids, covs)
-        slots = self._maps.slots(ids)
-        dp = self._x[6:].reshape(-1, 3)[slots] if len(self._x) > 6 else np.zeros((len(pts), 3))
-        return {**context, "points_body_m": pts + dp}, slots
+        return self._maps.slots(ids)
+
+    def _linearise(self, kind: str, xa: np.ndarray, z: np.ndarray, R, context: dict, slots):
+        """(ν, H, R, groups) at the whole state ``xa``: the landmarks at their map-corrected points (eq. L1)."""
+        ctx = context
+        if slots is not None:
+            ctx = {**context, "points_body_m": np.asarray(context["points_body_m"], float)
+                   + xa[6:].reshape(-1, 3)[slots]}
+        nu, H6, Rm, groups = model(kind, xa[:6], z, R, ctx, NAME)
+        n = len(xa)
+        H = map_jacobian(H6, slots, n) if slots is not None else np.hstack([H6, np.zeros((len(nu), n - 6))])
+        return nu, H, Rm, groups
 
     def _close_maps(self, context: dict, slots, kept: np.ndarray) -> None:
         """Drop the landmarks augmented now but not kept (nothing learnt: exact), then the stale ones (eq. L3)."""
@@ -244,6 +260,12 @@ class DescentEKF:
             drop[worst] = True
         return drop
 
+    def _gain(self, S: np.ndarray, H: np.ndarray) -> np.ndarray:
+        K = np.linalg.solve(S, H @ self._P).T
+        if self.options.map_states == "consider":
+            K[6:] = 0.0                              # Schmidt–Kalman: the map states are considered, not estimated
+        return K
+
     def update(self, t_s: float, kind: str, z, R, context: dict) -> DescentUpdate:
         """Propagate to ``t_s`` and update with one measurement of ``kind`` (eqs. U1–U4; map states L1–L3)."""
         self.propagate(t_s)
@@ -251,14 +273,13 @@ class DescentEKF:
         if not np.all(np.isfinite(z)):
             raise UserError(f"{NAME}: measurement z has non-finite values")
         context = context or {}
-        ctx, slots = self._with_maps(kind, context)
-        nu, H6, Rm, groups = model(kind, self._x[:6], z, np.array(R, dtype=float) if R is not None else None,
-                                   ctx, NAME)
+        slots = self._with_maps(kind, context)
+        R = np.array(R, dtype=float) if R is not None else None
+        nu, H, Rm, groups = self._linearise(kind, self._x, z, R, context, slots)
         if Rm is None or Rm.shape != (len(nu), len(nu)) or not np.all(np.isfinite(Rm)):
             raise UserError(f"{NAME}: R must be a finite ({len(nu)}, {len(nu)}) covariance for this {kind!r} "
                             f"measurement")
         n = len(self._x)
-        H = map_jacobian(H6, slots, n) if slots is not None else np.hstack([H6, np.zeros((len(nu), n - 6))])
         k = len(groups)
         flagged = np.zeros(k, bool)
         if self.options.reject_flagged and "flagged" in context:
@@ -277,11 +298,15 @@ class DescentEKF:
             return DescentUpdate(math.nan, 0, kept, flagged, gated, d2)
         rows = np.concatenate([g for g, keep in zip(groups, kept) if keep])
         nu, H, Rk, S = nu[rows], H[rows], Rm[np.ix_(rows, rows)], S[np.ix_(rows, rows)]
-        K = np.linalg.solve(S, H @ self._P).T
-        if self.options.map_states == "consider":
-            K[6:] = 0.0                              # Schmidt–Kalman: the map states are considered, not estimated
+        K = self._gain(S, H)
+        dx = K @ nu
+        for _ in range(self.options.iterations - 1):    # iterated EKF (U5): relinearise at x⁻ + δx
+            nu_i, H_i, _, _ = self._linearise(kind, self._x + dx, z, R, context, slots)
+            H = H_i[rows]
+            K = self._gain(H @ self._P @ H.T + Rk, H)
+            dx = K @ (nu_i[rows] + H @ dx)
         IKH = np.eye(n) - K @ H
-        self._x = self._x + K @ nu
+        self._x = self._x + dx
         P = IKH @ self._P @ IKH.T + K @ Rk @ K.T
         self._P = 0.5 * (P + P.T)
         self._close_maps(context, slots, kept)

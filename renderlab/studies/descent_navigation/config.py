@@ -74,6 +74,8 @@ class DescentNavigationConfig(Strict):
                                      "[m^2/s^3]")
     gate_probability: Unit = Field(1.0 - 1e-6, description="Per-landmark chi2 gate probability of the filter [-]")
     reject_flagged: bool = Field(True, description="Reject landmarks the method flagged as outliers")
+    iterations: Annotated[int, Field(ge=1, le=50)] = Field(1, description="Gauss-Newton iterations of the filter "
+                                                             "update (1: EKF; more: the iterated EKF)")
     joint_gate: bool = Field(False, description="Also gate the kept landmarks of an image jointly (drop the worst "
                              "until their NIS passes the chi2 gate)")
     max_landmarks: Annotated[int, Field(ge=1, le=200)] = Field(8, description="Landmarks attempted per image at "

@@ -1,7 +1,8 @@
 """Report piece of ``descent_navigation`` for campaigns whose filter table has the whitened errors (``white_*``):
 ``descent_independence.csv`` (per method and image: the share of the error common to all runs, N_eff and the
 effective χ² bands beside the plain ones, :mod:`.independence`), ``descent_bands.csv`` (per method: share of images
-inside each band) and the figure ``descent_independence`` (PNG + SVG)."""
+inside each band), ``descent_bias_by_tier.csv`` (kept-landmark bias and rms per method and maplet tier) and the
+figure ``descent_independence`` (PNG + SVG)."""
 
 from __future__ import annotations
 
@@ -56,6 +57,32 @@ def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
     return save(fig, out_dir / "descent_independence")
 
 
+def bias_by_tier(ltab) -> list[dict]:
+    """Per method and maplet tier (spacing): bias of the kept landmarks per axis with a 95 % cluster-bootstrap
+    interval over runs, and their rms error, in px and on the ground (px × GSD)."""
+    from renderlab.stats.bootstrap import cluster_bootstrap
+    from renderlab.studies.descent_navigation.scoring import columns, tracked
+
+    lt = tracked(ltab) if "track_lost" in ltab.column_names else ltab
+    c = columns(lt, ("run", "method", "kept", "err_s", "err_l", "gsd_m", "spacing_m"))
+    out = []
+    for m in sorted(set(c["method"].tolist())):
+        for sp in sorted(set(c["spacing_m"].tolist()), reverse=True):
+            k = (c["method"] == m) & c["kept"] & (c["spacing_m"] == sp)
+            if k.sum() < 2:
+                continue
+            row = {"method": m, "spacing_m": float(sp), "n_landmarks": int(k.sum()),
+                   "gsd_m_mean": float(np.mean(c["gsd_m"][k]))}
+            for ax in ("s", "l"):
+                e = c[f"err_{ax}"][k]
+                iv = cluster_bootstrap(e, c["run"][k], "mean", cluster_name="runs")
+                row.update({f"bias_{ax}_px": iv.estimate, f"bias_{ax}_px_lo": iv.lo, f"bias_{ax}_px_hi": iv.hi,
+                            f"rms_{ax}_px": float(np.sqrt(np.mean(e**2))),
+                            f"rms_{ax}_m": float(np.sqrt(np.mean((e * c["gsd_m"][k]) ** 2)))})
+            out.append(row)
+    return out
+
+
 def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path, write_csv) -> tuple[str, list[str]]:
     """(HTML table, figure files) of the independence piece; writes its two CSVs."""
     from renderlab.report.style import fmt
@@ -65,6 +92,8 @@ def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path, write_c
     bands = band_summary(rows)
     write_csv(rows, out_dir / "descent_independence.csv")
     write_csv(bands, out_dir / "descent_bands.csv")
+    if ltab is not None and "spacing_m" in ltab.column_names:
+        write_csv(bias_by_tier(ltab), out_dir / "descent_bias_by_tier.csv")
     head = ("method", "images in NEES band (plain / N_eff)", "images in NIS band (plain / N_eff)",
             "ρ state mean (max)", "N_eff min", "ρ_ν innovations mean", "landmark-error share s, l")
     out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]

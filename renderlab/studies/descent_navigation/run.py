@@ -52,7 +52,8 @@ def filter_options(cfg, omega_rad_s: float) -> dict:
     return {"gm_m3_s2": cfg.gm_filter_m3_s2, "omega_rad_s": (0.0, 0.0, omega_rad_s), "q_acc_m2_s3": cfg.q_acc_m2_s3,
             "sigma_input_mps2": cfg.accel_sigma_mps2, "gate_probability": cfg.gate_probability,
             "reject_flagged": cfg.reject_flagged, "max_step_s": 10.0, "map_states": cfg.map_states,
-            "map_keep_updates": cfg.map_keep_updates, "joint_gate": cfg.joint_gate}
+            "map_keep_updates": cfg.map_keep_updates, "joint_gate": cfg.joint_gate,
+            "iterations": cfg.iterations}
 
 
 def _accel_intervals(truth, times, cfg, rng) -> list:
