@@ -11,11 +11,14 @@ one after the other in one run of this script, on the same descent frames at the
   primary + shadow ray, renderlab/render/mitsuba_direct.py), world cache empty (built and stored).
 * ``new_path``: tiles, Dr.Jit rays, world from the cache, ``path`` (the code before the direct-sun change).
 * ``new_warm``: tiles, Dr.Jit rays, ``rl_direct_sun``, world from the cache: today's code.
+* ``new_small_pass``: ``new_warm`` with ``MitsubaBackend.samples_per_pass = 2**22`` (wavefronts of 4 M samples
+  instead of one of W·H·spp up to 16 M): the wavefront size against throughput.
 
 Per configuration: world build (or cache load) seconds, Mitsuba scene load seconds, seconds per frame
 (tile update + render), the tile update (``_set_sun``: tiles written into the mesh, acceleration structure
 rebuilt) and a sun-only parameter update timed apart, facets of the site in each frame, peak resident set
-of the process, and seconds per frame *including its share* of build + load over the descent. Ratios against
+of the process, and seconds per frame *including its share* of build + load over the descent; with tiles,
+the acceleration-structure rebuild alone (the last frame's tiles written back unchanged, ``params.update()``). Ratios against
 ``old`` are printed. ``--floor``: on ``new_warm``'s (and ``old_drjit``'s) frames, ``mi.render`` of the same
 loaded scene (the frame's tiles) with a perspective sensor, radiance only, per integrator (``direct``:
 Mitsuba's C++ direct illumination, one emitter sample, no BSDF sample; ``rl_direct_sun``; ``path``), the
@@ -49,7 +52,7 @@ sys.path.insert(0, str(REPO))
 #: path → (site levels of detail, ray path, world cache, integrator)
 PATHS = {"old": (False, "numpy", False, "path"), "old_drjit": (False, "drjit", True, "path"),
          "new_path": (True, "drjit", True, "path"), "new_cold": (True, "drjit", True, "auto"),
-         "new_warm": (True, "drjit", True, "auto")}
+         "new_warm": (True, "drjit", True, "auto"), "new_small_pass": (True, "drjit", True, "auto")}
 #: mi.render integrators of ``--floor`` (Mitsuba's own renderer on the same loaded scene, radiance only)
 FLOORS = {"direct": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0, "hide_emitters": True},
           "rl_direct_sun": {"type": "rl_direct_sun"},
@@ -107,6 +110,23 @@ def _sets(args, lod: bool, cache: bool) -> list[str]:
     return sets
 
 
+def _rebuild_same_tiles(backend) -> list[float]:
+    """Seconds of ``params.update()`` after writing the last frame's own tile vertices back into the tiled mesh
+    (same tiles, so only Mitsuba's acceleration-structure rebuild of the whole scene is timed), twice."""
+    import drjit as dr
+    import numpy as np
+
+    p, out = backend.params, []
+    for _ in range(2):
+        v = p["tiled0.vertex_positions"]
+        p["tiled0.vertex_positions"] = type(v)(np.array(v))
+        t0 = time.perf_counter()
+        p.update()
+        dr.sync_thread()
+        out.append(time.perf_counter() - t0)
+    return out
+
+
 def child(args) -> None:
     """One configuration; prints one JSON line."""
     from renderlab.pipeline import make_backend
@@ -118,6 +138,8 @@ def child(args) -> None:
     MitsubaBackend.ray_path, MitsubaBackend.integrator = rays, integrator
     if args.spp_pass:
         MitsubaBackend.samples_per_pass = args.spp_pass
+    if args.child == "new_small_pass":  # new_warm with a wavefront of 4 M samples (1 MP, 16 spp: 4 passes)
+        MitsubaBackend.samples_per_pass = 1 << 22
     sc, base = load_scenario(REPO / "scenes" / "ev5_descent.toml", _sets(args, lod, cache))
     t0 = time.perf_counter()
     plan = make_plan(sc, base)
@@ -147,7 +169,9 @@ def child(args) -> None:
         print(f"  [{args.child}] frame {k}: {meta['altitude_m']:.0f} m, {dt + t_update:.1f} s (tile update "
               f"{t_update:.2f} s, render {dt:.1f} s, sun-only update {t_sun:.2f} s), site facets {site}"
               + (f", mi.render {rec['mi_render_s']}" if floors else ""), file=sys.stderr, flush=True)
+    rebuild = _rebuild_same_tiles(backend) if backend._tiles is not None else None
     print(json.dumps({"path": args.child, "build_s": t_build, "load_s": t_load, "frames": frames,
+                      "rebuild_same_tiles_s": rebuild, "samples_per_pass": MitsubaBackend.samples_per_pass,
                       "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,
                       "n_global_facets": int(len(plan.model.shape.faces))}))
 
@@ -185,6 +209,10 @@ def main() -> None:
                   f"load {share:.1f} s/frame; peak RSS {r['peak_rss_gb']:.2f} GB; site facets per frame "
                   f"{[f['site_facets'] for f in r['frames']]}; tile updates "
                   f"{', '.join(f'{u:.2f}' for u in upd)} s", flush=True)
+            if r.get("rebuild_same_tiles_s"):
+                print(f"    acceleration-structure rebuild with the same tiles (last frame's, beside the "
+                      f"{r['n_global_facets'] / 1e6:.2f} M-facet global mesh): "
+                      + ", ".join(f"{x:.2f}" for x in r["rebuild_same_tiles_s"]) + " s", flush=True)
             for f in r["frames"]:
                 if "mi_render_s" in f:
                     print(f"    {f['altitude_m']:.0f} m: lab {f['s']:.1f} s; mi.render (same scene, radiance only) "
