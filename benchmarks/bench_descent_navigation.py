@@ -44,7 +44,8 @@ BUDGET_MS = 1000.0 / 3.0
 
 
 def filter_steps(repeats: int) -> None:
-    """(a) per map-state mode (off = the filter before map states; estimate; consider), interleaved call by call:
+    """(a) per map-state mode (off = the filter before map states; estimate; consider; estimate with the iterated
+    update of 3 iterations), interleaved call by call:
     propagate 1 s, the first update with 8 new landmarks (augmentation: 6 → 30 states), then propagate 1 s and
     update again with the same 8 (30 states, the steady state of the descent)."""
     from estimators.descent_nav import DescentEKF, DescentNavOptions, pixel_covariance
@@ -58,9 +59,10 @@ def filter_steps(repeats: int) -> None:
     pts = ground + rng.normal(0, 5.0, (8, 3))
     r = ground + 120 * up
     R = look_at(r, ground, np.array([0.0, 0.0, 1.0])).as_matrix()
-    modes = ("off", "estimate", "consider")
+    modes = ("off", "estimate", "consider", "estimate, 3 iterations")
     filters = {m: DescentEKF(DescentNavOptions(gm_m3_s2=2.9, omega_rad_s=(0, 0, 4.7e-4), q_acc_m2_s3=1e-10,
-                                               sigma_input_mps2=2e-5, map_states=m)) for m in modes}
+                                               sigma_input_mps2=2e-5, map_states=m.split(",")[0],
+                                               iterations=3 if "iterations" in m else 1)) for m in modes}
     z = cam.project((pts - r) @ R).reshape(-1)
     ctx = {"points_body_m": pts, "R_body_from_cam": R, "camera": cam, "landmark_ids": np.arange(8),
            "landmark_cov_m2": np.repeat((np.eye(3) * 0.01**2)[None], 8, 0)}
@@ -86,7 +88,7 @@ def filter_steps(repeats: int) -> None:
     med = {m: {k: statistics.median(v) for k, v in d.items()} for m, d in t.items()}
     for m in modes:
         d = t[m]
-        print(f"(a) filter map_states={m:8s} ({6 + (24 if m != 'off' else 0)} states after the first update): "
+        print(f"(a) filter map_states={m:22s} ({6 + (24 if m != 'off' else 0)} states after the first update): "
               f"propagate 1 s median {med[m]['prop']:.3f} ms (min {min(d['prop']):.3f}); update k = 8, first "
               f"median {med[m]['first']:.3f} ms (min {min(d['first']):.3f}), steady median {med[m]['steady']:.3f} ms "
               f"(min {min(d['steady']):.3f}) ({repeats} interleaved calls)")
