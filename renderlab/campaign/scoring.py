@@ -13,6 +13,10 @@ Gaussian pixel noise of variance σ²ᵢ, the Fisher information of the shift is
 gradients this is the single-axis ``σ²/Σ(∂I/∂s)²`` of the issue. ∇I is the central difference of the
 noise-free expected DN (4th-order stencil); σ² comes from the sensor model (shot + dark electrons, read noise, gain,
 1/12 DN² quantisation). It bounds the correlation shift of Wright et al. eq. 9 and any centroid.
+When the expected image is itself a Monte-Carlo render (finite samples per pixel), its render noise adds
+gradient energy and the bound comes out too small; ``registration_crlb(..., independent=second_render)`` takes
+the cross-product of two independent renders' gradients, an unbiased estimate of the noise-free J
+(:func:`fisher_information`).
 
 Filter tables (``run, t_s, err_*``, ``nees``, ``nis``): per error column mean/std/RMS after a settling
 time, and ANEES/ANIS with their two-sided χ² bounds (N runs × d degrees of freedom).
@@ -166,7 +170,63 @@ def dn_variance(radiance: np.ndarray, options) -> np.ndarray:
     return (mu + float(options.read_noise_e) ** 2) / float(options.gain_e_per_dn) ** 2 + 1.0 / 12.0
 
 
-def registration_crlb(expected: np.ndarray, variance, *, full: bool = True) -> tuple[float, float]:
+#: 4th-order central-difference stencil of the CRLB gradients (correlated, so the centre weight is 0)
+GRADIENT_STENCIL = np.array([1.0, -8.0, 0.0, 8.0, -1.0]) / 12.0
+
+
+def _gradients(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(∂I/∂s, ∂I/∂l) by :data:`GRADIENT_STENCIL`; the two border rows/columns each side are NaN."""
+    from scipy.ndimage import correlate1d
+
+    gs = correlate1d(img, GRADIENT_STENCIL, axis=1, mode="nearest")
+    gl = correlate1d(img, GRADIENT_STENCIL, axis=0, mode="nearest")
+    gs[:, [0, 1, -2, -1]] = np.nan  # the stencil needs two neighbours each side:
+    gl[[0, 1, -2, -1], :] = np.nan  # border pixels are left out
+    return gs, gl
+
+
+def fisher_information(expected: np.ndarray, variance, *, independent: np.ndarray | None = None) -> np.ndarray:
+    """2 × 2 Fisher information J of the (s, l) shift (see :func:`registration_crlb`).
+
+    Without ``independent``: ``J = Σᵢ wᵢ ∇Iᵢ ∇Iᵢᵀ``, wᵢ = 1/σ²ᵢ, ∇I of ``expected``. With ``independent`` (a
+    second image of the same expectation whose noise is independent of ``expected``'s, e.g. a render with
+    another seed): the cross-product ``J = Σᵢ wᵢ (∇I¹ᵢ ∇I²ᵢᵀ + ∇I²ᵢ ∇I¹ᵢᵀ)/2``. For images ``Ī + εᵏ`` with
+    zero-mean noise independent between the copies, E[∇I¹ ∇I²ᵀ] = ∇Ī ∇Īᵀ, so the cross-product is an unbiased
+    estimate of the noise-free image's J, whereas one copy's E[∇I ∇Iᵀ] = ∇Ī ∇Īᵀ + Cov(∇ε) adds the noise's
+    gradient energy (Σ c² = 130/144 of the pixel noise variance per axis for pixel-independent noise) and
+    overstates J. The cross-product is not positive definite where the noise dominates the window.
+    """
+    img = np.asarray(expected, float)
+    gs, gl = _gradients(img)
+    w = 1.0 / np.broadcast_to(np.asarray(variance, float), img.shape)
+    if independent is None:
+        hs, hl = gs, gl
+    else:
+        other = np.asarray(independent, float)
+        if other.shape != img.shape:
+            raise ValueError(f"independent image shape {other.shape} differs from expected {img.shape}")
+        hs, hl = _gradients(other)
+    ok = np.isfinite(gs) & np.isfinite(gl) & np.isfinite(hs) & np.isfinite(hl) & np.isfinite(w)
+    ss = np.sum((w * gs * hs)[ok])
+    ll = np.sum((w * gl * hl)[ok])
+    sl = 0.5 * (np.sum((w * gs * hl)[ok]) + np.sum((w * hs * gl)[ok])) if independent is not None \
+        else np.sum((w * gs * gl)[ok])
+    return np.array([[ss, sl], [sl, ll]])
+
+
+def crlb_from_fisher(J: np.ndarray, *, full: bool = True) -> tuple[float, float]:
+    """(σ_s, σ_l) px from a 2 × 2 Fisher information: √diag J⁻¹ (``full``) or 1/√J_kk; ∞ where J is not
+    positive definite (or its diagonal term is ≤ 0)."""
+    if not full:
+        return (1 / math.sqrt(J[0, 0]) if J[0, 0] > 0 else math.inf, 1 / math.sqrt(J[1, 1]) if J[1, 1] > 0 else math.inf)
+    if J[0, 0] <= 0 or J[1, 1] <= 0 or np.linalg.det(J) <= 1e-12 * max(J[0, 0] * J[1, 1], 1e-300):
+        return math.inf, math.inf
+    C = np.linalg.inv(J)
+    return float(math.sqrt(C[0, 0])), float(math.sqrt(C[1, 1]))
+
+
+def registration_crlb(expected: np.ndarray, variance, *, full: bool = True,
+                      independent: np.ndarray | None = None) -> tuple[float, float]:
     """Cramér–Rao bound (1σ, px) of the (s, l) shift of a known image in Gaussian pixel noise.
 
     Parameters
@@ -178,25 +238,13 @@ def registration_crlb(expected: np.ndarray, variance, *, full: bool = True) -> t
     full : bool
         True: sqrt of the diagonal of ``J⁻¹`` (joint s, l estimation); False: the single-axis
         ``sqrt(σ²/Σ(∂I/∂s)²)`` form (equal when the gradients are uncorrelated).
+    independent : ndarray (H, W), optional
+        When ``expected`` is itself noisy (a Monte-Carlo render at finite samples per pixel), a second render
+        of the same scene with independent noise: J is then the cross-product of the two renders' gradients
+        (:func:`fisher_information`), unbiased for the noise-free image's J, where the gradients of one noisy
+        render overstate J and so understate the bound. Default: one image, the bound of ``expected`` as given.
     """
-    from scipy.ndimage import correlate1d
-
-    img = np.asarray(expected, float)
-    stencil = np.array([1.0, -8.0, 0.0, 8.0, -1.0]) / 12.0  # 4th-order central difference
-    gs = correlate1d(img, stencil, axis=1, mode="nearest")
-    gl = correlate1d(img, stencil, axis=0, mode="nearest")
-    gs[:, [0, 1, -2, -1]] = np.nan  # the stencil needs two neighbours each side:
-    gl[[0, 1, -2, -1], :] = np.nan  # border pixels are left out
-    w = 1.0 / np.broadcast_to(np.asarray(variance, float), img.shape)
-    ok = np.isfinite(gs) & np.isfinite(gl) & np.isfinite(w)
-    J = np.array([[np.sum((w * gs * gs)[ok]), np.sum((w * gs * gl)[ok])],
-                  [np.sum((w * gs * gl)[ok]), np.sum((w * gl * gl)[ok])]])
-    if not full:
-        return (1 / math.sqrt(J[0, 0]) if J[0, 0] > 0 else math.inf, 1 / math.sqrt(J[1, 1]) if J[1, 1] > 0 else math.inf)
-    if np.linalg.det(J) <= 1e-12 * max(J[0, 0] * J[1, 1], 1e-300):
-        return math.inf, math.inf
-    C = np.linalg.inv(J)
-    return float(math.sqrt(C[0, 0])), float(math.sqrt(C[1, 1]))
+    return crlb_from_fisher(fisher_information(expected, variance, independent=independent), full=full)
 
 
 # ----------------------------------------------------------------------------- filter scoring
