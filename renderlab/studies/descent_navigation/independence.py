@@ -83,13 +83,24 @@ def landmark_shares(lc: dict, method: str, frame: int) -> dict:
     return out
 
 
+def tracked_landmarks(ftab, ltab):
+    """The landmark rows of the (method, run) pairs that kept track (as the filter scores: :func:`.scoring.tracked`)."""
+    import pyarrow as pa
+
+    from renderlab.studies.descent_navigation.scoring import tracked
+
+    ok = set(zip(tracked(ftab).column("method").to_pylist(), tracked(ftab).column("run").to_pylist()))
+    keys = zip(ltab.column("method").to_pylist(), ltab.column("run").to_pylist())
+    return ltab.filter(pa.array([k in ok for k in keys]))
+
+
 def independence_rows(ftab, ltab, ts_rows: list[dict]) -> list[dict]:
     """One row per method and image: ρ (eq. I1), ρ_ν (I2), the landmark shares, N_eff (I3) and the effective bands
     beside the plain ones of ``ts_rows`` (:func:`renderlab.studies.descent_navigation.scoring.timeseries`)."""
     from renderlab.studies.descent_navigation.scoring import chi2_band_sum, columns, tracked
 
     c = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof", *WHITE))
-    lt = tracked(ltab) if ltab is not None and "track_lost" in ltab.column_names else ltab
+    lt = tracked_landmarks(ftab, ltab) if ltab is not None else None
     names = ("method", "frame", "item", "kept", "err_s", "err_l", "meas_s", "meas_l", "pred_s", "pred_l")
     lc = columns(lt, names) if lt is not None else None
     out = []

@@ -57,14 +57,14 @@ def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
     return save(fig, out_dir / "descent_independence")
 
 
-def bias_by_tier(ltab) -> list[dict]:
+def bias_by_tier(ftab, ltab) -> list[dict]:
     """Per method and maplet tier (spacing): bias of the kept landmarks per axis with a 95 % cluster-bootstrap
-    interval over runs, and their rms error, in px and on the ground (px × GSD)."""
+    interval over runs, and their rms error, in px and on the ground (px × GSD); runs that kept track."""
     from renderlab.stats.bootstrap import cluster_bootstrap
-    from renderlab.studies.descent_navigation.scoring import columns, tracked
+    from renderlab.studies.descent_navigation.independence import tracked_landmarks
+    from renderlab.studies.descent_navigation.scoring import columns
 
-    lt = tracked(ltab) if "track_lost" in ltab.column_names else ltab
-    c = columns(lt, ("run", "method", "kept", "err_s", "err_l", "gsd_m", "spacing_m"))
+    c = columns(tracked_landmarks(ftab, ltab), ("run", "method", "kept", "err_s", "err_l", "gsd_m", "spacing_m"))
     out = []
     for m in sorted(set(c["method"].tolist())):
         for sp in sorted(set(c["spacing_m"].tolist()), reverse=True):
@@ -93,7 +93,7 @@ def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path, write_c
     write_csv(rows, out_dir / "descent_independence.csv")
     write_csv(bands, out_dir / "descent_bands.csv")
     if ltab is not None and "spacing_m" in ltab.column_names:
-        write_csv(bias_by_tier(ltab), out_dir / "descent_bias_by_tier.csv")
+        write_csv(bias_by_tier(ftab, ltab), out_dir / "descent_bias_by_tier.csv")
     head = ("method", "images in NEES band (plain / N_eff)", "images in NIS band (plain / N_eff)",
             "ρ state mean (max)", "N_eff min", "ρ_ν innovations mean", "landmark-error share s, l")
     out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
