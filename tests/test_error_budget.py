@@ -138,8 +138,11 @@ def test_published_budget_regenerates_from_its_tables(tmp_path):
     committed = sorted(p.name for p in (PUBLISHED / "report").glob("*.csv")) + ["budget_table.md"]
     for name in committed:
         assert (copy / "report" / name).read_text() == (PUBLISHED / "report" / name).read_text(), name
-    assert {p.name for p in (copy / "report").glob("*.png")} == {"error_budget.png"}
-    assert (PUBLISHED / "report" / "error_budget.svg").is_file()
+    assert {p.name for p in (copy / "report").glob("*.png")} == {"error_budget.png", "budget_navigation.png"}
+    assert (PUBLISHED / "report" / "error_budget.svg").is_file() and (PUBLISHED / "report" / "budget_navigation.svg").is_file()
+    assert {"budget_navigation.csv", "budget_navigation_validation.csv"} <= set(committed)   # compared above
+    md = (PUBLISHED / "report" / "budget_table.md").read_text()
+    assert "| shadow_approximation |" in md and "### navigation: geometric all-on vs the rendered" in md
     manifest = json.loads((PUBLISHED / "budget.json").read_text())
     assert manifest["command"].startswith("python -m renderlab.studies.retina_vs_spc.budget run")
 

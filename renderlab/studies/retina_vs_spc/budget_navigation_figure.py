@@ -35,7 +35,9 @@ def _bars(ax, rows, methods, labels, colors):
                     and r["term"] == "sum_over_all_on"), None)
         if chk is not None and "quadrature_sum" in labels:
             i = labels.index("quadrature_sum")
-            ax.text(xs[i], np.nan_to_num(hi[i]) * 1.03, f"{chk['check']} {chk['value']:.2f}", rotation=90,
+            top = max([np.nan_to_num(hi[i])] + [r["value"] for r in rows if r["method"] == m
+                                                 and r["term"] == "quadrature_sum"])
+            ax.text(xs[i], top * 1.04, f"{chk['check']} {chk['value']:.2f}", rotation=90,
                     ha="center", va="bottom", fontsize=7)
     ax.axhline(0, color="grey", lw=0.5)
     lo_y, hi_y = ax.get_ylim()
@@ -59,12 +61,13 @@ def _validation(ax, val, methods, colors):
         v = np.array([r["rms_3d"] if r else np.nan for r in rs])
         err = np.array([[r["rms_3d"] - r["rms_3d_lo"], r["rms_3d_hi"] - r["rms_3d"]] if r else [0, 0] for r in rs]).T
         ax.bar(xs, np.nan_to_num(v), width, color=[colors[m] for m in methods], edgecolor="black", lw=0.5,
-               hatch=hatch.get(mp or kind, ""), yerr=np.clip(np.nan_to_num(err), 0, None), capsize=2,
-               label=kind if kind == "rendered" else f"geometric, {mp} mapping")
+               hatch=hatch.get(mp or kind, ""), yerr=np.clip(np.nan_to_num(err), 0, None), capsize=2)
+        ax.bar([np.nan], [np.nan], color="white", edgecolor="black", lw=0.5, hatch=hatch.get(mp or kind, ""),
+               label="rendered campaign" if kind == "rendered" else f"geometric, {mp} mapping")  # legend swatch
         med = [r["median_norm"] if r else np.nan for r in rs]
         ax.plot(xs, med, "o", color="black", ms=3, ls="none", label="median |δr|" if j == 0 else None)
     ax.set_xticks(x, methods)
-    ax.set_xlabel("landmark method (all sources on)")
+    ax.set_xlabel("landmark method (all sources on; colour = method, hatch = source of the error)")
     ax.set_ylabel("touchdown rms 3-D position error (m)")
     ax.set_title("validation: rendered closed-loop campaign vs the geometric model, runs that kept track")
     ax.legend(ncol=3, loc="upper left", fontsize=7)
@@ -77,8 +80,10 @@ def navigation_figure(terms: list[dict], val: list[dict], stem: Path) -> list[st
     from renderlab.report import style
 
     rows = [r for r in terms if r["statistic"] == "rms_3d"]
+    from renderlab.studies.retina_vs_spc.budget_navigation_report import term_order
+
     methods = list(dict.fromkeys(r["method"] for r in rows))
-    labels = [t for t in dict.fromkeys(r["term"] for r in rows) if t != "sum_over_all_on"]
+    labels = [t for t in term_order(rows) if t != "sum_over_all_on"]
     colors = style.method_colors(methods)
     plt = style.plt()
     fig, axes = plt.subplots(2 if val else 1, 1, figsize=(11, 9 if val else 5), squeeze=False)

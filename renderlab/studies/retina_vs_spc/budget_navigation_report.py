@@ -62,7 +62,7 @@ def terms(table, sources: list[str]) -> list[dict]:
     floor_rows = _by(cols, "", NONE_CONFIG, NONE_METHOD)
     out = []
     for mp in [m for m in dict.fromkeys(cols["mapping"]) if m]:
-        for meth in dict.fromkeys(cols["method"][cols["mapping"] == mp]):
+        for meth in _method_order(cols["method"][cols["mapping"] == mp]):
             have = [s for s in sources if (_by(cols, mp, s, meth)["run"]).size]
             names = ["all_off", *have, "all_on"]
             rows = {c: _by(cols, mp, c, meth) for c in names}
@@ -92,6 +92,17 @@ def terms(table, sources: list[str]) -> list[dict]:
     return out
 
 
+def _method_order(names) -> list:
+    return sorted(set(names), key=lambda m: (m != "retina", m != "retina_refined", m))
+
+
+def term_order(rows: list[dict]) -> list[str]:
+    """The terms of ``rows`` in the budget's order: floor, all off, sources, the all-off terms, sum, all on."""
+    late = ("peak_step", "shadow_approximation", "quadrature_sum", "all_on", "sum_over_all_on")
+    terms = list(dict.fromkeys(r["term"] for r in rows))
+    return [t for t in terms if t not in late] + [t for t in late if t in terms]
+
+
 def _term_values(sq: dict, have: list, mean) -> dict:
     v2 = {c: mean(x) for c, x in sq.items()}
     d = {s: v2[s] - v2["all_off"] for s in have}
@@ -116,7 +127,7 @@ def validation(table, rendered) -> list[dict]:
     for a in "enu":
         rc[f"err_{a}_m"] = np.asarray(rendered.column(f"err_{a}_m").to_numpy(zero_copy_only=False), float)
     out = []
-    for meth in [m for m in dict.fromkeys(rc["method"])]:
+    for meth in _method_order(rc["method"]):
         r_m = rc["method"] == meth
         good = {int(r) for r, lost in zip(rc["run"][r_m], rc["track_lost"][r_m]) if not lost}
         sources = [("rendered", "", {k: v[r_m] for k, v in rc.items()})]
@@ -157,7 +168,7 @@ def markdown(term_rows: list[dict], val_rows: list[dict]) -> str:
         out += [f"### navigation: touchdown-proxy (50 m) position error, mapping `{mp}` (m; rms over runs; "
                 "contribution = signed √(v²(source alone) − v²(all off)))", "",
                 "| term | statistic | " + " | ".join(meths) + " |", "|---|---|" + "---|" * len(meths)]
-        for term in dict.fromkeys(r["term"] for r in rows):
+        for term in term_order(rows):
             for st in STATS:
                 cells = []
                 for m in meths:
