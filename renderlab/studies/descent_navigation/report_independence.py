@@ -43,7 +43,7 @@ def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
             ax.set_ylabel(f"{what} (—)")
             if i == 0:
                 ax.set_title(m, fontsize=9)
-                ax.legend(fontsize=6, loc="upper left")
+                ax.legend(fontsize=6, loc="lower left")
         ax = axes[2, j]
         ax.plot(t, [r["rho_state"] for r in rr], "o-", color=colors[m], ms=3, label="ρ state (whitened error)")
         ax.plot(t, [r["rho_innov"] for r in rr], "s--", color="0.4", ms=3, label="ρ_ν innovations")
