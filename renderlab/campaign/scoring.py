@@ -174,7 +174,7 @@ def dn_variance(radiance: np.ndarray, options) -> np.ndarray:
 GRADIENT_STENCIL = np.array([1.0, -8.0, 0.0, 8.0, -1.0]) / 12.0
 
 
-def _gradients(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def image_gradients(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(∂I/∂s, ∂I/∂l) by :data:`GRADIENT_STENCIL`; the two border rows/columns each side are NaN."""
     from scipy.ndimage import correlate1d
 
@@ -197,7 +197,7 @@ def fisher_information(expected: np.ndarray, variance, *, independent: np.ndarra
     overstates J. The cross-product is not positive definite where the noise dominates the window.
     """
     img = np.asarray(expected, float)
-    gs, gl = _gradients(img)
+    gs, gl = image_gradients(img)
     w = 1.0 / np.broadcast_to(np.asarray(variance, float), img.shape)
     if independent is None:
         hs, hl = gs, gl
@@ -205,7 +205,7 @@ def fisher_information(expected: np.ndarray, variance, *, independent: np.ndarra
         other = np.asarray(independent, float)
         if other.shape != img.shape:
             raise ValueError(f"independent image shape {other.shape} differs from expected {img.shape}")
-        hs, hl = _gradients(other)
+        hs, hl = image_gradients(other)
     ok = np.isfinite(gs) & np.isfinite(gl) & np.isfinite(hs) & np.isfinite(hl) & np.isfinite(w)
     ss = np.sum((w * gs * hs)[ok])
     ll = np.sum((w * gl * hl)[ok])

@@ -86,6 +86,18 @@ def windows(ts, maplets) -> dict:
     return out
 
 
+def window_noise(low_a: np.ndarray, low_b: np.ndarray, clean: np.ndarray, variance: np.ndarray) -> tuple:
+    """(render-noise sd of one low-spp render, from the difference of two: rms(a − b)/√2; sensor noise sd,
+    rms of √variance; rms of the clean image's gradient per axis, the stencil's) over a window, DN."""
+    from renderlab.campaign.scoring import image_gradients
+
+    gs, gl = image_gradients(np.asarray(clean, float))
+    g = np.concatenate([gs[np.isfinite(gs)], gl[np.isfinite(gl)]])
+    d = np.asarray(low_a, float) - np.asarray(low_b, float)
+    return (float(np.sqrt(np.mean(d * d) / 2)), float(np.sqrt(np.mean(variance))),
+            float(np.sqrt(np.mean(g * g))) if g.size else math.nan)
+
+
 def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOptions = CrlbProbeOptions()):
     """Render the all-off truth four times (module docstring) and return the per-landmark-frame estimates."""
     import pyarrow as pa
@@ -120,13 +132,14 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOpt
     pairs = {"budget": ("budget", None), "second": ("second", None), "cross": ("budget", "second"),
              "high_a": ("high_a", None), "high_b": ("high_b", None), "clean": ("high_a", "high_b")}
     rows = {c: [] for c in ("frame", "item", "gsd_ratio", "window_px", "estimate", "spp_a", "seed_a", "spp_b",
-                            "seed_b", "crlb_s", "crlb_l")}
+                            "seed_b", "crlb_s", "crlb_l", "render_sd_dn", "sensor_sd_dn", "gradient_rms_dn")}
     for (f, lid), (k, win, g) in sorted(wins.items()):
+        diag = window_noise(dn["budget", k][win], dn["second", k][win], dn["high_b", k][win], var[k][win])
         for est in ESTIMATES:
             a, b = pairs[est]
             c = registration_crlb(dn[a, k][win], var[k][win], independent=None if b is None else dn[b, k][win])
             vals = (f, lid, g, int(dn[a, k][win].size), est, sets[a][1], sets[a][2],
-                    sets[b][1] if b else -1, sets[b][2] if b else -1, float(c[0]), float(c[1]))
+                    sets[b][1] if b else -1, sets[b][2] if b else -1, float(c[0]), float(c[1]), *diag)
             for col, v in zip(rows, vals):
                 rows[col].append(v)
     types = {"frame": pa.int64(), "item": pa.int64(), "window_px": pa.int64(), "estimate": pa.string(),
@@ -135,6 +148,18 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOpt
 
 
 # ------------------------------------------------------------------------------------ report (tables alone)
+def _noise_row(table) -> dict:
+    """Medians over landmark-frames of the window diagnostics (:func:`window_noise`) and of the CRLB ratio they
+    predict for one low-spp render, √(g² / (g² + (130/144)·σ_render²)) (pixel-independent render noise)."""
+    d = table.to_pydict()
+    sel = np.array([e == "budget" for e in d["estimate"]])
+    r, s, g = (np.asarray(d[c], float)[sel] for c in ("render_sd_dn", "sensor_sd_dn", "gradient_rms_dn"))
+    pred = np.sqrt(g * g / (g * g + 130 / 144 * r * r))
+    return {"kind": "window_noise", "estimate": "budget", "n": int(sel.sum()),
+            "render_sd_dn": float(np.median(r)), "sensor_sd_dn": float(np.median(s)),
+            "gradient_rms_dn": float(np.median(g)), "predicted_ratio": float(np.median(pred))}
+
+
 def _bounds(table) -> dict:
     """{estimate: {(frame, item): (crlb_s, crlb_l)}} of a probe table."""
     d = table.to_pydict()
@@ -178,10 +203,10 @@ def report_rows(meas, configs, probe, gross_px: float = 1.0, n_boot: int = 1000,
     from renderlab.studies.retina_vs_spc import budget_stats as S
 
     bounds = _bounds(probe)
-    out = _ratio_rows(bounds)
+    out = _ratio_rows(bounds) + [_noise_row(probe)]
     runs = dict(zip(configs.column("config").to_pylist(), configs.column("runs").to_pylist()))
     if runs.get("sensor_noise", 0) < 2:
-        return out
+        return _uniform(out)
     cols = S.columns(meas)
     variants = {"table": cols, **{e: _with_bound(cols, bounds[e]) for e in ("budget", "cross", "high_b", "clean")}}
     methods = sorted(set(cols["method"]), key=lambda m: (m != "retina", m != "retina_refined", m))
@@ -198,7 +223,13 @@ def report_rows(meas, configs, probe, gross_px: float = 1.0, n_boot: int = 1000,
                     rng = np.random.default_rng(seed)
                     row["lo"], row["hi"] = S._ci(np.sqrt(np.mean(r[rng.integers(0, r.size, (n_boot, r.size))], 1)))
                 out.append(row)
-    return out
+    return _uniform(out)
+
+
+def _uniform(rows: list[dict]) -> list[dict]:
+    """Every row with every key (one CSV header; absent values empty)."""
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    return [{k: r.get(k, "") for k in keys} for r in rows]
 
 
 def read_probe(folder: Path):
@@ -217,6 +248,12 @@ def markdown(rows: list[dict]) -> str:
            "| estimate | n | p5 | p25 | median | p75 | p95 |", "|---|---|---|---|---|---|---|"]
     out += [f"| {r['estimate']} / clean | {r['n']} | {r['p5']:.3f} | {r['p25']:.3f} | {r['median']:.3f} | "
             f"{r['p75']:.3f} | {r['p95']:.3f} |" for r in rows if r["kind"] == "crlb_ratio"]
+    w = next((r for r in rows if r["kind"] == "window_noise"), None)
+    if w:
+        out += ["", f"Over the windows (median of {w['n']} landmark-frames): render-noise sd of one low-spp render "
+                f"{w['render_sd_dn']:.2f} DN, sensor-noise sd {w['sensor_sd_dn']:.2f} DN, clean gradient rms "
+                f"{w['gradient_rms_dn']:.1f} DN/px; predicted CRLB ratio √(g²/(g² + (130/144)·σ²)) "
+                f"{w['predicted_ratio']:.3f}."]
     nr = [r for r in rows if r["kind"] == "noise_over_crlb"]
     if nr:
         ests = list(dict.fromkeys(r["estimate"] for r in nr))
