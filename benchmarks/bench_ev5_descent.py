@@ -15,7 +15,8 @@ one after the other in one run of this script, on the same descent frames at the
   instead of one of W·H·spp up to 16 M): the wavefront size against throughput.
 
 Per configuration: world build (or cache load) seconds, Mitsuba scene load seconds, seconds per frame
-(tile update + render), the tile update (``_set_sun``: tiles written into the mesh, acceleration structure
+(tile update + render) and its CPU time (all threads of the process: on a shared machine the children run one after
+the other under different loads, and CPU time is less sensitive to other jobs than the wall clock), the tile update (``_set_sun``: tiles written into the mesh, acceleration structure
 rebuilt) and a sun-only parameter update timed apart, facets of the site in each frame, peak resident set
 of the process, and seconds per frame *including its share* of build + load over the descent; with tiles,
 the acceleration-structure rebuild alone (the last frame's tiles written back unchanged, ``params.update()``). Ratios against
@@ -90,11 +91,11 @@ def _floors(backend, spec, spp: int, names: list[str], warm: bool) -> dict:
     for name in names:
         integ = mi.load_dict(FLOORS[name])
         for k in range(2 if warm else 1):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             img = mi.render(backend.scene, sensor=sensor, integrator=integ, spp=spp, seed=k)
             dr.eval(img)
             mean = float(np.array(img).mean())
-            out[name] = time.perf_counter() - t0
+            out[name], out[name + "_cpu_s"] = time.perf_counter() - t0, time.process_time() - c0
         out[name + "_mean_radiance"] = mean
     return out
 
@@ -150,18 +151,18 @@ def child(args) -> None:
     frames = []
     floors = [f for f in args.floor.split(",") if f] if args.child in ("new_warm", "old_drjit") else []
     for k, spec in enumerate(plan.frames):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         backend._set_sun(spec)  # the tile update (when the tile set changed) and the sun, timed apart
         t_update = time.perf_counter() - t0
         t0 = time.perf_counter()
         out = backend.render(spec, seed=k)  # its own _set_sun: same tiles, so the sun only
-        dt = time.perf_counter() - t0
+        dt, cpu = time.perf_counter() - t0, time.process_time() - c0
         t0 = time.perf_counter()
         backend._set_sun(spec)  # same tiles again: what a sun-only parameter update costs
         t_sun = time.perf_counter() - t0
         meta = plan.frame_meta(spec, plan.static_scene)["ev5"]
         site = meta["lod"]["n_faces"] if "lod" in meta else int(len(plan.model.site.heights_m) - 1) ** 2 * 2
-        rec = {"altitude_m": meta["altitude_m"], "s": dt + t_update, "render_s": dt, "update_s": t_update,
+        rec = {"altitude_m": meta["altitude_m"], "s": dt + t_update, "cpu_s": cpu, "render_s": dt, "update_s": t_update,
                "sun_update_s": t_sun, "site_facets": site, "mean_radiance": float(out.radiance.mean())}
         if floors:
             rec["mi_render_s"] = _floors(backend, spec, args.spp, floors, warm=(k == 0))
@@ -202,11 +203,14 @@ def main() -> None:
             out = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, text=True, check=True).stdout
             results[name] = r = json.loads(out.strip().splitlines()[-1])
             per, upd = [f["s"] for f in r["frames"]], [f["update_s"] for f in r["frames"]]
+            cpus = [f["cpu_s"] for f in r["frames"]]
             share = (r["build_s"] + r["load_s"] + sum(per)) / len(per)
             r["per_frame_s"], r["with_share_s"] = sum(per) / len(per), share
+            r["per_frame_cpu_s"] = sum(f["cpu_s"] for f in r["frames"]) / len(per)
             print(f"{name:9s}: build {r['build_s']:.1f} s, load {r['load_s']:.1f} s, frames "
                   f"{', '.join(f'{x:.1f}' for x in per)} s (mean {r['per_frame_s']:.1f}); with its share of build + "
-                  f"load {share:.1f} s/frame; peak RSS {r['peak_rss_gb']:.2f} GB; site facets per frame "
+                  f"load {share:.1f} s/frame; CPU time per frame (all threads) "
+                  f"{', '.join(f'{c:.1f}' for c in cpus)} s (mean {r['per_frame_cpu_s']:.1f}); peak RSS {r['peak_rss_gb']:.2f} GB; site facets per frame "
                   f"{[f['site_facets'] for f in r['frames']]}; tile updates "
                   f"{', '.join(f'{u:.2f}' for u in upd)} s", flush=True)
             if r.get("rebuild_same_tiles_s"):
@@ -216,24 +220,28 @@ def main() -> None:
             for f in r["frames"]:
                 if "mi_render_s" in f:
                     print(f"    {f['altitude_m']:.0f} m: lab {f['s']:.1f} s; mi.render (same scene, radiance only) "
-                          + ", ".join(f"{k} {v:.1f} s" for k, v in f["mi_render_s"].items() if k in FLOORS), flush=True)
+                          + ", ".join(f"{k} {v:.1f} s ({f['mi_render_s'][k + '_cpu_s']:.1f} CPU s)"
+                                      for k, v in f["mi_render_s"].items() if k in FLOORS), flush=True)
     if "old" in results:
         o = results["old"]
         for name, r in results.items():
             if name != "old":
-                print(f"old / {name}: per frame {o['per_frame_s'] / r['per_frame_s']:.1f}x, including the share of "
+                print(f"old / {name}: per frame {o['per_frame_s'] / r['per_frame_s']:.1f}x (CPU time "
+                      f"{o['per_frame_cpu_s'] / r['per_frame_cpu_s']:.1f}x), including the share of "
                       f"build + load {o['with_share_s'] / r['with_share_s']:.1f}x, peak RSS "
                       f"{o['peak_rss_gb']:.2f} -> {r['peak_rss_gb']:.2f} GB")
         if "new_warm" in results and any("mi_render_s" in f for f in results["new_warm"]["frames"]):
             fr = results["new_warm"]["frames"]
             for name in [n for n in FLOORS if n in fr[0].get("mi_render_s", {})]:
                 mean = sum(f["mi_render_s"][name] for f in fr) / len(fr)
-                print(f"old / mi.render {name} (new_warm's scene): per frame {o['per_frame_s'] / mean:.1f}x "
-                      f"(mi.render {mean:.1f} s/frame, the floor of any lab path on this scene; 10x needs "
-                      f"{o['per_frame_s'] / 10:.1f} s)")
+                cpu = sum(f["mi_render_s"][name + "_cpu_s"] for f in fr) / len(fr)
+                print(f"old / mi.render {name} (new_warm's scene): per frame {o['per_frame_s'] / mean:.1f}x, CPU time "
+                      f"{o['per_frame_cpu_s'] / cpu:.1f}x (mi.render {mean:.1f} s, {cpu:.1f} CPU s per frame: the floor of "
+                      f"any lab path on this scene; 10x needs {o['per_frame_s'] / 10:.1f} s, {o['per_frame_cpu_s'] / 10:.1f} CPU s)")
     if "new_path" in results and "new_warm" in results:
         a, b = results["new_path"], results["new_warm"]
-        print(f"new_path / new_warm (the integrator alone): per frame {a['per_frame_s'] / b['per_frame_s']:.2f}x")
+        print(f"new_path / new_warm (the integrator alone): per frame {a['per_frame_s'] / b['per_frame_s']:.2f}x "
+              f"(CPU time {a['per_frame_cpu_s'] / b['per_frame_cpu_s']:.2f}x)")
     print(json.dumps({"results": results}), file=sys.stderr)
     print(f"load average at the end {os.getloadavg()[0]:.1f}")
 
