@@ -156,3 +156,30 @@ def band_summary(rows: list[dict]) -> list[dict]:
                     "common_share_err_s_mean": mean("common_share_err_s"),
                     "common_share_err_l_mean": mean("common_share_err_l")})
     return out
+
+
+def pattern_rows(ftab, ltab) -> list[dict]:
+    """Per method and image: the similarity transform common to all kept landmarks of the runs that kept track,
+    fitted by least squares to their errors, e = a·(x, y) + b·(−y, x) + (t_s, t_l) with (x, y) the true pixel minus
+    the landmarks' centroid: ``scale`` a (a range error of −a·range to first order for a nadir view),
+    ``rotation`` b (rad) and the shift (px). An error of this form shared by every landmark of an image cannot
+    average out over landmarks or runs."""
+    from renderlab.studies.descent_navigation.scoring import columns
+
+    c = columns(tracked_landmarks(ftab, ltab), ("method", "frame", "kept", "err_s", "err_l", "truth_s", "truth_l"))
+    out = []
+    for m in sorted(set(c["method"].tolist())):
+        for f in sorted(set(c["frame"][c["method"] == m].tolist())):
+            k = (c["method"] == m) & (c["frame"] == f) & c["kept"] & np.isfinite(c["err_s"]) & np.isfinite(c["err_l"])
+            n = int(k.sum())
+            if n < 3:
+                continue
+            x, y = c["truth_s"][k] - np.mean(c["truth_s"][k]), c["truth_l"][k] - np.mean(c["truth_l"][k])
+            A = np.zeros((2 * n, 4))
+            A[:n, 0], A[n:, 0], A[:n, 1], A[n:, 1] = x, y, -y, x
+            A[:n, 2], A[n:, 3] = 1.0, 1.0
+            sol, *_ = np.linalg.lstsq(A, np.r_[c["err_s"][k], c["err_l"][k]], rcond=None)
+            out.append({"method": m, "frame": int(f), "n_landmarks": n, "scale": float(sol[0]),
+                        "rotation_rad": float(sol[1]), "shift_s_px": float(sol[2]), "shift_l_px": float(sol[3]),
+                        "radius_max_px": float(np.max(np.hypot(x, y)))})
+    return out

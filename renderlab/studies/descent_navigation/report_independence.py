@@ -1,8 +1,8 @@
 """Report piece of ``descent_navigation`` for campaigns whose filter table has the whitened errors (``white_*``):
 ``descent_independence.csv`` (per method and image: the share of the error common to all runs, N_eff and the
 effective χ² bands beside the plain ones, :mod:`.independence`), ``descent_bands.csv`` (per method: share of images
-inside each band), ``descent_bias_by_tier.csv`` (kept-landmark bias and rms per method and maplet tier) and the
-figure ``descent_independence`` (PNG + SVG)."""
+inside each band), ``descent_bias_by_tier.csv`` (kept-landmark bias and rms per method and maplet tier), ``descent_pattern.csv``
+(the scale / rotation / shift common to an image's landmark errors) and the figure ``descent_independence`` (PNG + SVG)."""
 
 from __future__ import annotations
 
@@ -93,7 +93,10 @@ def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path, write_c
     write_csv(rows, out_dir / "descent_independence.csv")
     write_csv(bands, out_dir / "descent_bands.csv")
     if ltab is not None and "spacing_m" in ltab.column_names:
+        from renderlab.studies.descent_navigation.independence import pattern_rows
+
         write_csv(bias_by_tier(ftab, ltab), out_dir / "descent_bias_by_tier.csv")
+        write_csv(pattern_rows(ftab, ltab), out_dir / "descent_pattern.csv")
     head = ("method", "images in NEES band (plain / N_eff)", "images in NIS band (plain / N_eff)",
             "ρ state mean (max)", "N_eff min", "ρ_ν innovations mean", "landmark-error share s, l")
     out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
