@@ -82,13 +82,17 @@ def test_linear_case_equals_a_linear_kalman_filter():
         assert upd.nis == pytest.approx(nis, rel=1e-9) and upd.dof == 3
 
 
-def test_conformance_harness_on_the_model_matched_case():
+@pytest.mark.parametrize("extra", [{}, {"iterations": 3, "joint_gate": True, "map_states": "estimate"}],
+                         ids=["ekf", "iterated_joint_gate_map_states"])
+def test_conformance_harness_on_the_model_matched_case(extra):
+    """The lab's harness (LOS case): the plain EKF, and the options of the map-state campaign (map states do not
+    apply to LOS measurements; the iterated update and the joint gate must keep a model-matched case consistent)."""
     from estimators.coastline.dynamics import MU_EARTH
     from renderlab.measurement.conformance_filter import check_filter, make_case
 
     factory = plugins.filters.get("descent_ekf")
     assert factory is DescentNavFilter and isinstance(factory(None), NavigationFilter)
-    problems = check_filter(lambda: factory({"gm_m3_s2": MU_EARTH, "max_step_s": 10.0}), 0,
+    problems = check_filter(lambda: factory({"gm_m3_s2": MU_EARTH, "max_step_s": 10.0, **extra}), 0,
                             case=make_case(0, n_runs=100, n_images=8))
     assert problems == []
 
