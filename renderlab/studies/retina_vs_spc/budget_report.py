@@ -15,7 +15,9 @@
 * with ``tables/budget_navigation.parquet`` (:mod:`.budget_navigation`): ``budget_navigation.csv`` (each
   source's contribution to the descent filter's touchdown-proxy error), ``budget_navigation_validation.csv``
   (geometric all-on vs the rendered closed-loop campaign) and ``budget_navigation.png``/``.svg``
-  (:mod:`.budget_navigation_report`).
+  (:mod:`.budget_navigation_report`);
+* with ``tables/budget_crlb.parquet`` (:mod:`.budget_crlb`): ``budget_crlb.csv`` — the budget's CRLB (from its
+  8-spp truth render) against clean renders' bound, and the sensor-noise-alone noise / CRLB with each bound.
 """
 
 from __future__ import annotations
@@ -205,6 +207,13 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
         if probe:
             _write_csv(stage / "budget_supersample.csv", probe)
             md += _probe_markdown(probe)
+        from renderlab.studies.retina_vs_spc import budget_crlb as BC
+
+        crlb_probe = BC.read_probe(folder)
+        if crlb_probe is not None:
+            crlb_rows = BC.report_rows(meas, configs, crlb_probe)
+            _write_csv(stage / "budget_crlb.csv", crlb_rows)
+            md += "\n" + BC.markdown(crlb_rows)
         from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
 
         sources = [s for s in configs.column("source").to_pylist() if s]
