@@ -1,0 +1,80 @@
+"""Probe of the image-scale part of the landmark errors (``descent_pattern.csv``): one landmark method at the
+*true* pose on one truth set's cached DN images, every landmark in view whose GSD ratio is in the study's range,
+with the truth set's maplet catalogue and with error-free maplets (the catalogue rebuilt with ``mapping_error_m =
+albedo_error_rms = 0``, :mod:`renderlab.campaign.maplets`); prints per image the similarity fit of the errors
+(:func:`renderlab.studies.descent_navigation.independence.pattern_rows`' model: scale about the landmarks' centroid)
+and their rms. A diagnostic, not a study: search distance 8 px, no filter.
+
+    python -m renderlab.studies.descent_navigation.scale_probe SCENARIO TRUTHSET METHOD FRAMES   # FRAMES: 0,3,12
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def similarity_scale(truth: np.ndarray, err: np.ndarray) -> float:
+    """Least-squares scale a of err = a·(p − p̄) + b·J(p − p̄) + t over landmarks (truth (n, 2) px, err (n, 2))."""
+    x, y = truth[:, 0] - truth[:, 0].mean(), truth[:, 1] - truth[:, 1].mean()
+    n = len(x)
+    A = np.zeros((2 * n, 4))
+    A[:n, 0], A[n:, 0], A[:n, 1], A[n:, 1], A[:n, 2], A[n:, 3] = x, y, -y, x, 1.0, 1.0
+    return float(np.linalg.lstsq(A, np.r_[err[:, 0], err[:, 1]], rcond=None)[0][0])
+
+
+def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int]) -> list[str]:
+    from renderlab.campaign.maplets import respaced_maplets
+    from renderlab.contracts.landmark import CameraPose
+    from renderlab.measurement.runner import (MeasureOptions, _frame_record, make_method, onboard_photometry,
+                                              run_method_on_image)
+    from renderlab.scenario import load_scenario
+    from renderlab.studies.descent_navigation.run import section
+    from renderlab.truthset import TruthSet
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    sc, _ = load_scenario(scenario_path)
+    lo, hi = section(sc).gsd_ratio_range
+    ts = TruthSet.open(ts_dir)
+    cat = read_catalog(ts_dir)
+    exact = respaced_maplets(cat, sc.world.model_copy(update={"mapping_error_m": 0.0, "albedo_error_rms": 0.0}),
+                             scenario_path.parent, 1.0, np.random.default_rng(0))
+    mopts = MeasureOptions(n_sigma=3.0, min_search_px=8, max_search_px=8)
+    impl = make_method(method, mopts, onboard_photometry(ts, mopts)[0])
+    cen = np.array([m.center_m for m in cat])
+    spacing = np.array([m.spacing_m for m in cat])
+    out = []
+    for k in frames:
+        fr = _frame_record(ts, k)
+        pose = CameraPose(fr.R, fr.position)
+        xc = pose.to_camera(cen)
+        ratio = xc[:, 2] / fr.camera.fx / spacing
+        sel = np.flatnonzero(fr.camera.in_image(fr.camera.project(xc)) & (xc[:, 2] > 0) & (ratio >= lo) & (ratio <= hi))
+        cells = []
+        for label, maplets in (("catalogue", cat), ("error-free maplets", exact)):
+            _, res = run_method_on_image(impl, ts.load(k).dn, fr.adc_max, fr.camera, pose, fr.sun,
+                                         [maplets[i] for i in sel], cen[sel], np.eye(3) * 1e-4, np.eye(3) * 1e-10,
+                                         mopts, k)
+            ok = [j for j, r in enumerate(res) if r.has_result]
+            truth = fr.camera.project(xc[sel[ok]])
+            err = np.array([[res[j].meas_s, res[j].meas_l] for j in ok]) - truth
+            cells.append(f"{label}: {len(ok)} landmarks, scale {similarity_scale(truth, err):+.2e}, "
+                         f"rms {np.sqrt(np.mean(err**2)):.3f} px")
+        out.append(f"{method} image {k}: " + " | ".join(cells))
+    return out
+
+
+def main(argv=None) -> int:
+    a = list(sys.argv[1:] if argv is None else argv)
+    if len(a) != 4:
+        print(__doc__.strip().splitlines()[-1].strip(), file=sys.stderr)
+        return 2
+    for line in probe(Path(a[0]), Path(a[1]), a[2], [int(v) for v in a[3].split(",")]):
+        print(line, flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
