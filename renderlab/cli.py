@@ -88,6 +88,7 @@ EXTRA_COMMANDS = {
     "measure": "renderlab.commands.measure",
     "crosscheck": "renderlab.commands.crosscheck",
     "visibility": "renderlab.commands.visibility",
+    "navigation-budget": "renderlab.commands.navigation_budget",
     "campaign": "renderlab.commands.campaign",
     "report": "renderlab.commands.report",
     "publish": "renderlab.commands.report",
@@ -149,7 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
 #: command → its path arguments (positional ones by their metavar)
 PATH_ARGS = {"render": ("scenario", "out"), "crosscheck": ("scenario", "out"), "campaign": ("scenario", "out"),
              "measure": ("truthset", "out"), "report": ("campaign", "out"), "publish": ("campaign", "out"),
-             "visibility": ("out",), "demo": ("out",)}
+             "visibility": ("out",), "demo": ("out",), "navigation-budget": ("folder", "scenario")}
 
 
 def _check_args(args) -> None:

@@ -1,6 +1,7 @@
-"""The navigation error budget (renderlab.studies.retina_vs_spc.budget_navigation): the descent filter flown with
-geometric landmark measurements, checked against the rendered campaign's truth, the χ² distribution, the
-geometry of a uniform image shift and direct numpy statistics."""
+"""The navigation error budget: the budget's error models (renderlab.studies.retina_vs_spc.budget_navigation) flown
+through the descent filter with geometric landmark measurements (renderlab.studies.descent_navigation.error_flights)
+by ``renderlab navigation-budget`` (renderlab.commands.navigation_budget), checked against the rendered campaign's
+truth, the χ² distribution, the geometry of a uniform image shift and direct numpy statistics."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ import pytest
 from pathlib import Path
 from scipy import stats
 
-from renderlab.studies.retina_vs_spc import budget as B
+from renderlab.cli import main
+from renderlab.contracts.error_model import LandmarkErrorModel
+from renderlab.studies.descent_navigation import error_flights as F
 from renderlab.studies.retina_vs_spc import budget_navigation as N
 from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
 from renderlab.studies.retina_vs_spc import budget_stats as S
@@ -23,7 +26,7 @@ BUDGET = REPO / "results" / "error_budget" / "tables"
 
 @pytest.fixture(scope="module")
 def geom():
-    return N.descent_geometry(DESCENT / "scenario.toml")
+    return F.descent_geometry(DESCENT / "scenario.toml")
 
 
 def _model(mu=(0.0, 0.0), sd_bias=0.0, sd_noise=0.0):
@@ -44,23 +47,29 @@ def test_geometry_reproduces_the_rendered_campaign_truth_and_draws(geom):
         assert p == pytest.approx([s, l], abs=1e-9)
     f = pq.read_table(DESCENT / "tables" / "descent_filter.parquet").to_pydict()
     j = next(i for i in range(len(f["run"])) if f["run"][i] == 3 and f["frame"][i] == -1)
-    assert N.run_draws(geom, 3)["x0"][:3] == pytest.approx([f[f"est_pos_{a}_m"][j] for a in "xyz"], abs=1e-6)
+    assert F.run_draws(geom, 3)["x0"][:3] == pytest.approx([f[f"est_pos_{a}_m"][j] for a in "xyz"], abs=1e-6)
+
+
+def test_budget_error_models_are_what_the_flights_take():
+    assert isinstance(_model(), LandmarkErrorModel)
+    with pytest.raises(TypeError, match="not a LandmarkErrorModel"):
+        F.fly_models(DESCENT / "scenario.toml", [object()], 2, 0, workers=1)
 
 
 def test_zero_error_model_flies_the_floor(geom):
-    d, (b, e) = N.run_draws(geom, 1), N.landmark_draws(geom, 9, 1)
-    assert N.fly(geom, d, _model(), b, e, "retina") == N.fly(geom, d, None, b, e, "retina")
+    d, (b, e) = F.run_draws(geom, 1), F.landmark_draws(geom, 9, 1)
+    assert F.fly(geom, d, _model(), b, e, "retina") == F.fly(geom, d, None, b, e, "retina")
 
 
 def test_a_uniform_image_shift_moves_the_estimate_by_its_ground_size(geom):
     """Every landmark shifted by +b px in s (star-tracker attitude known) is a camera shift of −b·z/f_x along the
     camera's x axis (site east here) at the last image: the touchdown offset against the floor, and linear in b."""
-    d, (bb, e) = N.run_draws(geom, 2), N.landmark_draws(geom, 9, 2)
-    floor = N.fly(geom, d, None, bb, e, "retina")
+    d, (bb, e) = F.run_draws(geom, 2), F.landmark_draws(geom, 9, 2)
+    floor = F.fly(geom, d, None, bb, e, "retina")
     z_last = (geom.centres.mean(0) - geom.pos_true[-1]) @ geom.R_true[-1][:, 2]
     east = (geom.R_site.T @ geom.R_true[-1][:, 0])[0]
     assert east == pytest.approx(1.0, abs=1e-3)
-    shift = {b: N.fly(geom, d, _model(mu=(b, 0.0)), bb, e, "retina")["err_e_m"] - floor["err_e_m"]
+    shift = {b: F.fly(geom, d, _model(mu=(b, 0.0)), bb, e, "retina")["err_e_m"] - floor["err_e_m"]
              for b in (0.05, 0.1, -0.05)}
     assert shift[0.05] == pytest.approx(-0.05 * z_last / geom.camera.fx, rel=0.1)
     assert shift[0.1] == pytest.approx(2 * shift[0.05], rel=1e-3)
@@ -75,7 +84,7 @@ def test_white_noise_at_the_declared_sigma_gives_a_consistent_filter(geom):
     sig = geom.cfg.sigma_for("retina")
     anees = {}
     for k in (1.0, 2.0):
-        nees = [N.fly(geom, N.run_draws(geom, r), _model(sd_noise=k * sig), *N.landmark_draws(geom, 5, r),
+        nees = [F.fly(geom, F.run_draws(geom, r), _model(sd_noise=k * sig), *F.landmark_draws(geom, 5, r),
                       "retina")["nees_td"] for r in range(n)]
         anees[k] = np.mean(nees) / 6
     assert lo < anees[1.0] < hi, (anees, lo, hi)
@@ -147,7 +156,7 @@ def test_navigation_terms_against_direct_numpy():
 
 
 def test_navigation_command_refuses_a_folder_without_tables(tmp_path, capsys):
-    assert B.main(["navigation", str(tmp_path), "--runs", "2"]) == 2
+    assert main(["navigation-budget", str(tmp_path), "--runs", "2"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "not an error-budget folder" in err[0]
     assert not any(tmp_path.iterdir())
@@ -162,13 +171,13 @@ def test_navigation_command_writes_tables_and_report_and_only_reproduces_rows(tm
     for name in ("budget_measurements", "budget_configs"):
         shutil.copy(BUDGET / f"{name}.parquet", folder / "tables")
     shutil.copy(BUDGET.parent / "budget.json", folder)
-    args = ["navigation", str(folder), "--scenario", str(DESCENT / "scenario.toml"), "--runs", "2", "--workers", "1",
+    args = ["navigation-budget", str(folder), "--scenario", str(DESCENT / "scenario.toml"), "--runs", "2", "--workers", "1",
             "--mappings", "pixel"]
-    assert B.main(args) == 0
+    assert main(args) == 0
     first = pq.read_table(folder / "tables" / "budget_navigation.parquet")
     n_cfg = len(set(pq.read_table(BUDGET / "budget_configs.parquet").column("config").to_pylist()))
     assert first.num_rows == 2 * (1 + n_cfg * 4)
-    assert B.main(args + ["--only", "all_on"]) == 0
+    assert main(args + ["--only", "all_on"]) == 0
     again = pq.read_table(folder / "tables" / "budget_navigation.parquet")
     key = lambda t: sorted(zip(*[t.column(c).to_pylist() for c in ("mapping", "config", "method", "run", "err_norm_m")]))
     assert key(again) == key(first)

@@ -6,6 +6,7 @@ and the one table schema per kind of observable that runners, scorers, reports a
   :class:`LandmarkFrame` in, :class:`LandmarkResult` out.
 - :mod:`.navigation`: navigation filters (coastline EKF, descent filter): :class:`NavigationFilter`.
 - :mod:`.pose`: pose / inertia estimators of an unknown satellite: :class:`PoseEstimator`.
+- :mod:`.error_model`: landmark error models a geometric flight injects: :class:`LandmarkErrorModel`.
 - :mod:`.study`: what a campaign runs (:class:`~renderlab.contracts.study.Study`).
 - :mod:`.schemas`: the pyarrow schemas of the measurement, filter and pose tables (imports pyarrow; everything else
   here is numpy only). The onboard estimators (``estimators/``) do not import the contracts: they stay

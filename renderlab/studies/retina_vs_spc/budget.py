@@ -38,8 +38,11 @@ column ``config``), ``tables/budget_configs.parquet`` (configuration, source, ru
 
     python -m renderlab.studies.retina_vs_spc.budget run --out results/error_budget --runs 10 --workers 2
     python -m renderlab.studies.retina_vs_spc.budget probe results/error_budget   # template sampling (.budget_probe)
-    python -m renderlab.studies.retina_vs_spc.budget navigation results/error_budget --runs 200  # .budget_navigation
     python -m renderlab.studies.retina_vs_spc.budget report results/error_budget
+
+The navigation budget (each configuration's landmark errors flown through the descent filter,
+:mod:`.budget_navigation`) joins this study to ``descent_navigation``, so it is a command above both:
+``renderlab navigation-budget results/error_budget --runs 200`` (:mod:`renderlab.commands.navigation_budget`).
 """
 
 from __future__ import annotations
@@ -315,48 +318,7 @@ def _parser() -> argparse.ArgumentParser:
     q.add_argument("folder", type=Path)
     q.add_argument("--scenario", type=Path, default=Path("results/retina_vs_spc/scenario.toml"))
     q.add_argument("--workdir", type=Path, default=Path("/tmp/renderlab_error_budget"))
-    n = sub.add_parser("navigation", help="each configuration's landmark errors flown through the descent filter "
-                                          "(.budget_navigation) into FOLDER/tables, then the report")
-    n.add_argument("folder", type=Path)
-    n.add_argument("--scenario", type=Path, default=Path("results/descent_navigation/scenario.toml"),
-                   help="the descent-navigation scenario (its folder holds the rendered campaign's tables)")
-    n.add_argument("--runs", type=int, default=200)
-    n.add_argument("--seed", type=int, default=2027, help="seed of the injected landmark errors")
-    n.add_argument("--workers", type=int, default=2)
-    n.add_argument("--mappings", nargs="+", default=None, help="mappings of the budget's statistics onto the "
-                   "descent's altitudes (default: altitude ground pixel; .budget_navigation)")
-    n.add_argument("--only", nargs="+", metavar="CONFIG", help="fly only these configurations and replace their "
-                   "rows in FOLDER/tables/budget_navigation.parquet")
     return p
-
-
-def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, workers: int, only=None,
-                   mappings=None) -> None:
-    """Fly the navigation budget (:func:`.budget_navigation.navigation_tables`) into ``folder/tables``, then the
-    report; ``only``: those configurations' rows replaced in the existing table (same runs and seed)."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    import pyarrow.parquet as pq
-
-    from renderlab.studies.retina_vs_spc.budget_navigation import RENDERED, TABLE, NavBudgetOptions, \
-        navigation_tables
-    from renderlab.studies.retina_vs_spc.budget_report import write_report
-    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
-
-    opts = NavBudgetOptions(runs=runs, seed=seed, **({"mappings": tuple(mappings)} if mappings else {}))
-    nav, rendered = navigation_tables(folder, scenario_path, opts, workers, only)
-    if only:
-        old = pq.read_table(Path(folder) / TABLES / f"{TABLE}.parquet")
-        if sorted(set(old.column("run").to_pylist())) != list(range(runs)):
-            raise UserError(f"--only: the existing navigation table does not have runs 0..{runs - 1}")
-        keep = old.filter(pc.invert(pc.is_in(old.column("config"), value_set=pa.array(list(only), pa.string()))))
-        nav = pa.concat_tables([keep, nav.select(keep.column_names)])
-    for name, table in ((TABLE, nav), (RENDERED, rendered)):
-        out = Path(folder) / TABLES / f"{name}.parquet"
-        tmp = out.with_name(f".{out.name}.tmp")
-        pq.write_table(table, tmp)
-        tmp.replace(out)
-    write_report(folder)
 
 
 def run_probe(folder: Path, scenario_path: Path, workdir: Path) -> None:
@@ -387,8 +349,6 @@ def main(argv: list[str] | None = None) -> int:
             run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only)
         elif args.command == "probe":
             run_probe(args.folder, args.scenario, args.workdir)
-        elif args.command == "navigation":
-            run_navigation(args.folder, args.scenario, args.runs, args.seed, args.workers, args.only, args.mappings)
         else:
             from renderlab.studies.retina_vs_spc.budget_report import write_report
 

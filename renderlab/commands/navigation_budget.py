@@ -1,0 +1,96 @@
+"""``renderlab navigation-budget FOLDER``: the error budget's landmark errors flown through the descent filter.
+
+A synthesis of two studies that stay independent of each other: the error budget's per-configuration landmark
+error models (:mod:`renderlab.studies.retina_vs_spc.budget_navigation`) flown geometrically along the descent
+study's truth (:mod:`renderlab.studies.descent_navigation.error_flights`); this command, a layer above the studies,
+joins them: models → flights → ``FOLDER/tables/budget_navigation*.parquet`` → the budget's report
+(:mod:`renderlab.studies.retina_vs_spc.budget_report`, which reads the tables alone). ``--only CONFIG ...`` flies
+just those configurations (no floor) with the same runs and seed, so their rows replace those of the existing table
+and equal what a full run gives.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from renderlab.errors import UserError
+
+
+def add_parser(sub) -> None:
+    n = sub.add_parser("navigation-budget", help="an error-budget folder's landmark errors flown through the descent "
+                                                 "filter into FOLDER/tables, then the budget's report")
+    n.add_argument("folder", metavar="FOLDER", help="error-budget folder (tables/budget_measurements.parquet, ...)")
+    n.add_argument("--scenario", default="results/descent_navigation/scenario.toml",
+                   help="the descent-navigation scenario (its folder holds the rendered campaign's tables)")
+    n.add_argument("--runs", type=int, default=200, help="runs (the descent campaign's run indices 0..N-1)")
+    n.add_argument("--seed", type=int, default=2027, help="seed of the injected landmark errors")
+    n.add_argument("--workers", type=int, default=2, help="worker processes")
+    n.add_argument("--mappings", nargs="+", default=None, help="mappings of the budget's statistics onto the "
+                   "descent's altitudes (default: altitude ground pixel; see budget_navigation)")
+    n.add_argument("--only", nargs="+", metavar="CONFIG", help="fly only these configurations and replace their "
+                   "rows in FOLDER/tables/budget_navigation.parquet")
+
+
+def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None) -> tuple:
+    """(navigation table, rendered touchdown table) of a budget folder's error models
+    (:func:`~renderlab.studies.retina_vs_spc.budget_navigation.error_models`, options ``opts``:
+    :class:`~renderlab.studies.retina_vs_spc.budget_navigation.NavBudgetOptions`) flown along ``scenario_path``'s
+    descent (:func:`~renderlab.studies.descent_navigation.error_flights.fly_models`); ``only``: just these
+    configurations, no floor."""
+    from renderlab.studies.descent_navigation.error_flights import descent_geometry, fly_models, rendered_touchdown
+    from renderlab.studies.retina_vs_spc.budget_navigation import MAPPINGS, NONE_CONFIG, NONE_METHOD, error_models
+    from renderlab.studies.retina_vs_spc.budget_tables import read_tables
+
+    if opts.runs < 2:
+        raise UserError(f"--runs must be >= 2, got {opts.runs}")
+    bad = sorted(set(opts.mappings) - set(MAPPINGS))
+    if bad:
+        raise UserError(f"--mappings: {bad[0]!r} is not one of {', '.join(MAPPINGS)}")
+    meas, configs = read_tables(folder)
+    geom = descent_geometry(scenario_path)
+    models = [m for mp in opts.mappings
+              for m in error_models(meas, configs, geom.camera.fx, geom.cfg.gsd_ratio_range, mp, opts.gross_px)]
+    if only:
+        unknown = sorted(set(only) - {m.config for m in models})
+        if unknown:
+            raise UserError(f"--only: the budget has no configuration {unknown[0]!r}")
+        models = [m for m in models if m.config in only]
+    table = fly_models(scenario_path, models, opts.runs, opts.seed, workers,
+                       floor=None if only else (NONE_CONFIG, NONE_METHOD))
+    return table, rendered_touchdown(scenario_path)
+
+
+def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, workers: int, only=None,
+                   mappings=None) -> Path:
+    """Fly the navigation budget (:func:`navigation_tables`) into ``folder/tables``, then the report (returned);
+    ``only``: those configurations' rows replaced in the existing table (same runs and seed)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    from renderlab.studies.retina_vs_spc.budget_navigation import RENDERED, TABLE, NavBudgetOptions
+    from renderlab.studies.retina_vs_spc.budget_report import write_report
+    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
+
+    opts = NavBudgetOptions(runs=runs, seed=seed, **({"mappings": tuple(mappings)} if mappings else {}))
+    nav, rendered = navigation_tables(folder, scenario_path, opts, workers, only)
+    if only:
+        old = pq.read_table(Path(folder) / TABLES / f"{TABLE}.parquet")
+        if sorted(set(old.column("run").to_pylist())) != list(range(runs)):
+            raise UserError(f"--only: the existing navigation table does not have runs 0..{runs - 1}")
+        keep = old.filter(pc.invert(pc.is_in(old.column("config"), value_set=pa.array(list(only), pa.string()))))
+        nav = pa.concat_tables([keep, nav.select(keep.column_names)])
+    for name, table in ((TABLE, nav), (RENDERED, rendered)):
+        out = Path(folder) / TABLES / f"{name}.parquet"
+        tmp = out.with_name(f".{out.name}.tmp")
+        pq.write_table(table, tmp)
+        tmp.replace(out)
+    return write_report(folder)
+
+
+def run(args) -> int:
+    out = run_navigation(Path(args.folder), Path(args.scenario), args.runs, args.seed, args.workers, args.only,
+                         args.mappings)
+    print(f"renderlab: wrote {Path(args.folder) / 'tables'} (budget_navigation, budget_navigation_rendered) and "
+          f"the report {out}")
+    return 0
