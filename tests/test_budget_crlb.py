@@ -9,7 +9,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from renderlab.campaign.scoring import fisher_information, registration_crlb
+from renderlab.campaign.scoring import fisher_information, registration_crlb, template_shift_covariance
 from renderlab.studies.retina_vs_spc import budget_crlb as BC
 
 
@@ -83,6 +83,46 @@ def test_independent_image_of_another_shape_is_refused():
         registration_crlb(np.ones((10, 10)), 1.0, independent=np.ones((10, 11)))
 
 
+def test_template_equal_to_the_image_up_to_gain_and_offset_reaches_the_crlb():
+    img, _, _ = _analytic_image(40)
+    var = np.full(img.shape, 3.0)
+    out = template_shift_covariance(0.02 * img - 1.5, img, var)
+    assert out["sandwich"] == pytest.approx(registration_crlb(img, var), rel=1e-9)
+    assert out["crlb"] == pytest.approx(registration_crlb(img, var), rel=1e-9)
+    assert out["rho"] == pytest.approx((1.0, 1.0))
+
+
+def test_template_missing_a_texture_component_matches_the_analytic_sandwich():
+    """Image = three sinusoids, template = the first two: cov = H⁻¹ B H⁻ᵀ from the exact gradients."""
+    n = 48
+    y, x = np.mgrid[0:n, 0:n].astype(float)
+    waves = [(60, 0.31, 0.17), (35, 0.09, -0.33), (40, 0.22, 0.05)]  # amplitude, x and y wavenumbers
+    comp = [A * np.sin(p * x + q * y) for A, p, q in waves]
+    grad = [np.stack([A * p * np.cos(p * x + q * y), A * q * np.cos(p * x + q * y)], -1) for A, p, q in waves]
+    first = comp[0] + comp[1]
+    img = 200 + first + comp[2]
+    g1, g2 = grad[0] + grad[1], grad[2]
+    k = (slice(2, -2), slice(2, -2))
+    Gt, Gi = g1[k].reshape(-1, 2), (g1 + g2)[k].reshape(-1, 2)
+    var = 4.0
+    H, B, J = Gt.T @ Gi / var, Gt.T @ Gt / var, Gi.T @ Gi / var
+    Hi = np.linalg.inv(H)
+    want = np.sqrt(np.diag(Hi @ B @ Hi.T))
+    out = template_shift_covariance(first, img, var)
+    assert out["sandwich"] == pytest.approx(tuple(want), rel=0.01)
+    assert out["crlb"] == pytest.approx(tuple(np.sqrt(np.diag(np.linalg.inv(J)))), rel=0.01)
+    assert np.all(np.array(out["sandwich"]) >= np.array(out["crlb"]))  # Cauchy–Schwarz
+    assert out["sandwich"][0] > 1.05 * out["crlb"][0]  # the missing (mostly s-directed) wave costs on s
+
+
+def test_template_with_too_few_valid_pixels_gives_nan():
+    img, _, _ = _analytic_image(20)
+    mask = np.zeros(img.shape, bool)
+    mask[5:9, 5:9] = True  # 4 x 4: nothing keeps ±2 valid neighbours
+    out = template_shift_covariance(img, img, 1.0, mask)
+    assert out["pixels"] == 0 and all(math.isnan(v) for v in out["sandwich"])
+
+
 def _budget_like(noise_sd: float, bound: float, runs: int = 12, landmarks: int = 30):
     """A budget-shaped measurement table of the sensor-noise configuration: ``landmarks`` landmark-frames,
     errors N(bias, noise_sd²) per run, table CRLB ``bound`` px; and a probe table whose clean bound is 2 × it."""
@@ -102,7 +142,8 @@ def _budget_like(noise_sd: float, bound: float, runs: int = 12, landmarks: int =
                              "gradient_rms_dn")}
     for i in range(landmarks):
         for est in BC.ESTIMATES:
-            f = {"budget": 1.0, "second": 1.0, "cross": 2.0, "high_a": 1.9, "high_b": 1.99, "clean": 2.0}[est]
+            f = {"budget": 1.0, "second": 1.0, "cross": 2.0, "high_a": 1.9, "high_b": 1.99, "clean": 2.0,
+                 "footprint": 2.5, "template": 4.0}[est]
             for c, v in zip(probe, (i % 3, i, est, f * bound, f * bound, 3.0, 5.0, 4.0)):
                 probe[c].append(v)
     return meas, configs, pa.table(probe)
@@ -120,6 +161,7 @@ def test_report_rows_give_the_noise_over_each_bound():
     assert nr["clean"]["value"] == pytest.approx(noise_sd / (2 * bound), rel=0.1)
     assert nr["table"]["value"] / nr["clean"]["value"] == pytest.approx(2.0, rel=1e-9)
     assert nr["clean"]["lo"] < nr["clean"]["value"] < nr["clean"]["hi"]
+    assert nr["template"]["value"] == pytest.approx(nr["table"]["value"] / 4, rel=1e-9)
     w = next(r for r in rows if r["kind"] == "window_noise")
     assert w["predicted_ratio"] == pytest.approx(math.sqrt(16 / (16 + 130 / 144 * 9)))
     assert "| retina | all |" in BC.markdown(rows)

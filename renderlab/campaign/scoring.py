@@ -247,6 +247,65 @@ def registration_crlb(expected: np.ndarray, variance, *, full: bool = True,
     return crlb_from_fisher(fisher_information(expected, variance, independent=independent), full=full)
 
 
+def template_shift_covariance(template: np.ndarray, image: np.ndarray, variance, mask=None) -> dict:
+    """Noise of a shift estimated by matching a model ``template`` to ``image``, against the image's own bound.
+
+    A correlation or least-squares registration with template t (gain and offset fitted) converges where
+    Σ w ∇t (I − t) = 0; linearised about the true shift its noise is the sandwich
+    ``cov = H⁻¹ B H⁻ᵀ`` with ``H = Σ w ∇t ∇Iᵀ`` (the curvature, over the true image I) and ``B = Σ w ∇t ∇tᵀ``
+    (the noise projected on the template's gradients), w = 1/σ². With t = I it is J⁻¹, the CRLB
+    (:func:`registration_crlb`); otherwise larger (Cauchy–Schwarz): the template's gradients that the image
+    lacks, and the image's that the template lacks, cost information.
+
+    Parameters
+    ----------
+    template, image : ndarray (H, W)
+        The model prediction and the noise-free image over the same pixels.
+    variance : float or ndarray (H, W)
+        Pixel noise variance of the image.
+    mask : ndarray of bool (H, W), optional
+        The template's valid pixels (default all); only pixels with ±2 valid neighbours along both axes are
+        used (the gradient stencil's reach), and the gain/offset fit uses every valid pixel.
+
+    Returns
+    -------
+    dict
+        ``sandwich`` (σ_s, σ_l) px; ``crlb`` (σ_s, σ_l): the image's bound over the same pixels; ``rho``
+        (s, l): correlation of the template's and the image's gradients; ``pixels`` used. NaN where H or J is
+        singular or fewer than 8 pixels remain.
+    """
+    from scipy.ndimage import binary_erosion
+
+    t = np.asarray(template, float)
+    img = np.asarray(image, float)
+    m = np.ones(t.shape, bool) if mask is None else np.asarray(mask, bool)
+    nan2 = (math.nan, math.nan)
+    out = {"sandwich": nan2, "crlb": nan2, "rho": nan2, "pixels": 0}
+    if m.sum() < 8:
+        return out
+    gain, offset = np.linalg.lstsq(np.c_[t[m], np.ones(int(m.sum()))], img[m], rcond=None)[0]
+    t = np.where(m, gain * t + offset, 0.0)
+    cross = np.zeros((5, 5), bool)
+    cross[2, :] = cross[:, 2] = True
+    use = binary_erosion(m, cross, border_value=0)
+    gts, gtl = image_gradients(t)
+    gis, gil = image_gradients(img)
+    use &= np.isfinite(gts) & np.isfinite(gtl) & np.isfinite(gis) & np.isfinite(gil)
+    out["pixels"] = int(use.sum())
+    if use.sum() < 8:
+        return out
+    w = 1.0 / np.broadcast_to(np.asarray(variance, float), img.shape)[use]
+    Gt, Gi = np.c_[gts[use], gtl[use]], np.c_[gis[use], gil[use]]
+    H, B, J = (Gt * w[:, None]).T @ Gi, (Gt * w[:, None]).T @ Gt, (Gi * w[:, None]).T @ Gi
+    if abs(np.linalg.det(H)) <= 1e-12 * abs(H[0, 0] * H[1, 1]) or np.linalg.det(J) <= 1e-12 * J[0, 0] * J[1, 1]:
+        return out
+    Hi = np.linalg.inv(H)
+    out["sandwich"] = tuple(float(v) for v in np.sqrt(np.diag(Hi @ B @ Hi.T)))
+    out["crlb"] = tuple(float(v) for v in np.sqrt(np.diag(np.linalg.inv(J))))
+    out["rho"] = tuple(float(np.corrcoef(Gt[:, j], Gi[:, j])[0, 1]) for j in (0, 1))
+    return out
+
+
 # ----------------------------------------------------------------------------- filter scoring
 def score_filter(table, *, settle_s: float = 0.0, nees_dof: int = 6, nis_dof: int = 2,
                  confidence: float = 0.95) -> list[dict]:

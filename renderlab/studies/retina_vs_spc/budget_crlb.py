@@ -18,7 +18,14 @@ with other render seeds and more samples, cuts the budget's windows from each an
 * ``cross`` — the cross-product of those two, Σ w (∇I¹ ∇I²ᵀ + ∇I² ∇I¹ᵀ)/2: unbiased for the noise-free J
   since the two renders' noises are independent (``registration_crlb(..., independent=...)``);
 * ``high_a`` / ``high_b`` — one render at each high spp (render bias down by the spp ratio);
-* ``clean`` — the cross-product of the two high-spp renders: the reference.
+* ``clean`` — the cross-product of the two high-spp renders: the reference;
+* ``footprint`` — the bound of the ``high_b`` image over the pixels Retina's template covers (its ray-traced
+  prediction from the exact maplet at the true pose, k = 3, the fitted McEwen L(α); pixels with ±2 valid
+  neighbours along both axes) instead of the budget's square window;
+* ``template`` — over the same pixels, the noise a shift estimator matching that template (gain and offset
+  fitted) would have: the sandwich H⁻¹ B H⁻ᵀ of :func:`renderlab.campaign.scoring.template_shift_covariance`,
+  H = Σ w ∇t ∇Iᵀ, B = Σ w ∇t ∇tᵀ (equal to ``footprint`` when the template is the image). The measured noise sd
+  over it near 1 says the template–truth mismatch accounts for the noise beyond the bound.
 
 The variance w is the sensor's at the budget render's radiance with its exposure (the noise the budget's
 runs saw) in every estimate. The rows go to ``tables/budget_crlb.parquet`` (one per landmark-frame and
@@ -43,7 +50,7 @@ import numpy as np
 from renderlab.errors import UserError
 
 TABLE = "budget_crlb"
-ESTIMATES = ("budget", "second", "cross", "high_a", "high_b", "clean")
+ESTIMATES = ("budget", "second", "cross", "high_a", "high_b", "clean", "footprint", "template")
 BANDS = (("all", 0.0, np.inf), ("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf))
 
 
@@ -98,6 +105,37 @@ def window_noise(low_a: np.ndarray, low_b: np.ndarray, clean: np.ndarray, varian
             float(np.sqrt(np.mean(g * g))) if g.size else math.nan)
 
 
+def onboard_L_table(ts) -> tuple:
+    """The onboard McEwen L(α) fitted to the truth set's law (what the budget's methods use)."""
+    from renderlab.measurement.runner import MeasureOptions, onboard_photometry
+
+    return onboard_photometry(ts, MeasureOptions())[0]
+
+
+def template_match(ts, k: int, maplet, clean: np.ndarray, variance: np.ndarray, L_table: tuple) -> dict:
+    """:func:`renderlab.campaign.scoring.template_shift_covariance` of Retina's template of ``maplet`` (exact
+    maplet, true camera, pose and Sun of frame ``k``, k = 3 samples per pixel) against the ``clean`` image."""
+    from estimators.retina import CameraPoseEstimate, TemplateOptions, build_mesh, render_template
+    from renderlab.campaign.scoring import template_shift_covariance
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.geometry.rotations import rotation_from_quat_xyzw
+
+    rec = ts.frames[k]
+    R = rotation_from_quat_xyzw(rec["pose"]["quat_render_from_cam_xyzw"], "pose").as_matrix()
+    sun = np.asarray(rec["sun"]["direction_render"], float)
+    tpl = render_template(build_mesh(maplet), CameraModel.from_dict(rec["camera"]),
+                          CameraPoseEstimate(R, np.asarray(rec["pose"]["position_m"], float)), sun / np.linalg.norm(sun),
+                          TemplateOptions(supersample=3, L_table=tuple(L_table)))
+    none = {"sandwich": (math.nan, math.nan), "crlb": (math.nan, math.nan), "rho": (math.nan, math.nan), "pixels": 0}
+    if tpl is None:
+        return none
+    h, w = tpl.image.shape
+    if tpl.l0 < 0 or tpl.s0 < 0 or tpl.l0 + h > clean.shape[0] or tpl.s0 + w > clean.shape[1]:
+        return none  # partly outside the image
+    sl = (slice(tpl.l0, tpl.l0 + h), slice(tpl.s0, tpl.s0 + w))
+    return template_shift_covariance(tpl.image, clean[sl], variance[sl], tpl.valid)
+
+
 def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOptions = CrlbProbeOptions()):
     """Render the all-off truth four times (module docstring) and return the per-landmark-frame estimates."""
     import pyarrow as pa
@@ -121,7 +159,8 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOpt
         sets[name] = (TruthSet.open(path), n or spp, s)
     ts = sets["budget"][0]
     sensor = SensorOptions(**sc.sensor.options_dict())
-    wins = windows(ts, read_catalog(ts.path))
+    catalog = read_catalog(ts.path)
+    wins = windows(ts, catalog)
     dn, var = {}, {}
     for k in range(len(ts)):
         o = frame_sensor_options(ts, k, sensor)  # the budget render's exposure, for every render
@@ -132,14 +171,22 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOpt
     pairs = {"budget": ("budget", None), "second": ("second", None), "cross": ("budget", "second"),
              "high_a": ("high_a", None), "high_b": ("high_b", None), "clean": ("high_a", "high_b")}
     rows = {c: [] for c in ("frame", "item", "gsd_ratio", "window_px", "estimate", "spp_a", "seed_a", "spp_b",
-                            "seed_b", "crlb_s", "crlb_l", "render_sd_dn", "sensor_sd_dn", "gradient_rms_dn")}
+                            "seed_b", "crlb_s", "crlb_l", "render_sd_dn", "sensor_sd_dn", "gradient_rms_dn",
+                            "template_px", "template_rho_s", "template_rho_l")}
+    maplets = {int(m.landmark_id): m for m in catalog}
+    L_table = onboard_L_table(ts)
     for (f, lid), (k, win, g) in sorted(wins.items()):
         diag = window_noise(dn["budget", k][win], dn["second", k][win], dn["high_b", k][win], var[k][win])
+        tm = template_match(ts, k, maplets[lid], dn["high_b", k], var[k], L_table)
         for est in ESTIMATES:
-            a, b = pairs[est]
-            c = registration_crlb(dn[a, k][win], var[k][win], independent=None if b is None else dn[b, k][win])
+            a, b = pairs.get(est, ("high_b", None))
+            if est in pairs:
+                c = registration_crlb(dn[a, k][win], var[k][win], independent=None if b is None else dn[b, k][win])
+            else:
+                c = tm["crlb" if est == "footprint" else "sandwich"]
             vals = (f, lid, g, int(dn[a, k][win].size), est, sets[a][1], sets[a][2],
-                    sets[b][1] if b else -1, sets[b][2] if b else -1, float(c[0]), float(c[1]), *diag)
+                    sets[b][1] if b else -1, sets[b][2] if b else -1, float(c[0]), float(c[1]), *diag,
+                    int(tm["pixels"]), float(tm["rho"][0]), float(tm["rho"][1]))
             for col, v in zip(rows, vals):
                 rows[col].append(v)
     types = {"frame": pa.int64(), "item": pa.int64(), "window_px": pa.int64(), "estimate": pa.string(),
@@ -208,7 +255,8 @@ def report_rows(meas, configs, probe, gross_px: float = 1.0, n_boot: int = 1000,
     if runs.get("sensor_noise", 0) < 2:
         return _uniform(out)
     cols = S.columns(meas)
-    variants = {"table": cols, **{e: _with_bound(cols, bounds[e]) for e in ("budget", "cross", "high_b", "clean")}}
+    variants = {"table": cols, **{e: _with_bound(cols, bounds[e]) for e in ("budget", "cross", "high_b", "clean",
+                                                                            "footprint", "template")}}
     methods = sorted(set(cols["method"]), key=lambda m: (m != "retina", m != "retina_refined", m))
     g = cols["gsd_ratio"]
     for m in methods:
