@@ -212,3 +212,32 @@ def test_device_variant_sends_llvm_requests_to_cuda():
     assert device_variant("llvm_ad_mono", "") == "llvm_ad_mono"
     with pytest.raises(UserError, match="RENDERLAB_MITSUBA_DEVICE"):
         device_variant("llvm_ad_mono", "gpu")
+
+
+def test_drjit_grid_path_renders_the_kernel_path_image():
+    """``ray_path = "drjit_grid"`` (pinholes through the float64 grid, the path before the kernel inverse) gives
+    the kernel path's image to float32 rounding and the same truth AOVs; ``$RENDERLAB_MITSUBA_RAYS`` sets the
+    default, and an unknown value is a one-line error."""
+    import os
+    import subprocess
+    import sys
+
+    from renderlab.errors import UserError
+
+    be, spec, _ = _backend()
+    a = be.render(spec, seed=4)
+    be.ray_path = "drjit_grid"
+    b = be.render(spec, seed=4)
+    assert be._cam_rays.use_grid and not be._cam_rays.plane
+    assert np.abs(a.radiance - b.radiance).max() <= 1e-4 * a.radiance.max()
+    assert np.array_equal(a.body_id, b.body_id)
+    be.ray_path = "drjit"
+    c = be.render(spec, seed=4)
+    assert not be._cam_rays.use_grid and np.array_equal(a.radiance, c.radiance)
+    be.ray_path = "kernel"
+    with pytest.raises(UserError, match="must be one of drjit, drjit_grid, numpy"):
+        be.render(spec, seed=4)
+    code = "from renderlab.render.mitsuba_backend import MitsubaBackend as M; print(M.ray_path)"
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "RENDERLAB_MITSUBA_RAYS": "drjit_grid"},
+                         capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "drjit_grid"

@@ -36,6 +36,8 @@ BSDF-sampled ray per sample that cannot reach the delta sun, and a second BSDF e
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from renderlab.render.mesh_io import mesh_body
@@ -63,6 +65,10 @@ def _transform4(R: np.ndarray, t: np.ndarray, scale) -> list[list[float]]:
     return M.tolist()
 
 
+#: ``MitsubaBackend.ray_path`` values (``render`` says what each is)
+RAY_PATHS = ("drjit", "drjit_grid", "numpy")
+
+
 class MitsubaBackend:
     """Render frames of one scene with Mitsuba 3 (scene loaded once, updated in place)."""
 
@@ -70,8 +76,9 @@ class MitsubaBackend:
     #: tiled surfaces (levels of detail) are chosen per frame (renderlab.render.mitsuba_tiles)
     supports_tiles = True
     #: ``"drjit"``: primary rays generated in the kernel (JIT variants, the default); ``"numpy"``: the former
-    #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks
-    ray_path = "drjit"
+    #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks; ``"drjit_grid"``:
+    #: pinholes through the direction grid, as before commit 7018b77 (:meth:`render`); ``$RENDERLAB_MITSUBA_RAYS``
+    ray_path = os.environ.get("RENDERLAB_MITSUBA_RAYS") or "drjit"
     #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) for max_depth 2, else ``path``;
     #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before issue 19), kept for the benchmarks
     integrator = "auto"
@@ -284,8 +291,9 @@ class MitsubaBackend:
     def _camera_rays(self, camera) -> CameraRays:
         """The ray generator of ``camera`` (its float64 direction grid is built and uploaded once)."""
         cr = getattr(self, "_cam_rays", None)
-        if cr is None or cr.camera != camera:
-            cr = self._cam_rays = CameraRays(self.mi, self.dr, camera)
+        grid = self.ray_path == "drjit_grid"
+        if cr is None or cr.camera != camera or cr.use_grid != grid:
+            cr = self._cam_rays = CameraRays(self.mi, self.dr, camera, grid=grid)
         return cr
 
     def _radiance_pass(self, cr: CameraRays, pose: FramePose, shift, j0: int, m: int, seed: int):
@@ -337,8 +345,15 @@ class MitsubaBackend:
         """Render one frame. ``seed`` fixes the sub-pixel pattern and Mitsuba's sampler.
 
         JIT variants generate the rays in the kernel (:mod:`renderlab.render.mitsuba_rays`) unless
-        ``ray_path = "numpy"``; scalar variants always take the numpy path.
+        ``ray_path = "numpy"``; ``"drjit_grid"`` sends pinholes through the direction grid as before commit
+        7018b77 (:class:`~renderlab.render.mitsuba_rays.CameraRays`, to re-make truth sets rendered then);
+        scalar variants always take the numpy path. ``$RENDERLAB_MITSUBA_RAYS`` sets the default.
         """
+        if self.ray_path not in RAY_PATHS:
+            from renderlab.errors import UserError
+
+            raise UserError(f"Mitsuba ray path (RENDERLAB_MITSUBA_RAYS) must be one of {', '.join(RAY_PATHS)}, "
+                            f"got {self.ray_path!r}")
         if self.scalar or self.ray_path == "numpy":
             return self._render_numpy(frame, seed)
         return self._render_drjit(frame, seed)

@@ -24,6 +24,11 @@ Per sample:
   (``tests/test_mitsuba_rays.py`` measures it for every model against the float64 oracle
   :meth:`CameraModel.project`);
 * with distortion, pixel centres (the truth-AOV rays) fall exactly on grid nodes: no interpolation;
+* ``CameraRays(..., grid=True)`` sends a pinhole through the grid too (nodes (x/z, y/z, 1), bilinear: exact up
+  to float32 rounding, as the kernel inverse): the Dr.Jit path before the kernel inverse (commit 7018b77),
+  kept so that truth sets rendered with it can be made again bit for bit (``ray_path = "drjit_grid"`` of
+  :class:`renderlab.render.mitsuba_backend.MitsubaBackend`); the two differ by float32 rounding of the
+  sample positions, which moves a few shadow-edge samples;
 * a node without a preimage (beyond a wide fisheye's field of view) is NaN, and so is every sample
   interpolated from it: such samples miss everything (radiance 0), within one pixel of where the
   numpy path's rays stop;
@@ -88,13 +93,15 @@ class CameraRays:
     mi, dr : module
         ``mitsuba`` (variant set) and ``drjit``.
     camera : CameraModel
+    grid : bool
+        Pinholes through the float64 grid + bilinear as well (module docstring), not the kernel inverse.
     """
 
-    def __init__(self, mi, dr, camera):
-        self.mi, self.dr, self.camera = mi, dr, camera
+    def __init__(self, mi, dr, camera, grid: bool = False):
+        self.mi, self.dr, self.camera, self.use_grid = mi, dr, camera, bool(grid)
         self.W, self.H = camera.width, camera.height
         self.GW = self.W + 2
-        self.plane = interpolates_plane(camera)
+        self.plane = interpolates_plane(camera) and not self.use_grid
         if self.plane:  # Retina eq. 4 inverted in the kernel: K⁻¹ (opaque) times (s − cx, l − cy)
             det = camera.fx * camera.fy - camera.skew * camera.skew_yx
             self.kinv = [dr.opaque(mi.Float, v / det) for v in (camera.fy, -camera.skew, -camera.skew_yx, camera.fx)]
