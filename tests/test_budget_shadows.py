@@ -17,6 +17,7 @@ from renderlab.errors import UserError
 from renderlab.geometry.maplet import Maplet
 from renderlab.studies.retina_vs_spc import budget as B
 from renderlab.studies.retina_vs_spc import budget_shadows as SH
+from renderlab.studies.retina_vs_spc import budget_tables as T
 
 
 def _ridge_maplet(n=31, s=0.1):
@@ -74,7 +75,7 @@ def test_merge_replaces_only_the_named_configuration(tmp_path):
                  pa.table({"config": ["all_off", "no_shadows"], "run": [0, 0]}), {"command": "test"})
     (tmp_path / "tables" / "other.parquet").write_bytes(b"kept")
     new_cfg = [{"config": "no_shadows", "source": "", "description": "new", "runs": 1, "overrides": {"a": 1}}]
-    B._merge(tmp_path, new_cfg, meas("no_shadows", 5.0, 4), pa.table({"config": ["no_shadows"], "run": [0]}),
+    T.merge_tables(tmp_path, new_cfg, meas("no_shadows", 5.0, 4), pa.table({"config": ["no_shadows"], "run": [0]}),
              {"command": "again"})
     t = pq.read_table(tmp_path / "tables" / "budget_measurements.parquet").to_pydict()
     got = sorted(zip(t["config"], t["err_s"]))

@@ -25,7 +25,9 @@ configuration (:mod:`.budget_stats` reports the difference). The shadow approxim
 at all off: configuration ``no_shadows`` is every source off with no cast shadows in the truth
 (``render.shadows = false``) nor in the methods' predictions (:mod:`.budget_shadows` says why both); every
 other configuration has ray-traced cast shadows in the truth and each method's own shadowing in its template.
-``run --only CONFIG ...`` runs just those configurations into an existing folder's tables (the rest kept).
+``run --only CONFIG ...`` runs just those configurations into an existing folder's tables (the rest kept);
+``run --methods METHOD ...`` just those methods of every configuration (same seeds and run indices, so their rows
+are paired with the others'; the merge checks the truth columns and knowledge draws agree).
 
 The truth render depends only on the world keys (law, mapping and albedo error: five truth sets, the
 others share the "all off" one through the truth cache). Configurations with no random draw (sensor
@@ -82,7 +84,7 @@ OFF: dict[str, object] = {
 }
 
 #: the methods of every configuration (the study's registered names)
-METHODS = ("retina", "retina_refined", "spc", "ncc_baseline")
+METHODS = ("retina", "retina_refined", "retina_ml", "spc", "ncc_baseline")
 
 
 def _get(d: dict, dotted: str):
@@ -216,9 +218,11 @@ def _tasks(configs, base_dir, runs, seed, workdir) -> tuple[list, list]:
 
 
 def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir: Path, command: str,
-               only: list[str] | None = None) -> None:
+               only: list[str] | None = None, methods: list[str] | None = None) -> None:
     """Run every configuration (progress on stderr), write the tables and ``budget.json``, then the report.
-    ``only``: run just these configurations and merge them into ``out``'s existing tables (:func:`_merge`)."""
+    ``only``: run just these configurations and merge them into ``out``'s existing tables; ``methods``: run just
+    these methods (same seeds and run indices) and merge their rows, the other methods' rows kept
+    (:func:`.budget_tables.merge_tables`, which refuses rows whose truth or draws differ from the table's)."""
     import concurrent.futures as cf
 
     import pyarrow as pa
@@ -231,16 +235,17 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
     scenario, base_dir = load_scenario(scenario_path)
     base = scenario.to_dict()
     seed = int(base.get("campaign", {}).get("seed", 0))
-    configs = budget_configs(base)
+    configs = budget_configs(base, _known_methods(methods) if methods else METHODS)
     if only:
-        from renderlab.studies.retina_vs_spc.budget_tables import read_tables
-
         unknown = sorted(set(only) - {c["config"] for c in configs})
         if unknown:
             raise UserError(f"--only: no configuration {unknown[0]!r} (known: "
                             f"{', '.join(c['config'] for c in configs)})")
-        read_tables(out)  # an existing budget folder to merge into, before anything runs
         configs = [c for c in configs if c["config"] in only]
+    if only or methods:
+        from renderlab.studies.retina_vs_spc.budget_tables import read_tables
+
+        read_tables(out)  # an existing budget folder to merge into, before anything runs
     first, rest = _tasks(configs, base_dir, runs, seed, workdir)
     total, done, t0 = len(first) + len(rest), 0, time.perf_counter()
     meas, pert = [], []
@@ -255,8 +260,10 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
     manifest = {"command": command, "scenario": scenario_path.name, "seed": seed, "runs": runs,
                 "wall_s": round(time.perf_counter() - t0, 1), "workers": workers}
     m, p = pa.concat_tables(meas, promote_options="default"), pa.concat_tables(pert, promote_options="default")
-    if only:
-        _merge(out, configs, m, p, manifest)
+    if only or methods:
+        from renderlab.studies.retina_vs_spc.budget_tables import merge_tables
+
+        merge_tables(out, configs, m, p, manifest, methods)
     else:
         write_tables(out, configs, m, p, manifest)
     from renderlab.studies.retina_vs_spc.budget_report import write_report
@@ -264,37 +271,15 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
     write_report(out)
 
 
-def _merge(out: Path, configs: list[dict], meas, pert, manifest: dict) -> None:
-    """Replace the rows of ``configs`` in ``out``'s three tables by the new ones (other configurations and
-    tables untouched; each file written to a temporary sibling, then renamed) and add the command to
-    ``budget.json`` under ``incremental``."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-    import pyarrow.parquet as pq
+def _known_methods(methods: list[str]) -> list[str]:
+    """``methods`` if each is a registered landmark method, listed once; else UserError."""
+    from renderlab import plugins
 
-    from renderlab.studies.retina_vs_spc.budget_tables import (COLUMNS, CONFIGS, MANIFEST, MEASUREMENTS,
-                                                               PERTURBATIONS, TABLES)
-
-    names = pa.array([c["config"] for c in configs], pa.string())
-    new_cfg = pa.table({"config": names, "source": [c["source"] for c in configs],
-                        "description": [c["description"] for c in configs],
-                        "runs": pa.array([int(c["runs"]) for c in configs], pa.int64()),
-                        "overrides": [json.dumps(c["overrides"], sort_keys=True) for c in configs]})
-    merged = {}
-    for name, new in ((MEASUREMENTS, meas.select(list(COLUMNS))), (CONFIGS, new_cfg), (PERTURBATIONS, pert)):
-        old = pq.read_table(Path(out) / TABLES / f"{name}.parquet")
-        keep = old.filter(pc.invert(pc.is_in(old.column("config").cast(pa.string()), value_set=names)))
-        merged[name] = pa.concat_tables([keep, new.select(keep.column_names) if name != PERTURBATIONS else new],
-                                        promote_options="default")
-    for name, table in merged.items():
-        path = Path(out) / TABLES / f"{name}.parquet"
-        tmp = path.with_name(f".{path.name}.tmp")
-        pq.write_table(table, tmp)
-        tmp.replace(path)
-    mpath = Path(out) / MANIFEST
-    man = json.loads(mpath.read_text(encoding="utf-8"))
-    man.setdefault("incremental", []).append({**manifest, "configs": [c["config"] for c in configs]})
-    mpath.write_text(json.dumps(man, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    if len(set(methods)) != len(methods):
+        raise UserError(f"--methods: a method is named twice ({' '.join(methods)})")
+    for name in methods:
+        plugins.landmark_methods.get(name, where="--methods: ")
+    return list(methods)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -311,6 +296,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="scratch folder (truth cache)")
     r.add_argument("--only", nargs="+", metavar="CONFIG",
                    help="run only these configurations and merge them into --out's existing tables")
+    r.add_argument("--methods", nargs="+", metavar="METHOD",
+                   help="run only these landmark methods (same seeds and runs) and merge their rows into --out's "
+                        "existing tables, the other methods' rows kept (their truth and draws must agree)")
     g = sub.add_parser("report", help="make the table and figure again from FOLDER/tables alone")
     g.add_argument("folder", type=Path)
     q = sub.add_parser("probe", help="Retina's template supersampling on the all-off truth (.budget_probe) into "
@@ -346,7 +334,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "run":
             cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
-            run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only)
+            run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only,
+                       args.methods)
         elif args.command == "probe":
             run_probe(args.folder, args.scenario, args.workdir)
         else:

@@ -63,3 +63,106 @@ def read_tables(folder: Path) -> tuple:
     if "config" not in out[1].column_names or "all_off" not in out[1].column("config").to_pylist():
         raise UserError(f"{folder}: {CONFIGS}.parquet has no all_off configuration")
     return out[0], out[1]
+
+
+#: truth columns a ``--methods`` run must reproduce on every (config, run, frame, item) it shares with the table
+PAIRED_COLUMNS = ("truth_s", "truth_l", "truth_visible", "gsd_ratio", "phase_deg", "shadow_fraction", "crlb_s",
+                  "crlb_l", "range_m")
+#: largest |new − old| of a paired column (px, m, deg, ...; the CRLB relative) still counted as the same truth
+PAIR_TOL, PAIR_TOL_CRLB_REL = 1e-9, 1e-9
+
+
+def paired_check(old, new) -> dict:
+    """{column: max |new − old|} (``crlb_*``: relative) over the keys (config, run, frame, item) the new rows share
+    with ``old``'s rows of one other method, and ``perturbations``: whether their knowledge draws agree; UserError
+    when a key is missing or a value differs beyond :data:`PAIR_TOL` (the new rows would not be paired)."""
+    import numpy as np
+
+    key = ("config", "run", "frame", "item")
+    ref_method = sorted(set(old.column("method").to_pylist()) - set(new.column("method").to_pylist()))
+    if not ref_method:
+        raise UserError("--methods: the table has no other method to pair the new rows with")
+    o = old.filter(_eq(old, "method", ref_method[0]))
+    index = {k: j for j, k in enumerate(zip(*[o.column(c).to_pylist() for c in key]))}
+    out = {}
+    for m in sorted(set(new.column("method").to_pylist())):
+        n = new.filter(_eq(new, "method", m))
+        keys = list(zip(*[n.column(c).to_pylist() for c in key]))
+        missing = [k for k in keys if k not in index]
+        if missing or len(keys) != o.num_rows:
+            raise UserError(f"--methods: {m}'s rows do not cover the same landmark-frames as {ref_method[0]}'s "
+                            f"({len(missing)} new keys, {len(keys)} vs {o.num_rows} rows)")
+        j = np.array([index[k] for k in keys])
+        for c in PAIRED_COLUMNS:
+            a = np.asarray(o.column(c).to_numpy(zero_copy_only=False), float)[j]
+            b = np.asarray(n.column(c).to_numpy(zero_copy_only=False), float)
+            if not np.array_equal(np.isfinite(a), np.isfinite(b)):
+                raise UserError(f"--methods: column {c} of {m}'s rows is NaN where {ref_method[0]}'s is not (or "
+                                "the reverse): not the table's truth")
+            f = np.isfinite(a)
+            d = np.abs(b[f] - a[f]) / (np.abs(a[f]) if c.startswith("crlb") else 1.0)
+            out[c] = max(out.get(c, 0.0), float(d.max()) if d.size else 0.0)
+            tol = PAIR_TOL_CRLB_REL if c.startswith("crlb") else PAIR_TOL
+            if out[c] > tol:
+                raise UserError(f"--methods: {m}'s {c} differs from the table's ({ref_method[0]}) by {out[c]:.3g} "
+                                f"(> {tol:g}): the truth renders do not reproduce the published rows")
+    return out
+
+
+def _eq(table, column: str, value):
+    import pyarrow.compute as pc
+
+    return pc.equal(table.column(column).cast("string"), value)
+
+
+def merge_tables(out: Path, configs: list[dict], meas, pert, manifest: dict, methods=None) -> None:
+    """Replace the rows of ``configs`` in ``out``'s three tables by the new ones (other configurations and tables
+    untouched; each file written to a temporary sibling, then renamed) and add the command to ``budget.json``
+    under ``incremental``. ``methods``: replace only these methods' measurement rows of ``configs`` (keep the
+    configuration and perturbation tables, whose draws the new runs must repeat: :func:`paired_check`)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    names = pa.array([c["config"] for c in configs], pa.string())
+    new_cfg = pa.table({"config": names, "source": [c["source"] for c in configs],
+                        "description": [c["description"] for c in configs],
+                        "runs": pa.array([int(c["runs"]) for c in configs], pa.int64()),
+                        "overrides": [json.dumps(c["overrides"], sort_keys=True) for c in configs]})
+    tables = {n: pq.read_table(Path(out) / TABLES / f"{n}.parquet") for n in (MEASUREMENTS, CONFIGS, PERTURBATIONS)}
+    drop = {n: pc.is_in(t.column("config").cast(pa.string()), value_set=names) for n, t in tables.items()}
+    new = {MEASUREMENTS: meas.select(list(COLUMNS)), CONFIGS: new_cfg, PERTURBATIONS: pert}
+    if methods:
+        old = tables[MEASUREMENTS]
+        mine = pc.is_in(old.column("method").cast(pa.string()), value_set=pa.array(list(methods), pa.string()))
+        paired = paired_check(old.filter(pc.and_(drop[MEASUREMENTS], pc.invert(mine))), new[MEASUREMENTS])
+        _same_draws(tables[PERTURBATIONS].filter(drop[PERTURBATIONS]), pert)
+        drop = {MEASUREMENTS: pc.and_(drop[MEASUREMENTS], mine)}
+        manifest = {**manifest, "methods": list(methods), "paired_max_abs_diff": paired}
+    merged = {}
+    for name, d in drop.items():
+        keep = tables[name].filter(pc.invert(d))
+        add = new[name].select(keep.column_names) if name != PERTURBATIONS else new[name]
+        merged[name] = pa.concat_tables([keep, add], promote_options="default")
+    for name, table in merged.items():
+        path = Path(out) / TABLES / f"{name}.parquet"
+        tmp = path.with_name(f".{path.name}.tmp")
+        pq.write_table(table, tmp)
+        tmp.replace(path)
+    mpath = Path(out) / MANIFEST
+    man = json.loads(mpath.read_text(encoding="utf-8"))
+    man.setdefault("incremental", []).append({**manifest, "configs": [c["config"] for c in configs]})
+    mpath.write_text(json.dumps(man, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+
+
+def _same_draws(old, new) -> None:
+    """UserError unless ``new``'s perturbation rows equal ``old``'s, per (config, run)."""
+    cols = sorted((set(old.column_names) & set(new.column_names)) - {"campaign"})
+
+    def rows(t):
+        return sorted(json.dumps({c: t.column(c)[i].as_py() for c in cols}, sort_keys=True, default=str)
+                      for i in range(t.num_rows))
+
+    if rows(old) != rows(new):
+        raise UserError("--methods: the new runs drew other knowledge errors than the table's (not the same seeds "
+                        "or scenario): refusing to merge unpaired rows")
