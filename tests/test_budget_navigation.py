@@ -182,6 +182,9 @@ def test_navigation_command_writes_tables_and_report_and_only_reproduces_rows(tm
     again = pq.read_table(folder / "tables" / "budget_navigation.parquet")
     key = lambda t: sorted(zip(*[t.column(c).to_pylist() for c in ("mapping", "config", "method", "run", "err_norm_m")]))
     assert key(again) == key(first)
+    assert main(args + ["--only", "all_on", "--methods", "retina_ml"]) == 0   # one method of one configuration
+    assert key(pq.read_table(folder / "tables" / "budget_navigation.parquet")) == key(first)
+    assert main(args + ["--methods", "nope"]) == 2
     report = {p.name for p in (folder / "report").iterdir()}
     assert {"budget_navigation.csv", "budget_navigation_validation.csv", "budget_navigation.png"} <= report
     assert "### navigation: geometric all-on vs the rendered" in (folder / "report" / "budget_table.md").read_text()

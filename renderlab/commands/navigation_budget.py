@@ -6,7 +6,8 @@ study's truth (:mod:`renderlab.studies.descent_navigation.error_flights`); this 
 joins them: models → flights → ``FOLDER/tables/budget_navigation*.parquet`` → the budget's report
 (:mod:`renderlab.studies.retina_vs_spc.budget_report`, which reads the tables alone). ``--only CONFIG ...`` flies
 just those configurations (no floor) with the same runs and seed, so their rows replace those of the existing table
-and equal what a full run gives.
+and equal what a full run gives; ``--methods METHOD ...`` likewise flies just those methods (of every configuration,
+or of ``--only``'s), replacing only their rows.
 """
 
 from __future__ import annotations
@@ -29,14 +30,16 @@ def add_parser(sub) -> None:
                    "descent's altitudes (default: altitude ground pixel; see budget_navigation)")
     n.add_argument("--only", nargs="+", metavar="CONFIG", help="fly only these configurations and replace their "
                    "rows in FOLDER/tables/budget_navigation.parquet")
+    n.add_argument("--methods", nargs="+", metavar="METHOD", help="fly only these landmark methods (same runs and "
+                   "seed) and replace their rows in FOLDER/tables/budget_navigation.parquet")
 
 
-def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None) -> tuple:
+def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None, methods=None) -> tuple:
     """(navigation table, rendered touchdown table) of a budget folder's error models
     (:func:`~renderlab.studies.retina_vs_spc.budget_navigation.error_models`, options ``opts``:
     :class:`~renderlab.studies.retina_vs_spc.budget_navigation.NavBudgetOptions`) flown along ``scenario_path``'s
     descent (:func:`~renderlab.studies.descent_navigation.error_flights.fly_models`); ``only``: just these
-    configurations, no floor."""
+    configurations, ``methods``: just these methods, either: no floor."""
     from renderlab.studies.descent_navigation.error_flights import descent_geometry, fly_models, rendered_touchdown
     from renderlab.studies.retina_vs_spc.budget_navigation import MAPPINGS, NONE_CONFIG, NONE_METHOD, error_models
     from renderlab.studies.retina_vs_spc.budget_tables import read_tables
@@ -55,15 +58,22 @@ def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None) 
         if unknown:
             raise UserError(f"--only: the budget has no configuration {unknown[0]!r}")
         models = [m for m in models if m.config in only]
+    if methods:
+        unknown = sorted(set(methods) - {m.method for m in models})
+        if unknown:
+            raise UserError(f"--methods: the budget has no rows of method {unknown[0]!r}")
+        models = [m for m in models if m.method in methods]
     table = fly_models(scenario_path, models, opts.runs, opts.seed, workers,
-                       floor=None if only else (NONE_CONFIG, NONE_METHOD))
+                       floor=None if only or methods else (NONE_CONFIG, NONE_METHOD))
     return table, rendered_touchdown(scenario_path)
 
 
 def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, workers: int, only=None,
-                   mappings=None) -> Path:
+                   mappings=None, methods=None) -> Path:
     """Fly the navigation budget (:func:`navigation_tables`) into ``folder/tables``, then the report (returned);
-    ``only``: those configurations' rows replaced in the existing table (same runs and seed)."""
+    ``only`` / ``methods``: those configurations' / methods' rows replaced in the existing table (same runs and
+    seed; the other rows kept)."""
+    import numpy as np
     import pyarrow as pa
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
@@ -73,12 +83,16 @@ def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, work
     from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 
     opts = NavBudgetOptions(runs=runs, seed=seed, **({"mappings": tuple(mappings)} if mappings else {}))
-    nav, rendered = navigation_tables(folder, scenario_path, opts, workers, only)
-    if only:
+    nav, rendered = navigation_tables(folder, scenario_path, opts, workers, only, methods)
+    if only or methods:
         old = pq.read_table(Path(folder) / TABLES / f"{TABLE}.parquet")
         if sorted(set(old.column("run").to_pylist())) != list(range(runs)):
-            raise UserError(f"--only: the existing navigation table does not have runs 0..{runs - 1}")
-        keep = old.filter(pc.invert(pc.is_in(old.column("config"), value_set=pa.array(list(only), pa.string()))))
+            raise UserError(f"--only/--methods: the existing navigation table does not have runs 0..{runs - 1}")
+        drop = pa.array(np.ones(old.num_rows, bool))
+        for col, names in (("config", only), ("method", methods)):
+            if names:
+                drop = pc.and_(drop, pc.is_in(old.column(col), value_set=pa.array(list(names), pa.string())))
+        keep = old.filter(pc.invert(drop))
         nav = pa.concat_tables([keep, nav.select(keep.column_names)])
     for name, table in ((TABLE, nav), (RENDERED, rendered)):
         out = Path(folder) / TABLES / f"{name}.parquet"
@@ -90,7 +104,7 @@ def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, work
 
 def run(args) -> int:
     out = run_navigation(Path(args.folder), Path(args.scenario), args.runs, args.seed, args.workers, args.only,
-                         args.mappings)
+                         args.mappings, args.methods)
     print(f"renderlab: wrote {Path(args.folder) / 'tables'} (budget_navigation, budget_navigation_rendered) and "
           f"the report {out}")
     return 0
