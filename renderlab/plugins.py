@@ -37,6 +37,9 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "coastline_sqrt_ekf": "renderlab.measurement.builtin_filters:CoastlineSqrtEKF",
         "descent_ekf": "renderlab.measurement.descent_filter:DescentNavFilter",
     }),
+    "measurement_sources": ("renderlab.measurement_sources", {  # the descent study's non-image sources
+        "geometric": "renderlab.studies.descent_navigation.sources:GeometricSource",
+    }),
     "studies": ("renderlab.studies", {
         "analytic_pointing": "renderlab.studies.analytic_pointing:STUDY",
         "retina_vs_spc": "renderlab.studies.retina_vs_spc:STUDY",
@@ -68,6 +71,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
 
 _LABELS = {"landmark_methods": "landmark method", "filters": "filter", "studies": "study", "worlds": "world kind",
            "renderers": "renderer", "scenario_sections": "scenario section",
+           "measurement_sources": "measurement source",
            "result_folders": "result-folder kind"}
 
 
@@ -160,6 +164,7 @@ class Registry:
 REGISTRIES: dict[str, Registry] = {n: Registry(n, g, b) for n, (g, b) in BUILTIN.items()}
 landmark_methods = REGISTRIES["landmark_methods"]
 filters = REGISTRIES["filters"]
+measurement_sources = REGISTRIES["measurement_sources"]
 studies = REGISTRIES["studies"]
 worlds = REGISTRIES["worlds"]
 renderers = REGISTRIES["renderers"]

@@ -15,6 +15,10 @@ mapping- and albedo-error draw from the run's seeded generator (:mod:`renderlab.
 independent in their map errors too (the truth images stay shared). ``map_states`` switches the filter's landmark
 map-error states (:mod:`estimators.descent_nav.map_states`): their prior is the declared map accuracy,
 ``map_sigma_h_m`` per horizontal maplet axis and ``map_sigma_v_m`` along the maplet normal.
+
+``sources`` adds measurement sources that are not image-based landmark methods, by registered kind
+(:data:`renderlab.plugins.measurement_sources`; built in: ``"geometric"``, :mod:`.sources`, eq. G1): each is scored
+like a method under its ``name``. ``filter`` names the registered navigation filter every method and source drives.
 """
 
 from __future__ import annotations
@@ -26,15 +30,39 @@ from pydantic import Field, model_validator
 from renderlab.config_types import Finite, NonNegative, Positive, Strict
 
 Unit = Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)]
+Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]
+
+
+class MeasurementSourceConfig(Strict):
+    """One measurement source of ``sources`` (eq. G1 of :mod:`.sources`): the true pixel of each selected landmark
+    plus injected errors. All zero and ``sigma_noise_px`` None: the filter's own measurement model."""
+
+    name: Name = Field(description="Label of the source in the tables (as a method's name), unique")
+    kind: Name = Field("geometric", description="Registered measurement-source kind (renderlab.plugins."
+                       "measurement_sources)")
+    bias_px: tuple[Finite, Finite] = Field((0.0, 0.0), description="Common bias mu per image axis (s, l) [px]")
+    sigma_bias_px: NonNegative = Field(0.0, description="Per-landmark constant bias, rms per axis over the "
+                                       "landmarks (one draw per landmark and run) [px]")
+    scale: Finite = Field(0.0, description="Image scale error kappa about the principal point [-]")
+    sigma_noise_px: NonNegative | None = Field(None, description="White noise per axis [px]; None: each landmark's "
+                                               "declared filter sigma (model-matched)")
+    map_offset_h_m: NonNegative = Field(0.0, description="Landmark offset fixed on the ground, 1 sigma per "
+                                        "horizontal maplet axis (the true landmark moved; the map keeps its "
+                                        "centre) [m]")
+    map_offset_v_m: NonNegative | None = Field(None, description="The same along the maplet normal; None: "
+                                               "map_offset_h_m [m]")
 
 
 class DescentNavigationConfig(Strict):
     """Options of study ``descent_navigation`` (module docstring)."""
 
-    methods: Annotated[list[Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]],
-                       Field(min_length=1, max_length=16)] = Field(
+    methods: Annotated[list[Name], Field(max_length=16)] = Field(
         ["retina", "spc", "ncc_baseline"], description="Registered landmark-method names, unique; each drives its own "
         "copy of the filter on the same images, star-tracker and accelerometer draws and initial estimate")
+    sources: Annotated[list[MeasurementSourceConfig], Field(max_length=32)] = Field(
+        [], description="Measurement sources besides the landmark methods (geometric: true pixel + injected error, "
+        "no images); each drives its own copy of the filter with the run's draws, as a method")
+    filter: Name = Field("descent_ekf", description="Registered navigation filter (renderlab.plugins.filters)")
     sigma_px: Positive = Field(0.3, description="Declared landmark pixel noise of the filter, per axis [px]")
     sigma_px_by_method: dict[str, Positive] = Field({}, description="Per-method override of sigma_px [px]")
     sigma_ground_m: NonNegative = Field(0.0, description="Declared landmark error on the ground: each landmark's "
@@ -90,8 +118,11 @@ class DescentNavigationConfig(Strict):
 
     @model_validator(mode="after")
     def _check(self):
-        if len(set(self.methods)) != len(self.methods):
-            raise ValueError(f"methods must be unique, got {self.methods}")
+        names = self.methods + [s.name for s in self.sources]
+        if not names:
+            raise ValueError("give at least one of methods or sources")
+        if len(set(names)) != len(names):
+            raise ValueError(f"method and source names must be unique, got {names}")
         if self.max_search_px < self.min_search_px:
             raise ValueError("max_search_px must be >= min_search_px")
         if self.gsd_ratio_range[1] <= self.gsd_ratio_range[0]:

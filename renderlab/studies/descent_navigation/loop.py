@@ -4,7 +4,7 @@ Per image k (time t_k): the filter is propagated from the previous image with th
 per ``1/accel_rate_hz``, eq. D5 of :mod:`estimators.descent_nav.dynamics`); the landmark method gets the a-priori
 pose (position = the filter's, attitude = the star tracker's) and per landmark the search distance n_σ·√λ_max of the
 projected covariance (the filter's position block and the star tracker's σ; Wright et al. eq. 1–4 projection);
-the landmarks it measures ((s, l) = pred + (Δs, Δl)) update the filter (kind ``"pixel"``, R of eq. M3 with
+the landmarks it measures ((s, l) = pred + (Δs, Δl); or a measurement source's, :mod:`.sources`) update the filter (kind ``"pixel"``, R of eq. M3 with
 σ_i² = σ_px² + (σ_ground/GSD_i)² per landmark, the
 method's outlier flags in ``context["flagged"]``), whose χ² gate rejects what does not fit.
 Landmarks attempted: those the a-priori pose predicts inside the image whose GSD ratio (predicted range / fx /
@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from renderlab.contracts.navigation import FilterMeasurement
 from renderlab.errors import UserError
 
 
@@ -103,38 +102,6 @@ def _landmark_rows(inp, method, k, sel, results, upd, cam, true_pose) -> list[di
     return rows
 
 
-def _measure(impl, inp, k, filt, cfg, mopts):
-    """(selected indices, results, FilterMeasurement or None) of image k at the filter's a-priori pose."""
-    from estimators.descent_nav import pixel_covariance
-    from renderlab.contracts.landmark import CameraPose
-    from renderlab.measurement.runner import _frame_record, run_method_on_image
-
-    fr = _frame_record(inp.ts, k)
-    x, P = filt.x, filt.P
-    pose = CameraPose(inp.R_star[k], x[:3])
-    sel = select_landmarks(fr.camera, pose, inp.centres, inp.spacing, cfg)
-    if sel.size == 0:
-        return sel, [], None
-    cov_r = np.eye(3) * inp.sigma_st_rad**2
-    _, results = run_method_on_image(impl, inp.image(k), fr.adc_max, fr.camera, pose, fr.sun,
-                                     [inp.maplets[i] for i in sel], inp.centres[sel], P[:3, :3], cov_r, mopts, k)
-    good = [i for i, r in enumerate(results) if r.has_result]
-    if not good:
-        return sel, results, None
-    pts = inp.centres[sel[good]]
-    z = np.array([[results[i].meas_s, results[i].meas_l] for i in good]).reshape(-1)
-    gsd = ((pts - x[:3]) @ inp.R_star[k])[:, 2] / fr.camera.fx          # predicted GSD per landmark, m/px
-    sg = cfg.ground_sigma_for(impl.name)
-    s_px, s_mh, s_mv = cfg.landmark_sigmas(impl.name, inp.spacing[sel[good]])
-    sig = np.sqrt(s_px**2 + (sg / gsd) ** 2) if sg > 0 else s_px
-    R = pixel_covariance(fr.camera, pts, x[:3], inp.R_star[k], sig, inp.sigma_st_rad)
-    ctx = {"points_body_m": pts, "R_body_from_cam": inp.R_star[k], "camera": fr.camera,
-           "flagged": np.array([results[i].outlier for i in good], bool)}
-    if cfg.map_states != "off":
-        ctx.update(map_context([inp.maplets[i] for i in sel[good]], s_mh, s_mv))
-    return sel, results, FilterMeasurement("pixel", z, R, ctx)
-
-
 def map_context(maplets, sigma_h_m, sigma_v_m) -> dict:
     """Landmark ids and the declared map covariance of each (body frame, m²): R_bm diag(σ_h², σ_h², σ_v²) R_bmᵀ
     (σ per landmark, (k,))."""
@@ -162,12 +129,17 @@ def _propagate(filt, intervals) -> None:
         filt.propagate(t1)
 
 
-def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list[dict]]:
-    """(filter rows, landmark rows) of one method over the run's images (module docstring)."""
+def run_method(source, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list[dict]]:
+    """(filter rows, landmark rows) of one measurement source (:mod:`.sources`; a bare landmark method is wrapped
+    in :class:`~renderlab.studies.descent_navigation.sources.LandmarkMethodSource`) over the run's images (module
+    docstring); the source's constant ``columns()`` are added to its filter rows."""
     from renderlab.contracts.landmark import CameraPose
+    from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
 
+    if not hasattr(source, "measure"):
+        source = LandmarkMethodSource(source, cfg, mopts)
     filt.initialize(float(inp.times[0]), inp.x0, inp.P0)
-    base = {"campaign": inp.campaign, "run": inp.run, "method": impl.name}
+    base = {"campaign": inp.campaign, "run": inp.run, "method": source.name, **source.columns()}
     frows = [{**base, "frame": -1, "t_s": float(inp.times[0]), "has_result": False, "reason": "prior",
               **_error_cols(filt.x, filt.P, inp.truth.state(inp.times[0]), inp.R_site), "nis": math.nan, "dof": 0,
               "n_attempted": 0, "n_results": 0, "n_flagged": 0, "n_gated": 0, "n_kept": 0, "search_px_mean": math.nan,
@@ -181,7 +153,7 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
             continue
         _propagate(filt, inp.accel[k])
         prior = _prior_cols(filt, inp.R_star[k])
-        sel, results, meas = _measure(impl, inp, k, filt, cfg, mopts)
+        sel, results, meas = source.measure(inp, k, filt)
         upd = None
         try:
             if meas is not None:
@@ -203,6 +175,6 @@ def run_method(impl, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], list
                       "search_px_mean": float(np.mean([r.search_px for r in results])) if results else math.nan,
                       "track_lost": bool(lost), "n_map_states": len(getattr(filt, "map_ids", [])), **prior,
                       **{f"est_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])}})
-        lrows += _landmark_rows(inp, impl.name, k, sel, results, upd, inp.cameras[k],
+        lrows += _landmark_rows(inp, source.name, k, sel, results, upd, inp.cameras[k],
                                 CameraPose(inp.R_true[k], inp.pos_true[k]))
     return frows, lrows

@@ -2,7 +2,8 @@
 ``descent_filter`` and ``descent_landmarks`` tables alone, ``descent_summary.csv`` (one row per method),
 ``descent_timeseries.csv`` (per method and image), and three figures (PNG + SVG): position and velocity error vs
 time with the filter's 3σ, and ANEES / ANIS vs time with their 95 % χ² bands and pass/fail marks
-(:mod:`.scoring` says how each number is made)."""
+(:mod:`.scoring` says how each number is made); the independence scores (:mod:`.report_independence`) and, for
+injected-error sources, the bias sweep (:mod:`.report_sources`)."""
 
 from __future__ import annotations
 
@@ -136,6 +137,12 @@ def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
         from renderlab.studies.descent_navigation.report_independence import independence_section
 
         extra, more = independence_section(ftab, tables.get("descent_landmarks"), ts_rows, out_dir, _write_csv)
+        figs += more
+    if "src_kind" in ftab.column_names:            # campaigns with injected-error sources (.sources)
+        from renderlab.studies.descent_navigation.report_sources import sources_section
+
+        more_html, more = sources_section(ftab, summary, out_dir, _write_csv)
+        extra += more_html
         figs += more
     imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f.endswith(".png"))
     note = ("<p>ANEES/6 and ANIS/dof: 1 is consistent; intervals are 95 % bootstraps over whole runs (the images of "

@@ -8,7 +8,9 @@ run's own Poisson + read noise, :mod:`renderlab.campaign.reexpose`). Every metho
 draws (paired comparison); each drives its own filter (:mod:`.loop`). With ``map_realisation = "per_run"`` the run
 also draws its own onboard map (the maplets rebuilt with a fresh mapping/albedo error, the same for all its
 methods). Truth perturbations (they would change the
-rendered image) are refused. Tables: ``descent_filter`` (one row per run, method and image, plus the prior) and
+rendered image) are refused. Measurement sources (``sources``, :mod:`.sources`) drive their own filters beside the
+methods with the same draws; their injected errors come from a sixth seed-sequence child of the run; when only
+sources that need no image run, nothing is rendered (the frames come from the world's plan). Tables: ``descent_filter`` (one row per run, method and image, plus the prior) and
 ``descent_landmarks`` (one row per landmark attempted), reported by :mod:`.report`.
 """
 
@@ -43,8 +45,12 @@ def check(scenario) -> None:
     if on:
         raise UserError(f"study descent_navigation renders the nominal descent once; perturbations.{on[0]} is not "
                         "supported (the study disperses the initial estimate and the sensors)")
-    for name in section(scenario).methods:
+    cfg = section(scenario)
+    for name in cfg.methods:
         plugins.landmark_methods.get(name, where="descent_navigation.methods: ")
+    for src in cfg.sources:
+        plugins.measurement_sources.get(src.kind, where=f"descent_navigation.sources '{src.name}': ")
+    plugins.filters.get(cfg.filter, where="descent_navigation.filter: ")
 
 
 def filter_options(cfg, omega_rad_s: float) -> dict:
@@ -72,19 +78,16 @@ def _accel_intervals(truth, times, cfg, rng) -> list:
     return out
 
 
-def run_inputs(ts, truth, maplets, cfg, scenario, run_index, ss) -> object:
-    """The run's shared :class:`~renderlab.studies.descent_navigation.loop.RunInputs` (every draw from ``ss``)."""
+def run_inputs(ts, frames, truth, maplets, cfg, scenario, run_index, ss) -> object:
+    """The run's shared :class:`~renderlab.studies.descent_navigation.loop.RunInputs` (every draw from ``ss``);
+    ``frames`` as :func:`~renderlab.studies.descent_navigation.truth.planned_descent` gives them, ``ts`` the
+    re-exposed truth set (None when no source needs images)."""
     from scipy.spatial.transform import Rotation
 
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
     from renderlab.studies.descent_navigation.loop import RunInputs
-    from renderlab.studies.descent_navigation.truth import site_frame
 
     ss_x0, ss_st, ss_acc = ss
-    times = np.array([float(rec["time_s"]) for rec in ts.frames])
-    R_true = np.stack([rotation_from_quat_xyzw(rec["pose"]["quat_render_from_cam_xyzw"]).as_matrix()
-                       for rec in ts.frames])
+    times, R_true = frames["times"], frames["R_true"]
     sig_st = math.radians(cfg.star_tracker_sigma_arcsec / 3600.0)
     dth = np.random.default_rng(ss_st).standard_normal((len(times), 3)) * sig_st
     R_star = np.einsum("kij,kjl->kil", R_true, Rotation.from_rotvec(dth).as_matrix())
@@ -92,51 +95,65 @@ def run_inputs(ts, truth, maplets, cfg, scenario, run_index, ss) -> object:
     x0 = truth.state(times[0]) + np.random.default_rng(ss_x0).standard_normal(6) * sd0
     centres = np.array([m.center_m for m in maplets], float)
     return RunInputs(ts=ts, truth=truth, maplets=maplets, centres=centres,
-                     spacing=np.array([m.spacing_m for m in maplets], float), R_site=site_frame(ts)[1], times=times,
-                     R_true=R_true, pos_true=np.array([rec["pose"]["position_m"] for rec in ts.frames], float),
-                     cameras=[CameraModel.from_dict(rec["camera"]) for rec in ts.frames], R_star=R_star,
+                     spacing=np.array([m.spacing_m for m in maplets], float), R_site=frames["R_site"], times=times,
+                     R_true=R_true, pos_true=frames["pos_true"], cameras=frames["cameras"], R_star=R_star,
                      accel=_accel_intervals(truth, times, cfg, np.random.default_rng(ss_acc)), x0=x0,
                      P0=np.diag(sd0**2), sigma_st_rad=sig_st, campaign=scenario.name, run=int(run_index))
 
 
-def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
-    """One run of ``descent_navigation`` → ``{"descent_filter": table, "descent_landmarks": table}``."""
-    import pyarrow as pa
-
+def _rendered_inputs(scenario, base_dir, workdir, cfg, ss_noise, ss_map):
+    """(re-exposed truth set, frames, truth, maplets, onboard L table) of the rendered path (module docstring)."""
     from renderlab.campaign.cache import cached_truthset
     from renderlab.campaign.reexpose import ReexposedTruthSet
-    from renderlab import plugins
-    from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
+    from renderlab.measurement.runner import onboard_photometry
     from renderlab.scenario import scenario_from_dict, truth_dict
     from renderlab.sensor import SensorOptions
-    from renderlab.studies.descent_navigation.loop import run_method
-    from renderlab.studies.descent_navigation.truth import true_descent
+    from renderlab.studies.descent_navigation.truth import true_descent, truthset_frames
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
-    check(scenario)
-    cfg = section(scenario)
-    ss_noise, ss_x0, ss_st, ss_acc, ss_map = seed_sequence.spawn(5)    # the first four as before the map draw
     truth_sc = scenario_from_dict(truth_dict(scenario.to_dict()), "descent_navigation truth scenario")
     path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
     ts0 = TruthSet.open(path)
     noise_seeds = [int(s.generate_state(1)[0]) for s in ss_noise.spawn(len(ts0))]
     ts = ReexposedTruthSet(ts0, SensorOptions(**scenario.sensor.options_dict()), noise_seeds, cache=True)
-    truth = true_descent(ts0, scenario, cfg)
     maplets = read_catalog(path)
     if cfg.map_realisation == "per_run":
         from renderlab.campaign.maplets import respaced_maplets
 
         maplets = respaced_maplets(maplets, scenario.world, base_dir, 1.0, np.random.default_rng(ss_map))
-    inp = run_inputs(ts, truth, maplets, cfg, scenario, run_index, (ss_x0, ss_st, ss_acc))
+    return ts, truthset_frames(ts0), true_descent(ts0, scenario, cfg), maplets, ts0
+
+
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
+    """One run of ``descent_navigation`` → ``{"descent_filter": table, "descent_landmarks": table}``. Without a
+    source that needs images (only geometric ``sources``) nothing is rendered: the frames come from the world's plan.
+    """
+    from renderlab import plugins
+    from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
+    from renderlab.studies.descent_navigation.loop import run_method
+    from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
+    from renderlab.studies.descent_navigation.truth import planned_descent
+
+    check(scenario)
+    cfg = section(scenario)
+    # the first five children as before the geometric sources; the sixth draws their injected errors
+    ss_noise, ss_x0, ss_st, ss_acc, ss_map, ss_src = seed_sequence.spawn(6)
     mopts = MeasureOptions(n_sigma=cfg.n_sigma, min_search_px=cfg.min_search_px, max_search_px=cfg.max_search_px,
                            campaign=scenario.name, run=int(run_index))
-    L_table, _ = onboard_photometry(ts0, mopts)
-    make_filter = plugins.filters.get("descent_ekf")          # the registered filter, through the contract
+    sources = [plugins.measurement_sources.get(s.kind)(s, cfg) for s in cfg.sources]
+    if cfg.methods or any(s.needs_images for s in sources):
+        ts, frames, truth, maplets, ts0 = _rendered_inputs(scenario, base_dir, workdir, cfg, ss_noise, ss_map)
+        L_table, _ = onboard_photometry(ts0, mopts)
+        sources = [LandmarkMethodSource(make_method(n, mopts, L_table), cfg, mopts) for n in cfg.methods] + sources
+    else:
+        ts, (frames, truth, maplets) = None, planned_descent(scenario, base_dir, cfg)
+    inp = run_inputs(ts, frames, truth, maplets, cfg, scenario, run_index, (ss_x0, ss_st, ss_acc))
+    make_filter = plugins.filters.get(cfg.filter, where="descent_navigation.filter: ")   # through the contract
     frows, lrows = [], []
-    for name in cfg.methods:
-        impl = make_method(name, mopts, L_table)
-        f, lr = run_method(impl, inp, make_filter(filter_options(cfg, truth.omega_rad_s)), cfg, mopts)
+    for src in sources:
+        src.prepare(inp, ss_src)
+        f, lr = run_method(src, inp, make_filter(filter_options(cfg, truth.omega_rad_s)), cfg, mopts)
         frows += f
         lrows += lr
     return {"descent_filter": _table(frows, "reason"), "descent_landmarks": _table(lrows, "reason")}
@@ -148,7 +165,8 @@ def _table(rows: list[dict], categorical: str):
 
     if not rows:
         return pa.table({})
-    cols = {k: [r[k] for r in rows] for k in rows[0]}
+    keys = list(dict.fromkeys(k for r in rows for k in r))       # sources add their own constant columns
+    cols = {k: [r.get(k) for r in rows] for k in keys}
     t = pa.table(cols)
     i = t.column_names.index(categorical)
     return t.set_column(i, categorical, pa.array(cols[categorical], pa.string()).dictionary_encode())

@@ -103,3 +103,49 @@ def true_descent(ts, scenario, cfg) -> TrueDescent:
     period = float(ts.frames[0]["ev5"]["spin"]["period_s"])
     return TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / period, origin, R[:, 2],
                        float(cfg.gm_true_m3_s2), float(cfg.j2_true), float(cfg.r_ref_m))
+
+
+_PLANNED: dict = {}
+
+
+def planned_descent(scenario, base_dir, cfg) -> tuple[dict, TrueDescent, list]:
+    """(frames, truth, maplets) of a descent scenario from the world's plan, without rendering: ``frames`` holds
+    ``times`` (K,), ``R_true`` (K, 3, 3) body ← camera, ``pos_true`` (K, 3), ``cameras`` (K,) and ``R_site``
+    (body ← site), as a truth set's manifest and ``site.json`` give them; the maplets sorted by landmark id, as the
+    truth set's catalogue. Cached per process (the plan builds the world)."""
+    import json
+    from pathlib import Path
+
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.worlds.base import make_plan
+    from renderlab.worlds.ev5.descent import DescentProfile
+
+    key = (json.dumps(scenario.to_dict(), sort_keys=True, default=str), str(Path(base_dir).resolve()))
+    if key not in _PLANNED:
+        plan = make_plan(scenario, Path(base_dir))
+        model, states = plan.model, plan.states
+        site = model.site
+        R_site = np.asarray(site.R_body_from_site, float)
+        truth = TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / model.spin.period_s,
+                            np.asarray(site.origin_m, float), R_site[:, 2], float(cfg.gm_true_m3_s2),
+                            float(cfg.j2_true), float(cfg.r_ref_m))
+        cam = CameraModel.from_dict(scenario.camera.model_dump())
+        frames = {"times": np.array([s.time_s for s in states], float),
+                  "R_true": np.stack([s.pose.rotation.as_matrix() for s in states]),
+                  "pos_true": np.stack([np.asarray(s.pose.position_m, float) for s in states]),
+                  "cameras": [cam] * len(states), "R_site": R_site}
+        _PLANNED.clear()
+        _PLANNED[key] = (frames, truth, sorted(model.maplets, key=lambda m: m.landmark_id))
+    return _PLANNED[key]
+
+
+def truthset_frames(ts) -> dict:
+    """The ``frames`` of :func:`planned_descent` from a truth set's manifest and ``site.json``."""
+    from renderlab.geometry.camera import CameraModel
+    from renderlab.geometry.rotations import rotation_from_quat_xyzw
+
+    return {"times": np.array([float(rec["time_s"]) for rec in ts.frames]),
+            "R_true": np.stack([rotation_from_quat_xyzw(rec["pose"]["quat_render_from_cam_xyzw"]).as_matrix()
+                                for rec in ts.frames]),
+            "pos_true": np.array([rec["pose"]["position_m"] for rec in ts.frames], float),
+            "cameras": [CameraModel.from_dict(rec["camera"]) for rec in ts.frames], "R_site": site_frame(ts)[1]}

@@ -1,0 +1,148 @@
+"""Report section of the descent study's injected-error sources (:mod:`.sources`, eq. G1): consistency and
+touchdown error against the injected bias, from the ``descent_filter`` table alone.
+
+Per source (its injected μ, σ_b, κ, σ_n, map offset are constant columns of its rows): the run-mean ANEES/6 and
+ANIS/dof with their 95 % run-bootstrap intervals (:func:`.scoring.method_summary`; PASS = 1 inside the interval),
+the share of images inside the per-image χ² bands, and at the last image (the touchdown proxy, 50 m) ANEES/6 with
+its band χ²₀.₀₂₅,₀.₉₇₅(6N)/(6N) — the runs are independent here (their own initial estimate, star tracker,
+accelerometer and injected-error draws; nothing rendered is shared), which the study's independence score checks
+(:mod:`.independence`) — and the touchdown position error (median, RMS, p95) against the filter's 3σ, with the
+mean error and the filter's RMS 1σ per site axis (east, north, up: a bias moves the mean).
+``descent_sources.csv`` holds the table; ``descent_bias_sweep.png/.svg`` draws ANEES/6 and the touchdown error
+against the common bias μ (the sources that inject only μ), the other sources as reference lines.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from pathlib import Path
+
+import numpy as np
+
+from renderlab.studies.descent_navigation.scoring import POS, chi2_band_sum, columns, tracked
+
+INJ = ("inj_bias_s_px", "inj_bias_l_px", "inj_sigma_bias_px", "inj_scale", "inj_sigma_noise_px",
+       "inj_map_offset_h_m", "inj_map_offset_v_m")
+
+
+def _bias_only(r: dict) -> bool:
+    """A source that injects a common bias (or nothing) on top of the model-matched noise."""
+    return (r["inj_sigma_bias_px"] == 0 and r["inj_scale"] == 0 and math.isnan(r["inj_sigma_noise_px"])
+            and r["inj_map_offset_h_m"] == 0 and r["inj_map_offset_v_m"] == 0
+            and r["inj_bias_s_px"] == r["inj_bias_l_px"])
+
+
+def source_rows(ftab, summary: list[dict]) -> list[dict]:
+    """One row per injected-error source (module docstring); ``summary`` the rows of method_summary."""
+    c = columns(ftab, ("method", "frame", "nees", "track_lost", *POS, "src_kind", *INJ))
+    kept = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof", "sig_e_m", "sig_n_m", "sig_u_m", *POS))
+    last_k = int(c["frame"].max())
+    by = {r["method"]: r for r in summary}
+    out = []
+    for m in sorted({str(m) for m, k in zip(c["method"], c["src_kind"]) if k is not None}):
+        s = c["method"] == m
+        inj = {k: float(c[k][s][0]) for k in INJ}
+        last = (kept["method"] == m) & (kept["frame"] == last_k) & np.isfinite(kept["nees"])
+        n = int(last.sum())
+        lo, hi = chi2_band_sum(6.0 * n)
+        a_last = float(np.mean(kept["nees"][last]) / 6.0) if n else math.nan
+        sig = np.sqrt(sum(kept[a][last] ** 2 for a in ("sig_e_m", "sig_n_m", "sig_u_m")))
+        sm = by[m]
+        out.append({"source": m, "kind": str(c["src_kind"][s][0]), **inj, "n_runs": sm["n_runs"],
+                    "n_tracked_runs": sm["n_tracked_runs"], "anees_over_6": sm["anees_over_6"],
+                    "anees_over_6_lo": sm["anees_over_6_lo"], "anees_over_6_hi": sm["anees_over_6_hi"],
+                    "anees_pass": bool(sm["anees_over_6_lo"] <= 1.0 <= sm["anees_over_6_hi"]),
+                    "anees_images_in_band": sm["anees_inside_frac"],
+                    "anees_last_over_6": a_last, "anees_last_band_lo": lo, "anees_last_band_hi": hi,
+                    "anees_last_pass": bool(lo <= a_last <= hi) if n else False,
+                    "anis_per_dof": sm["anis_per_dof"], "anis_per_dof_lo": sm["anis_per_dof_lo"],
+                    "anis_per_dof_hi": sm["anis_per_dof_hi"],
+                    "anis_pass": bool(sm["anis_per_dof_lo"] <= 1.0 <= sm["anis_per_dof_hi"]),
+                    "anis_images_in_band": sm["anis_inside_frac"],
+                    "touchdown_pos_err_median_m": sm["touchdown_pos_err_median_m"],
+                    "touchdown_pos_err_rms_m": sm["touchdown_pos_err_rms_m"],
+                    "touchdown_pos_err_p95_m": sm["touchdown_pos_err_p95_m"],
+                    "touchdown_pos_3sig_rms_m": float(3.0 * np.sqrt(np.mean(sig**2))) if n else math.nan,
+                    **{f"touchdown_mean_err_{a}_m": float(np.mean(kept[p][last])) if n else math.nan
+                       for a, p in zip("enu", POS)},
+                    **{f"touchdown_sig_{a}_rms_m": float(np.sqrt(np.mean(kept[f"sig_{a}_m"][last] ** 2)))
+                       if n else math.nan for a in "enu"},
+                    "touchdown_rms_over_1sig": float(sm["touchdown_pos_err_rms_m"] / np.sqrt(np.mean(sig**2)))
+                    if n else math.nan, "track_lost_runs": sm["track_lost_runs"]})
+    return out
+
+
+def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
+    """ANEES/6 (run mean with its bootstrap interval; last image with its χ² band) and the touchdown error (median,
+    RMS, p95, filter 3σ) against the common bias μ; the other sources as dotted reference lines."""
+    from renderlab.report.style import OKABE_ITO, plt, save
+
+    sweep = sorted((r for r in rows if _bias_only(r)), key=lambda r: r["inj_bias_s_px"])
+    others = [r for r in rows if not _bias_only(r)]
+    pyplot = plt()
+    fig, (a1, a2) = pyplot.subplots(1, 2, figsize=(10.5, 4.0))
+    mu = np.array([r["inj_bias_s_px"] for r in sweep])
+    if sweep:
+        m6 = np.array([r["anees_over_6"] for r in sweep])
+        err = np.abs(np.array([[r["anees_over_6_lo"], r["anees_over_6_hi"]] for r in sweep]).T - m6)
+        a1.errorbar(mu, m6, yerr=err, fmt="o-", color=OKABE_ITO[0], capsize=3,
+                    label="ANEES/6, mean over images (95 % run bootstrap)")
+        a1.fill_between(mu, [r["anees_last_band_lo"] for r in sweep], [r["anees_last_band_hi"] for r in sweep],
+                        color=OKABE_ITO[1], alpha=0.2, lw=0, label="95 % χ² band, last image")
+        a1.plot(mu, [r["anees_last_over_6"] for r in sweep], "s--", color=OKABE_ITO[1], ms=4,
+                label="ANEES/6, last image (50 m)")
+        for key, style, lab in (("touchdown_pos_err_median_m", "o-", "median"), ("touchdown_pos_err_rms_m", "s-",
+                                "RMS"), ("touchdown_pos_err_p95_m", "^-", "p95"),
+                                ("touchdown_pos_3sig_rms_m", "k--", "filter 3σ (RMS over runs)")):
+            a2.plot(mu, [r[key] for r in sweep], style, ms=4, label=f"|δr| at 50 m, {lab}")
+    for j, r in enumerate(others):
+        col = OKABE_ITO[(j + 3) % len(OKABE_ITO)]
+        a1.axhline(r["anees_over_6"], color=col, ls=":", lw=1.2, label=f"{r['source']} (ANEES/6, mean)")
+        a2.axhline(r["touchdown_pos_err_rms_m"], color=col, ls=":", lw=1.2, label=f"{r['source']} (RMS)")
+    a1.axhline(1.0, color="k", lw=0.6)
+    a1.set_yscale("log")
+    a1.set_xlabel("injected common bias μ per image axis (px)")
+    a1.set_ylabel("ANEES / 6 (—)")
+    a1.set_title("state consistency vs bias (1 = consistent)", fontsize=9)
+    a2.set_xlabel("injected common bias μ per image axis (px)")
+    a2.set_ylabel("touchdown-proxy position error (m)")
+    a2.set_title("position error at the last image (50 m)", fontsize=9)
+    for ax in (a1, a2):
+        ax.legend(fontsize=6.5)
+    fig.tight_layout()
+    return save(fig, out_dir / "descent_bias_sweep")
+
+
+def sources_section(ftab, summary: list[dict], out_dir: Path, write_csv) -> tuple[str, list[str]]:
+    """(HTML, figure names) of the injected-error sources; ``write_csv(rows, path)`` the report's CSV writer."""
+    from renderlab.report.style import badge, fmt
+
+    rows = source_rows(ftab, summary)
+    if not rows:
+        return "", []
+    write_csv(rows, Path(out_dir) / "descent_sources.csv")
+    head = ("source", "μ s, l (px)", "σ_b (px)", "scale", "σ_n (px)", "runs (tracked)", "ANEES/6 [95 % CI]",
+            "last image ANEES/6 [χ² band]", "ANIS/dof [95 % CI]", "touchdown |δr| median / RMS / p95 (m)",
+            "filter 3σ (m)", "track lost")
+    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    for r in rows:
+        sn = "declared" if math.isnan(r["inj_sigma_noise_px"]) else fmt(r["inj_sigma_noise_px"], 3)
+        cells = [html.escape(r["source"]), f"{fmt(r['inj_bias_s_px'], 3)}, {fmt(r['inj_bias_l_px'], 3)}",
+                 fmt(r["inj_sigma_bias_px"], 3), fmt(r["inj_scale"], 3), sn,
+                 f"{r['n_runs']} ({r['n_tracked_runs']})",
+                 f"{fmt(r['anees_over_6'], 3)} [{fmt(r['anees_over_6_lo'], 3)}, {fmt(r['anees_over_6_hi'], 3)}] "
+                 + badge(r["anees_pass"]),
+                 f"{fmt(r['anees_last_over_6'], 3)} [{fmt(r['anees_last_band_lo'], 3)}, "
+                 f"{fmt(r['anees_last_band_hi'], 3)}] " + badge(r["anees_last_pass"]),
+                 f"{fmt(r['anis_per_dof'], 3)} [{fmt(r['anis_per_dof_lo'], 3)}, {fmt(r['anis_per_dof_hi'], 3)}] "
+                 + badge(r["anis_pass"]),
+                 f"{fmt(r['touchdown_pos_err_median_m'], 3)} / {fmt(r['touchdown_pos_err_rms_m'], 3)} / "
+                 f"{fmt(r['touchdown_pos_err_p95_m'], 3)}", fmt(r["touchdown_pos_3sig_rms_m"], 3),
+                 str(r["track_lost_runs"])]
+        out.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+    note = ("<p>Injected-error sources (eq. G1 of renderlab.studies.descent_navigation.sources): the true pixel of "
+            "each landmark plus the injected error; σ_n 'declared' is each landmark's declared filter σ. The runs "
+            "are independent (nothing rendered or mapped is shared); CIs resample whole runs; PASS: 1 inside the "
+            "interval or the band.</p>")
+    return "<h3>Injected-error sources</h3>" + "\n".join(out) + "</table>" + note, sweep_figure(rows, out_dir)
