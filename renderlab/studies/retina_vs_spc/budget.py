@@ -2,8 +2,9 @@
 
 Every error source of the ``retina_vs_spc`` campaign is switched on alone, all others off, on the published
 reduced EV5 scenario (``results/retina_vs_spc/scenario.toml``), plus "all off" and "all on"; every
-registered method of the study (Retina with the paper's 3×3 peak step, ``retina_refined`` with the better
-step, SPC, the NCC baseline) measures the same frames. The switches are scenario keys, nothing else:
+method of :data:`METHODS` (Retina with the paper's 3×3 peak step, ``retina_refined`` with the ``gaussian_2d``
+step, ``retina_ml`` with the maximum-likelihood shift of :mod:`estimators.retina.ml_shift`, SPC, the NCC baseline)
+measures the same frames. The switches are scenario keys, nothing else:
 
 ==================== ============================================================================
 source               "on" = the base scenario's value of

@@ -2,7 +2,7 @@
 
 What the onboard methods do with cast shadows, and why "off" switches both sides:
 
-* **Retina** (``retina``, ``retina_refined``) and the **NCC baseline** render their template by ray casting the
+* **Retina** (``retina``, ``retina_refined``, ``retina_ml``) and the **NCC baseline** render their template by ray casting the
   maplet (:func:`estimators.retina.predict.render_template`) and cast a shadow ray toward the Sun from every
   hit (``TemplateOptions.shadow_rays``) — against the maplet's own relief only: a shadow cast from outside the
   maplet, or by relief the maplet smooths, is missing from the template.
