@@ -173,3 +173,28 @@ def test_scalar_fallback_direct_sun_matches_path_and_switches_shadows_off():
     np.testing.assert_allclose(direct, path, rtol=0, atol=1e-5 * path.max())
     lit_by_switch = off > direct + 1.0
     assert lit_by_switch.sum() > 20 and np.all(off >= direct - 1e-3)
+
+
+def test_truth_cache_keeps_renders_of_another_ray_path_or_integrator_apart(tmp_path, monkeypatch):
+    """A truth set rendered with ``ray_path = "drjit_grid"`` (``$RENDERLAB_MITSUBA_RAYS``) or ``integrator =
+    "path"`` is its own cache entry: never served for the default path, and the default's entry is still a hit."""
+    from renderlab.campaign.cache import cached_truthset
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.truthset import TruthSet
+
+    sc = scenario_from_dict(scenario_dict(render={"spp": 2, "pixel_filter": "box", "seed": 1,
+                                                  "near_clip_m": 0.01, "far_clip_m": 1000.0}))
+    default, hit = cached_truthset(sc, REPO / "scenes", tmp_path, frames=1)
+    assert not hit
+    monkeypatch.setattr(MitsubaBackend, "ray_path", "drjit_grid")
+    grid, hit = cached_truthset(sc, REPO / "scenes", tmp_path, frames=1)
+    assert not hit and grid != default
+    monkeypatch.setattr(MitsubaBackend, "ray_path", "drjit")
+    monkeypatch.setattr(MitsubaBackend, "integrator", "path")
+    path, hit = cached_truthset(sc, REPO / "scenes", tmp_path, frames=1)
+    assert not hit and path not in (default, grid)
+    monkeypatch.setattr(MitsubaBackend, "integrator", "auto")
+    again, hit = cached_truthset(sc, REPO / "scenes", tmp_path, frames=1)
+    assert hit and again == default
+    assert [len(TruthSet.open(p)) for p in (default, grid, path)] == [1, 1, 1]

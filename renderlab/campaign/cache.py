@@ -105,15 +105,31 @@ def file_hashes(scenario_dict: dict, base_dir) -> dict[str, str]:
     return {key: file_sha256(Path(base_dir) / rel) for key, rel in referenced_files(scenario_dict)}
 
 
+def render_path_options() -> dict:
+    """The process-wide Mitsuba render-path choices that change a render's pixels but are not scenario keys
+    (``MitsubaBackend.ray_path``, e.g. ``$RENDERLAB_MITSUBA_RAYS=drjit_grid``; ``MitsubaBackend.integrator``),
+    where they differ from the defaults: part of :func:`truth_key`, so a truth set rendered with another ray path
+    or integrator is never served from the cache for the default one (keys of default renders are unchanged)."""
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+
+    out = {}
+    if MitsubaBackend.ray_path != "drjit":
+        out["mitsuba_ray_path"] = MitsubaBackend.ray_path
+    if MitsubaBackend.integrator != "auto":
+        out["mitsuba_integrator"] = MitsubaBackend.integrator
+    return out
+
+
 def truth_key(scenario_dict: dict, frames: int | None = None, files: dict | None = None,
               frame_records: list | None = None) -> str:
     """Cache key of a render: hash of the scenario data (which includes camera pose and seed), the frame
-    count, the truth-set format, :func:`truth_code_fingerprint` and the content hashes of the files the
-    scenario references (``files``, from :func:`file_hashes`; left out when there are none), and, for a
+    count, the truth-set format, :func:`truth_code_fingerprint`, :func:`render_path_options`, the content hashes
+    of the files the scenario references (``files``, from :func:`file_hashes`; left out when there are none), and, for a
     render of given frames (:func:`cached_frames_truthset`), their :func:`frame_record` contents."""
     from renderlab.truthset import FORMAT
 
     key = {"format": FORMAT, "scenario": scenario_dict, "frames": frames, "code": truth_code_fingerprint()}
+    key.update(render_path_options())
     if files:
         key["files"] = files
     if frame_records is not None:
