@@ -96,7 +96,7 @@ def landmark_offsets(site, tiled, keys, maplet, position, camera, pose) -> dict:
 
 
 def predicted_errors(camera, pose, centres: np.ndarray, dz: np.ndarray, n_up: np.ndarray) -> np.ndarray:
-    """Eq. G1 for landmarks (n, 3) with offsets dz (n,) along n_up: (n, 2) px."""
+    """Eq. G1 for landmarks (n, 3) with offsets dz (n,) along n_up ((3,) or one per landmark (n, 3)): (n, 2) px."""
     return camera.project(pose.to_camera(centres + dz[:, None] * n_up)) - camera.project(pose.to_camera(centres))
 
 
@@ -158,6 +158,29 @@ def fresh_maplets(site, tier, count: int, rng: np.random.Generator) -> list:
     return out
 
 
+def relief_offset(site, maplet, grad2: np.ndarray, camera, pose) -> float:
+    """The DEM's height above the maplet's surface (along maplet +z) at the DEM nodes under the footprint,
+    averaged with the weight |∇I|² of the truth image at each node's pixel (what a correlation locks on): the
+    effective height δz of eq. G1 that the maplet's smoothing leaves (bright boulder tops above the cell means)."""
+    half = maplet.half_width_m
+    c = site.to_site(maplet.center_m)
+    i0 = int(np.floor((c[0] - 1.5 * half - site.x0_m) / site.cell_m))
+    j0 = int(np.floor((c[1] - 1.5 * half - site.x0_m) / site.cell_m))
+    m = int(np.ceil(3 * half / site.cell_m)) + 2
+    X, Y = np.meshgrid(site.x0_m + (i0 + np.arange(m)) * site.cell_m, site.x0_m + (j0 + np.arange(m)) * site.cell_m)
+    P = site.surface_point(X.ravel(), Y.ravel())
+    q = (P - maplet.center_m) @ maplet.R_body_from_maplet
+    dz = q[:, 2] - maplet.height_at(q[:, 0], q[:, 1])
+    sl = camera.project(pose.to_camera(P))
+    H, W = grad2.shape
+    ok = np.isfinite(dz) & (sl[:, 0] >= 0) & (sl[:, 0] <= W - 1) & (sl[:, 1] >= 0) & (sl[:, 1] <= H - 1)
+    i, j = np.minimum(sl[ok, 0].astype(int), W - 2), np.minimum(sl[ok, 1].astype(int), H - 2)
+    fx, fy = sl[ok, 0] - i, sl[ok, 1] - j
+    w = ((1 - fy) * ((1 - fx) * grad2[j, i] + fx * grad2[j, i + 1])
+         + fy * ((1 - fx) * grad2[j + 1, i] + fx * grad2[j + 1, i + 1]))
+    return float(np.sum(w * dz[ok]) / np.sum(w)) if np.sum(w) > 0 else float("nan")
+
+
 def bootstrap_scale(truth: np.ndarray, err: np.ndarray, rng: np.random.Generator, n: int = 1000) -> tuple:
     """(scale, 2.5 %, 97.5 % bootstrap quantiles over landmarks) of :func:`.scale_probe.similarity_scale`."""
     from renderlab.studies.descent_navigation.scale_probe import similarity_scale
@@ -165,6 +188,18 @@ def bootstrap_scale(truth: np.ndarray, err: np.ndarray, rng: np.random.Generator
     idx = rng.integers(0, len(truth), (n, len(truth)))
     b = np.array([similarity_scale(truth[i], err[i]) for i in idx])
     return similarity_scale(truth, err), float(np.quantile(b, 0.025)), float(np.quantile(b, 0.975))
+
+
+def _relief_cell(site, maplets, dn, camera, pose, truth) -> str:
+    """The mean :func:`relief_offset` of measured landmarks and the scale eq. G1 predicts from it (text)."""
+    from renderlab.studies.descent_navigation.scale_probe import similarity_scale
+
+    gy, gx = np.gradient(np.asarray(dn, float))
+    dz = np.array([relief_offset(site, m, gx**2 + gy**2, camera, pose) for m in maplets])
+    cen = np.array([m.center_m for m in maplets])
+    z = np.array([m.R_body_from_maplet[:, 2] for m in maplets])
+    pred = predicted_errors(camera, pose, cen, np.nan_to_num(dz), z)
+    return f"relief dz {np.nanmean(dz) * 100:+.2f} cm -> G1 scale {similarity_scale(truth, pred):+.2e}"
 
 
 def probe_fresh(scenario_path: Path, ts_dir: Path, frames: list[int], method: str, tier_name: str,
@@ -191,7 +226,8 @@ def probe_fresh(scenario_path: Path, ts_dir: Path, frames: list[int], method: st
         tier = tier.model_copy(update={"spacing_m": float(sp), "size": int(size)})
     ts = TruthSet.open(ts_dir)
     rng = np.random.default_rng(seed)
-    fresh = fresh_maplets(build_model(sc.world, scenario_path.parent).site, tier, count, rng)
+    site = build_model(sc.world, scenario_path.parent).site
+    fresh = fresh_maplets(site, tier, count, rng)
     own = [m for m in read_catalog(ts_dir) if m.spacing_m == tiers[name].spacing_m]
     mopts = MeasureOptions(n_sigma=3.0, min_search_px=8, max_search_px=8)
     impl = make_method(method, mopts, onboard_photometry(ts, mopts)[0])
@@ -210,6 +246,8 @@ def probe_fresh(scenario_path: Path, ts_dir: Path, frames: list[int], method: st
             s, lo, hi = bootstrap_scale(truth, err, rng)
             cells.append(f"{label}: {len(ok)} landmarks, scale {s:+.2e} [{lo:+.2e}, {hi:+.2e}], "
                          f"rms {np.sqrt(np.mean(err**2)):.3f} px")
+            if label != "catalogue":
+                cells.append(_relief_cell(site, [maplets[a] for a in att[ok]], ts.load(k).dn, fr.camera, pose, truth))
         out.append(f"{method} {tier_name} image {k}: " + " | ".join(cells))
     return out
 

@@ -3,9 +3,12 @@
 with the truth set's maplet catalogue and with error-free maplets (the catalogue rebuilt with ``mapping_error_m =
 albedo_error_rms = 0``, :mod:`renderlab.campaign.maplets`); prints per image the similarity fit of the errors
 (:func:`renderlab.studies.descent_navigation.independence.pattern_rows`' model: scale about the landmarks' centroid)
-and their rms. A diagnostic, not a study: search distance 8 px, no filter.
+and their rms. A diagnostic, not a study: search distance 8 px, no filter. With a campaign's
+``descent_landmarks.parquet`` (LANDMARKS), only the landmarks that campaign's METHOD kept at the image in at least
+half its runs (the few the study selects, :func:`kept_items`): the true-pose share of that campaign's
+``descent_pattern.csv`` scale.
 
-    python -m renderlab.studies.descent_navigation.scale_probe SCENARIO TRUTHSET METHOD FRAMES   # FRAMES: 0,3,12
+    python -m renderlab.studies.descent_navigation.scale_probe SCENARIO TRUTHSET METHOD FRAMES [LANDMARKS]
 """
 
 from __future__ import annotations
@@ -25,7 +28,21 @@ def similarity_scale(truth: np.ndarray, err: np.ndarray) -> float:
     return float(np.linalg.lstsq(A, np.r_[err[:, 0], err[:, 1]], rcond=None)[0][0])
 
 
-def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int]) -> list[str]:
+def kept_items(landmarks_path: Path, method: str) -> dict[int, set]:
+    """{frame: landmark ids} that ``method`` kept in at least half the runs of a campaign's ``descent_landmarks``."""
+    import pyarrow.parquet as pq
+
+    t = pq.read_table(landmarks_path, columns=["run", "method", "frame", "item", "kept"]).to_pydict()
+    m, f, i, k = (np.asarray(t[c]) for c in ("method", "frame", "item", "kept"))
+    runs = len(set(np.asarray(t["run"])[m == method].tolist()))
+    out: dict[int, set] = {}
+    for fr in sorted(set(f[m == method].tolist())):
+        ids, n = np.unique(i[(m == method) & (f == fr) & k], return_counts=True)
+        out[int(fr)] = {int(v) for v in ids[n >= 0.5 * runs]}
+    return out
+
+
+def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int], kept: dict | None = None) -> list[str]:
     from renderlab.campaign.maplets import respaced_maplets
     from renderlab.contracts.landmark import CameraPose
     from renderlab.measurement.runner import (MeasureOptions, _frame_record, make_method, onboard_photometry,
@@ -52,6 +69,8 @@ def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int]) -> 
         xc = pose.to_camera(cen)
         ratio = xc[:, 2] / fr.camera.fx / spacing
         sel = np.flatnonzero(fr.camera.in_image(fr.camera.project(xc)) & (xc[:, 2] > 0) & (ratio >= lo) & (ratio <= hi))
+        if kept is not None:
+            sel = np.array([i for i, m in enumerate(cat) if m.landmark_id in kept.get(k, set())], int)
         cells = []
         for label, maplets in (("catalogue", cat), ("error-free maplets", exact)):
             _, res = run_method_on_image(impl, ts.load(k).dn, fr.adc_max, fr.camera, pose, fr.sun,
@@ -68,10 +87,11 @@ def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int]) -> 
 
 def main(argv=None) -> int:
     a = list(sys.argv[1:] if argv is None else argv)
-    if len(a) != 4:
+    if len(a) not in (4, 5):
         print(__doc__.strip().splitlines()[-1].strip(), file=sys.stderr)
         return 2
-    for line in probe(Path(a[0]), Path(a[1]), a[2], [int(v) for v in a[3].split(",")]):
+    kept = kept_items(Path(a[4]), a[2]) if len(a) == 5 else None
+    for line in probe(Path(a[0]), Path(a[1]), a[2], [int(v) for v in a[3].split(",")], kept):
         print(line, flush=True)
     return 0
 
