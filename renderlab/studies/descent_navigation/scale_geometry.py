@@ -28,6 +28,8 @@ can be made on the same site (uniform in the tier's disc, seeded; frame and cell
 range, renderer) is the same for every landmark set; one made by the fixed errors of a few landmarks is not,
 and averages out over many. The interval is a bootstrap over the fresh landmarks (independent positions; their
 footprints may overlap, which the bootstrap does not model: it is the spread of the landmark set's draw).
+Beside it: the mean gradient-weighted relief offset of the fresh maplets (:func:`relief_offset`, the DEM above the
+maplet's smoothed surface where the image has contrast) and the scale eq. G1 predicts from it.
 A diagnostic, not a study:
 
     python -m renderlab.studies.descent_navigation.scale_geometry SCENARIO TRUTHSET FRAMES   # FRAMES: 0,3,12
