@@ -81,7 +81,7 @@ def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
     sweep = sorted((r for r in rows if _bias_only(r)), key=lambda r: r["inj_bias_s_px"])
     others = [r for r in rows if not _bias_only(r)]
     pyplot = plt()
-    fig, (a1, a2) = pyplot.subplots(1, 2, figsize=(10.5, 4.0))
+    fig, (a1, a2, a3) = pyplot.subplots(1, 3, figsize=(15.0, 4.2))
     mu = np.array([r["inj_bias_s_px"] for r in sweep])
     if sweep:
         m6 = np.array([r["anees_over_6"] for r in sweep])
@@ -96,6 +96,11 @@ def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
                                 "RMS"), ("touchdown_pos_err_p95_m", "^-", "p95"),
                                 ("touchdown_pos_3sig_rms_m", "k--", "filter 3σ (RMS over runs)")):
             a2.plot(mu, [r[key] for r in sweep], style, ms=4, label=f"|δr| at 50 m, {lab}")
+        for a, col, mk, ls in zip("enu", ("tab:blue", "tab:red", "tab:green"), "os^", (":", "-.", "--")):
+            a3.plot(mu, [1e3 * r[f"touchdown_mean_err_{a}_m"] for r in sweep], mk + "-", color=col, ms=4,
+                    label=f"mean δ{a} over runs")
+            a3.plot(mu, [1e3 * r[f"touchdown_sig_{a}_rms_m"] for r in sweep], ls, color=col, lw=1.0,
+                    label=f"filter 1σ {a} (RMS)")
     for j, r in enumerate(others):
         col = OKABE_ITO[(j + 3) % len(OKABE_ITO)]
         a1.axhline(r["anees_over_6"], color=col, ls=":", lw=1.2, label=f"{r['source']} (ANEES/6, mean)")
@@ -108,8 +113,14 @@ def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
     a2.set_xlabel("injected common bias μ per image axis (px)")
     a2.set_ylabel("touchdown-proxy position error (m)")
     a2.set_title("position error at the last image (50 m)", fontsize=9)
-    for ax in (a1, a2):
-        ax.legend(fontsize=6.5)
+    a3.axhline(0.0, color="k", lw=0.6)
+    a3.set_yscale("symlog", linthresh=1.0)
+    a3.set_xlabel("injected common bias μ per image axis (px)")
+    a3.set_ylabel("touchdown-proxy error, site axes (mm)")
+    a3.set_title("mean error per axis at 50 m (east, north, up) vs the filter's 1σ", fontsize=9)
+    for ax in (a1, a2, a3):
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6.5)
     fig.tight_layout()
     return save(fig, out_dir / "descent_bias_sweep")
 
