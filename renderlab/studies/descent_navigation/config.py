@@ -44,8 +44,8 @@ class MeasurementSourceConfig(Strict):
     sigma_bias_px: NonNegative = Field(0.0, description="Per-landmark constant bias, rms per axis over the "
                                        "landmarks (one draw per landmark and run) [px]")
     scale: Finite = Field(0.0, description="Image scale error kappa about the principal point [-]")
-    sigma_noise_px: NonNegative | None = Field(None, description="White noise per axis [px]; None: each landmark's "
-                                               "declared filter sigma (model-matched)")
+    sigma_noise_px: NonNegative | None = Field(None, description="White noise per axis; None: each landmark's "
+                                               "declared filter sigma (model-matched) [px]")
     map_offset_h_m: NonNegative = Field(0.0, description="Landmark offset fixed on the ground, 1 sigma per "
                                         "horizontal maplet axis (the true landmark moved; the map keeps its "
                                         "centre) [m]")
