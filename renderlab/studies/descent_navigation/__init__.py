@@ -1,7 +1,8 @@
 """Study ``descent_navigation``: landmark methods (Retina, SPC-style, the NCC baseline, any registered one) each
 driving the onboard descent EKF (:mod:`estimators.descent_nav`) closed-loop down the ARRM descent over EV5
 (Wright et al., Fig. 2). :mod:`.run` (one Monte Carlo run), :mod:`.loop` (one method's closed loop), :mod:`.truth`
-(the true trajectory, gravity and control), :mod:`.report` (the report section)."""
+(the true trajectory, gravity and control), :mod:`.sources` (what measures an image: a landmark method,
+or a registered source such as ``geometric``, the true pixel + injected error), :mod:`.report` (the report section)."""
 
 from renderlab.contracts.study import Study, lazy
 
