@@ -100,10 +100,13 @@ def write_frames(out_dir: Path, scenario: Scenario, plan, specs: list, seeds: li
     contact sheet into a truth set at ``out_dir`` (staged: all or nothing). ``head`` is the manifest's head."""
     from tqdm import tqdm
 
+    from renderlab.signals import raise_pending
+
     opts = SensorOptions(**scenario.sensor.options_dict())
     writer, rows = None, {}
     try:
         for spec, child in tqdm(list(zip(specs, seeds)), desc="render", unit="frame", disable=not progress):
+            raise_pending()  # a signal whose raise the garbage collector swallowed ends the render here
             backend, scene = backend_for(spec)
             if writer is None:
                 info = {"name": backend.name, "version": backend.version, "variant": backend.variant}

@@ -37,15 +37,29 @@ class Terminated(KeyboardInterrupt):
         self.signum = int(signum)
 
 
-_state = {"count": 0}
+_state = {"count": 0, "pending": None}
 
 
 def _handler(signum, frame):  # noqa: ARG001 - signal API
     _state["count"] += 1
     if _state["count"] == 1:
+        _state["pending"] = int(signum)
         raise Terminated(signum)
     if _state["count"] >= 3:  # the user insists: no more clean-up
         os._exit(128 + signum)
+
+
+def raise_pending() -> None:
+    """Raise :class:`Terminated` again for a signal whose first raise was swallowed, else do nothing.
+
+    The handler raises wherever the main thread happens to be; when that is a weakref callback or ``__del__`` run by
+    the garbage collector, Python prints "Exception ignored" and carries on, and the command would run to its end.
+    Long loops (frames of a render, runs of a campaign) call this between items, so such a signal still ends the
+    command at the next item. A raise that did propagate unwinds past these calls, so no signal is raised twice."""
+    signum = _state.get("pending")
+    if signum is not None:
+        _state["pending"] = None
+        raise Terminated(signum)
 
 
 @contextlib.contextmanager
@@ -55,12 +69,13 @@ def handled_signals():
         yield
         return
     old = {s: signal.getsignal(s) for s in HANDLED}
-    _state["count"] = 0
+    _state["count"], _state["pending"] = 0, None
     for s in HANDLED:
         signal.signal(s, _handler)
     try:
         yield
     finally:
+        _state["pending"] = None
         for s, h in old.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
@@ -81,6 +96,7 @@ def ignored_in_children():
     try:
         yield
     finally:
+        _state["pending"] = None
         for s, h in old.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 

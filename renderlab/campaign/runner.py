@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from renderlab.errors import UserError
+from renderlab.signals import raise_pending
 
 
 @dataclass(frozen=True)
@@ -86,6 +87,7 @@ def run_campaign(plan, out_dir: Path, *, executor=None, resume: bool = False, pr
             with executor or InProcessExecutor() as ex, tqdm(total=plan.runs, initial=len(done), unit="run",
                                                                desc=f"campaign ({ex.name})", disable=not progress) as bar:
                 for status in ex.map_unordered(fn, plan.tasks(out_dir, todo)):
+                    raise_pending()  # a signal whose raise the garbage collector swallowed stops the campaign here
                     bar.update(1)
                     if status["status"] == "ok":
                         finished_now += 1
