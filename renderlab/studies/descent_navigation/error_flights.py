@@ -79,32 +79,22 @@ class Geometry:
 
 
 def descent_geometry(scenario_path) -> Geometry:
-    """The :class:`Geometry` of a descent-navigation scenario, built without rendering (the world's plan)."""
+    """The :class:`Geometry` of a descent-navigation scenario, built without rendering (the world's plan,
+    :func:`renderlab.studies.descent_navigation.truth.planned_descent`)."""
     from pathlib import Path
 
-    from renderlab.geometry.camera import CameraModel
     from renderlab.scenario import load_scenario
     from renderlab.studies.descent_navigation.run import check, section
-    from renderlab.studies.descent_navigation.truth import TrueDescent
-    from renderlab.worlds.base import make_plan
-    from renderlab.worlds.ev5.descent import DescentProfile
+    from renderlab.studies.descent_navigation.truth import planned_descent
 
     scenario, base = load_scenario(Path(scenario_path))
     check(scenario)
     cfg = section(scenario)
-    plan = make_plan(scenario, base)
-    model, states = plan.model, plan.states
-    site = model.site
-    truth = TrueDescent(DescentProfile(scenario.trajectory), 2.0 * math.pi / model.spin.period_s,
-                        np.asarray(site.origin_m, float), np.asarray(site.R_body_from_site, float)[:, 2],
-                        float(cfg.gm_true_m3_s2), float(cfg.j2_true), float(cfg.r_ref_m))
-    ms = sorted(model.maplets, key=lambda m: m.landmark_id)
-    return Geometry(truth, np.array([s.time_s for s in states]),
-                    np.stack([s.pose.rotation.as_matrix() for s in states]),
-                    np.stack([np.asarray(s.pose.position_m, float) for s in states]),
-                    CameraModel.from_dict(scenario.camera.model_dump()), np.array([m.center_m for m in ms], float),
-                    np.array([m.spacing_m for m in ms], float), np.array([m.landmark_id for m in ms], np.int64),
-                    np.asarray(site.R_body_from_site, float), cfg, int(scenario.campaign.seed))
+    frames, truth, ms = planned_descent(scenario, base, cfg)
+    return Geometry(truth, frames["times"], frames["R_true"], frames["pos_true"], frames["cameras"][0],
+                    np.array([m.center_m for m in ms], float), np.array([m.spacing_m for m in ms], float),
+                    np.array([m.landmark_id for m in ms], np.int64), frames["R_site"], cfg,
+                    int(scenario.campaign.seed))
 
 
 def run_draws(geom: Geometry, run: int) -> dict:
