@@ -108,7 +108,7 @@ def probe_geometry(scenario_path: Path, ts_dir: Path, frames: list[int]) -> list
     from renderlab.measurement.runner import _frame_record
     from renderlab.scenario import load_scenario
     from renderlab.studies.descent_navigation.run import section
-    from renderlab.studies.descent_navigation.scale_probe import similarity_scale
+    from renderlab.studies.descent_navigation.scale_probe import in_view, similarity_scale
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5 import build_model
     from renderlab.worlds.ev5.catalog import read_catalog
@@ -129,8 +129,7 @@ def probe_geometry(scenario_path: Path, ts_dir: Path, frames: list[int]) -> list
         pose = CameraPose(fr.R, fr.position)
         keys = tiled.select(fr.camera, SimpleNamespace(rotation=Rotation.from_matrix(fr.R), position_m=fr.position))
         xc = pose.to_camera(cen)
-        ratio = xc[:, 2] / fr.camera.fx / spacing
-        sel = np.flatnonzero(fr.camera.in_image(fr.camera.project(xc)) & (xc[:, 2] > 0) & (ratio >= lo) & (ratio <= hi))
+        sel = in_view(fr.camera, pose, cen, spacing, lo, hi)
         position = ts.load(k).position
         rows = [landmark_offsets(site, tiled, keys, cat[i], position, fr.camera, pose) for i in sel]
         truth = fr.camera.project(xc[sel])

@@ -42,6 +42,14 @@ def kept_items(landmarks_path: Path, method: str) -> dict[int, set]:
     return out
 
 
+def in_view(camera, pose, centres: np.ndarray, spacing: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Indices of the landmarks in front of the camera, inside the image, with GSD ratio (depth / fx / spacing) in
+    [lo, hi] — the study's range."""
+    xc = pose.to_camera(centres)
+    ratio = xc[:, 2] / camera.fx / spacing
+    return np.flatnonzero(camera.in_image(camera.project(xc)) & (xc[:, 2] > 0) & (ratio >= lo) & (ratio <= hi))
+
+
 def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int], kept: dict | None = None) -> list[str]:
     from renderlab.campaign.maplets import respaced_maplets
     from renderlab.contracts.landmark import CameraPose
@@ -67,8 +75,7 @@ def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int], kep
         fr = _frame_record(ts, k)
         pose = CameraPose(fr.R, fr.position)
         xc = pose.to_camera(cen)
-        ratio = xc[:, 2] / fr.camera.fx / spacing
-        sel = np.flatnonzero(fr.camera.in_image(fr.camera.project(xc)) & (xc[:, 2] > 0) & (ratio >= lo) & (ratio <= hi))
+        sel = in_view(fr.camera, pose, cen, spacing, lo, hi)
         if kept is not None:
             sel = np.array([i for i, m in enumerate(cat) if m.landmark_id in kept.get(k, set())], int)
         cells = []
