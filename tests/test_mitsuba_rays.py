@@ -241,3 +241,21 @@ def test_drjit_grid_path_renders_the_kernel_path_image():
     out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "RENDERLAB_MITSUBA_RAYS": "drjit_grid"},
                          capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "drjit_grid"
+
+
+def test_bad_ray_path_from_the_environment_is_one_line_and_writes_nothing(tmp_path):
+    """``$RENDERLAB_MITSUBA_RAYS`` with an unknown value: exit 2, one line naming it, no output folder."""
+    import os
+    import subprocess
+    import sys
+
+    scene = REPO / "scenes" / "analytic_sphere_box.toml"
+    out = subprocess.run([sys.executable, "-m", "renderlab.cli", "render", str(scene), "--out", str(tmp_path / "o"),
+                          "--quiet", "--set", "camera.width=40", "--set", "camera.height=30", "--set", "render.spp=1",
+                          "--set", "trajectory.frames=1"],
+                         env={**os.environ, "RENDERLAB_MITSUBA_RAYS": "kernel"}, capture_output=True, text=True)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().splitlines() == [
+        "renderlab: error: Mitsuba ray path (RENDERLAB_MITSUBA_RAYS) must be one of drjit, drjit_grid, numpy, "
+        "got 'kernel'"], out.stderr
+    assert list(tmp_path.iterdir()) == []

@@ -69,6 +69,14 @@ def _transform4(R: np.ndarray, t: np.ndarray, scale) -> list[list[float]]:
 RAY_PATHS = ("drjit", "drjit_grid", "numpy")
 
 
+def _check_ray_path(ray_path: str) -> None:
+    if ray_path not in RAY_PATHS:
+        from renderlab.errors import UserError
+
+        raise UserError(f"Mitsuba ray path (RENDERLAB_MITSUBA_RAYS) must be one of {', '.join(RAY_PATHS)}, "
+                        f"got {ray_path!r}")
+
+
 class MitsubaBackend:
     """Render frames of one scene with Mitsuba 3 (scene loaded once, updated in place)."""
 
@@ -86,6 +94,7 @@ class MitsubaBackend:
     samples_per_pass = MAX_SAMPLES_PER_PASS
 
     def __init__(self, scene: SceneDescription, settings: RenderSettings):
+        _check_ray_path(self.ray_path)  # before any output: the backend is made before the truth-set writer
         mi = init_mitsuba(settings.variant)
         import drjit as dr
 
@@ -349,11 +358,7 @@ class MitsubaBackend:
         7018b77 (:class:`~renderlab.render.mitsuba_rays.CameraRays`, to re-make truth sets rendered then);
         scalar variants always take the numpy path. ``$RENDERLAB_MITSUBA_RAYS`` sets the default.
         """
-        if self.ray_path not in RAY_PATHS:
-            from renderlab.errors import UserError
-
-            raise UserError(f"Mitsuba ray path (RENDERLAB_MITSUBA_RAYS) must be one of {', '.join(RAY_PATHS)}, "
-                            f"got {self.ray_path!r}")
+        _check_ray_path(self.ray_path)
         if self.scalar or self.ray_path == "numpy":
             return self._render_numpy(frame, seed)
         return self._render_drjit(frame, seed)
