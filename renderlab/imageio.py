@@ -50,8 +50,13 @@ def _header_value(key, value):
     raise ValueError(f"write_exr: header attribute {key!r}={value!r} not allowed")
 
 
-def write_exr(path, channels: dict, header_extra: dict | None = None) -> None:
-    """Write a single-part scanline EXR, lossless ZIP compression.
+#: ``render.exr_compression`` → OpenEXR compression (all lossless): ``zip`` (default, smallest), ``rle`` (fast,
+#: larger files: in-the-loop and scratch sets), ``none`` (fastest write, largest files)
+EXR_COMPRESSIONS = ("zip", "rle", "none")
+
+
+def write_exr(path, channels: dict, header_extra: dict | None = None, compression: str = "zip") -> None:
+    """Write a single-part scanline EXR, lossless (``compression``: one of :data:`EXR_COMPRESSIONS`).
 
     The header holds only the standard attributes plus ``header_extra`` (no time stamps), so
     the same data give bit-identical files.
@@ -67,7 +72,11 @@ def write_exr(path, channels: dict, header_extra: dict | None = None) -> None:
         Extra header attributes: str, int, float (stored as 32-bit float), or a finite float32 /
         float64 numpy array of shape (2,), (3,), (3, 3) or (4, 4) (V2f/V2d, V3f/V3d, M33f/M33d,
         M44f/M44d).
+    compression : str
+        ``"zip"`` (default), ``"rle"`` or ``"none"``: lossless, so every pixel reads back bit for bit.
     """
+    if compression not in EXR_COMPRESSIONS:
+        raise ValueError(f"write_exr: compression must be one of {EXR_COMPRESSIONS}, got {compression!r}")
     if not channels:
         raise ValueError("write_exr: no channels")
     data, shape = {}, None
@@ -81,7 +90,8 @@ def write_exr(path, channels: dict, header_extra: dict | None = None) -> None:
         shape = a.shape
         dtype = np.uint32 if a.dtype == np.uint32 else np.float32
         data[str(name)] = np.ascontiguousarray(a, dtype=dtype)  # C order is required
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    codes = {"zip": OpenEXR.ZIP_COMPRESSION, "rle": OpenEXR.RLE_COMPRESSION, "none": OpenEXR.NO_COMPRESSION}
+    header = {"compression": codes[compression], "type": OpenEXR.scanlineimage}
     for key, value in (header_extra or {}).items():
         header[str(key)] = _header_value(key, value)
     try:

@@ -110,7 +110,8 @@ def write_frames(out_dir: Path, scenario: Scenario, plan, specs: list, seeds: li
             backend, scene = backend_for(spec)
             if writer is None:
                 info = {"name": backend.name, "version": backend.version, "variant": backend.variant}
-                writer = TruthSetWriter(out_dir, {**head, "renderer": info}, overwrite=overwrite).__enter__()
+                writer = TruthSetWriter(out_dir, {**head, "renderer": info}, overwrite=overwrite,
+                                        exr_compression=scenario.render.exr_compression).__enter__()
                 plan.write_static(writer)
             render_ss, sensor_ss = child.spawn(2)
             out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))

@@ -86,8 +86,9 @@ class TruthSetWriter:
     ...     w.add_frame(0, 0.0, channels, dn, {"camera": cam, "pose": pose})
     """
 
-    def __init__(self, out_dir, manifest_head: dict, *, overwrite: bool = False):
+    def __init__(self, out_dir, manifest_head: dict, *, overwrite: bool = False, exr_compression: str = "zip"):
         self.out_dir = Path(out_dir).absolute()
+        self.exr_compression = exr_compression  # lossless (renderlab.imageio.EXR_COMPRESSIONS)
         if not isinstance(manifest_head, dict):
             raise TypeError("manifest_head must be a dict")
         for key in ("format", "frames"):
@@ -211,7 +212,7 @@ class TruthSetWriter:
                                   render_frame=rf.get("name") if isinstance(rf, dict) else None)
         for rel in rels.values():
             self._claim(rel)
-        write_exr(staging / rels["exr"], {**channels, "id": ids}, header)
+        write_exr(staging / rels["exr"], {**channels, "id": ids}, header, compression=self.exr_compression)
         write_dn_png(staging / rels["dn"], dn, bits)
         (staging / "dn_preview").mkdir(exist_ok=True)
         write_dn_preview(staging / rels["dn_preview"], dn, bits)

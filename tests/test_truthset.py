@@ -294,3 +294,18 @@ def test_frames_sorted_by_index_and_camera_shape_checked(tmp_path):
     (out / "manifest.json").write_text(json.dumps(m))
     with pytest.raises(UserError, match="camera"):
         TruthSet.open(out).load(0)
+
+
+@pytest.mark.parametrize("name,code", [("rle", "RLE_COMPRESSION"), ("none", "NO_COMPRESSION")])
+def test_exr_compression_choice_is_lossless(tmp_path, name, code):
+    """render.exr_compression: every choice reads back bit for bit (OpenEXR's own reader) with its header code."""
+    ch, _, _ = make_frame(5)
+    write_exr(tmp_path / "z.exr", ch)
+    write_exr(tmp_path / f"{name}.exr", ch, compression=name)
+    with OpenEXR.File(str(tmp_path / f"{name}.exr"), separate_channels=True) as f:
+        assert f.header()["compression"] == getattr(OpenEXR, code)
+        back = {k: np.asarray(c.pixels) for k, c in f.channels().items()}
+    for k in ch:
+        assert np.array_equal(back[k], ch[k], equal_nan=True), k
+    with pytest.raises(ValueError, match="compression"):
+        write_exr(tmp_path / "bad.exr", ch, compression="lzma")

@@ -115,6 +115,9 @@ class RenderConfig(_Strict):
     near_clip_m: Positive = Field(1e-3, description="Near clip distance [m]")
     far_clip_m: Positive = Field(1e7, description="Far clip distance, above near_clip_m [m]")
     seed: Annotated[int, Field(ge=0)] = Field(0, description="Seed of the sample pattern and the sensor noise")
+    exr_compression: Literal["zip", "rle", "none"] = Field(
+        "zip", description="Lossless compression of the truth EXR files: zip (smallest), rle or none (faster writes "
+        "for in-the-loop and scratch sets; the pixels are the same)")
 
     @field_validator("renderer")
     @classmethod
