@@ -41,19 +41,10 @@ import os
 import numpy as np
 
 from renderlab.render.mesh_io import mesh_body
-from renderlab.render.mitsuba_rays import (MAX_SAMPLES_PER_PASS, R2_ALPHA, CameraRays, FramePose, aligned_f32,
-                                           pass_sizes)
+from renderlab.render.mitsuba_numpy_path import NumpyRayPath, subpixel_offsets  # noqa: F401  (re-exported)
+from renderlab.render.mitsuba_rays import MAX_SAMPLES_PER_PASS, CameraRays, FramePose, aligned_f32, pass_sizes
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 from renderlab.render.variant import init_mitsuba
-
-
-
-def subpixel_offsets(spp: int, n_pixels: int, rng: np.random.Generator) -> np.ndarray:
-    """(spp, n_pixels, 2) offsets in [−½, ½)²: R2 sequence with a per-pixel random shift (the numpy path)."""
-    base = (0.5 + np.arange(spp)[:, None] * R2_ALPHA[None, :]) % 1.0
-    shift = rng.random((n_pixels, 2))
-    return (base[:, None, :] + shift[None, :, :]) % 1.0 - 0.5
-
 
 _aligned_f32 = aligned_f32
 
@@ -77,7 +68,7 @@ def _check_ray_path(ray_path: str) -> None:
                         f"got {ray_path!r}")
 
 
-class MitsubaBackend:
+class MitsubaBackend(NumpyRayPath):
     """Render frames of one scene with Mitsuba 3 (scene loaded once, updated in place)."""
 
     name = "mitsuba"
@@ -90,6 +81,9 @@ class MitsubaBackend:
     #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) for max_depth 2, else ``path``;
     #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before issue 19), kept for the benchmarks
     integrator = "auto"
+    #: tiled surfaces: ``"auto"``, in a second scene where the design applies (renderlab.render.mitsuba_two_scene);
+    #: ``"merged"``, in the one scene (the design before; kept for the benchmarks and the side-by-side tests)
+    tile_design = "auto"
     #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
     samples_per_pass = MAX_SAMPLES_PER_PASS
 
@@ -122,27 +116,49 @@ class MitsubaBackend:
             body = mesh_body(body)  # a mesh file → in-memory arrays (renderlab.render.mesh_io)
             desc[key] = self._trimesh(body, key) if body.shape == "trimesh" else {**self._shape_dict(body), "id": key}
         self._load(desc, keys)
-        self._tiles = None
-        if scene.tiled:  # the frame's tiles join the static bodies before each frame (_set_sun)
+        self._tiles = self._two = None
+        if scene.tiled:  # the frame's tiles, chosen before each frame (_set_sun)
             from renderlab.render.mitsuba_tiles import TileScenes
+            from renderlab.render.mitsuba_two_scene import TileScene, two_scene_capable
 
-            self._tiles = TileScenes(self, desc, keys, scene.tiled)
+            if two_scene_capable(self):  # a second scene: the static bodies' structure is never rebuilt
+                self._tiles = self._two = TileScene(self, scene.tiled, settings.shadows)
+            else:  # merged into the one scene (scalar variants, Mitsuba's path integrator)
+                self._tiles = TileScenes(self, desc, keys, scene.tiled)
 
     def _load(self, desc: dict, keys: dict) -> None:
         """Load the scene ``desc`` (shape key → body id in ``keys``): parameters, id table, integrator."""
-        mi, dr = self.mi, self.dr
+        mi = self.mi
         # optimize=False: no merging of meshes that share a BSDF (each body keeps its own id)
         self.scene = mi.load_dict(desc, optimize=False)
         self.params = mi.traverse(self.scene)
+        self._id_lut = np.full(2, -1, dtype=np.int32)
+        self._register_shapes(self.scene, keys)
+        self._integrator = self.scene.integrator()
+
+    def _register_shapes(self, scene, keys: dict) -> None:
+        """Map the registry ids of ``scene``'s shapes (shape key → body id in ``keys``) to body ids."""
+        from renderlab.render.mitsuba_two_scene import register_ids
+
         if self.scalar:  # no pointer registry in scalar mode: number the shapes ourselves
-            reg = np.arange(1, len(self.scene.shapes()) + 1, dtype=np.int64)
+            reg = np.arange(1, len(scene.shapes()) + 1, dtype=np.int64)
             self._scalar_reg = reg
         else:
-            reg = np.array(dr.reinterpret_array(mi.UInt32, self.scene.shapes_dr()), dtype=np.int64)
-        self._id_lut = np.full(int(reg.max()) + 2 if len(reg) else 2, -1, dtype=np.int32)
-        for rid, shape in zip(reg, self.scene.shapes()):
-            self._id_lut[rid] = keys[shape.id()]
-        self._integrator = self.scene.integrator()
+            reg = np.array(self.dr.reinterpret_array(self.mi.UInt32, scene.shapes_dr()), dtype=np.int64)
+        self._id_lut = register_ids(self._id_lut, reg, [keys[shape.id()] for shape in scene.shapes()])
+
+    def _hit(self, ray, coherent: bool = True):
+        """The first surface interaction along ``ray`` (JIT variants), over both scenes in the two-scene design."""
+        if self._two is not None:
+            return self._two.first_hit(ray, coherent)
+        return self.scene.ray_intersect(ray, ray_flags=self.mi.RayFlags.All, coherent=coherent)
+
+    def _sample(self, sampler, ray):
+        """Radiance along ``ray`` (JIT variants): the scene's integrator, or the two-scene direct-sun estimator."""
+        if self._two is not None:
+            return self._two.direct_sun(sampler, ray)
+        spec, _, _ = self._integrator.sample(self.scene, sampler, ray)
+        return spec
 
     # ---------------------------------------------------------------- scene building
     def _albedo_texture(self, body: BodySpec):
@@ -218,70 +234,6 @@ class MitsubaBackend:
         self.params["sun.irradiance.value"] = float(frame.sun.irradiance_w_m2)
         self.params.update()
 
-    def _ray_arrays(self, frame: FrameSpec, sl: np.ndarray):
-        """float32 ray origins (N, 3), directions (N, 3) and max distances (N,) for pixels ``sl``."""
-        d_cam = frame.camera.unproject(sl)
-        d_cam = d_cam / np.linalg.norm(d_cam, axis=1, keepdims=True)
-        R = frame.pose.rotation.as_matrix()
-        o = np.asarray(frame.pose.position_m, float) - self.origin
-        d = d_cam @ R.T
-        t_near = self.settings.near_clip_m / d_cam[:, 2]
-        org = o[None, :] + d * t_near[:, None]
-        maxt = self.settings.far_clip_m / d_cam[:, 2] - t_near
-        return org.astype(np.float32), d.astype(np.float32), maxt.astype(np.float32)
-
-    def _rays(self, frame: FrameSpec, sl: np.ndarray):
-        """One wavefront of Mitsuba rays (JIT variants) for pixel coordinates ``sl`` (N, 2)."""
-        mi = self.mi
-        org, d, maxt = self._ray_arrays(frame, sl)
-        c = _aligned_f32
-        ray = mi.RayDifferential3f(mi.Point3f(c(org[:, 0]), c(org[:, 1]), c(org[:, 2])),
-                                   mi.Vector3f(c(d[:, 0]), c(d[:, 1]), c(d[:, 2])))
-        ray.maxt = mi.Float(c(maxt))
-        return ray
-
-    def _scalar_rays(self, frame: FrameSpec, sl: np.ndarray):
-        mi = self.mi
-        for o, d, t in zip(*self._ray_arrays(frame, sl)):
-            ray = mi.RayDifferential3f(mi.Point3f(*o.tolist()), mi.Vector3f(*d.tolist()))
-            ray.maxt = float(t)
-            yield ray
-
-    def _intersect(self, frame: FrameSpec, centres: np.ndarray):
-        """(valid, P (3, N), N (3, N), registry id) of the first hit along each centre ray."""
-        mi, dr = self.mi, self.dr
-        if not self.scalar:
-            si = self.scene.ray_intersect(self._rays(frame, centres))
-            reg = np.array(dr.reinterpret_array(mi.UInt32, si.shape), dtype=np.int64)
-            return (np.array(si.is_valid(), dtype=bool), np.array(si.p, dtype=np.float64),
-                    np.array(si.sh_frame.n, dtype=np.float64), reg)
-        n = len(centres)
-        valid, P, N, reg = np.zeros(n, bool), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int64)
-        shapes = list(self.scene.shapes())
-        for k, ray in enumerate(self._scalar_rays(frame, centres)):
-            si = self.scene.ray_intersect(ray)
-            if si.is_valid():
-                valid[k], P[k], N[k] = True, list(si.p), list(si.sh_frame.n)
-                reg[k] = self._scalar_reg[shapes.index(si.shape)] if si.shape in shapes else 0
-        return valid, P.T, N.T, reg
-
-    def _radiance(self, frame: FrameSpec, sl: np.ndarray, seed: int) -> np.ndarray:
-        """Radiance (channels, N) along the rays through ``sl`` with a sampler seeded by ``seed``."""
-        mi, dr = self.mi, self.dr
-        n = len(sl)
-        sampler = mi.load_dict({"type": "independent"})
-        if not self.scalar:
-            sampler.seed(dr.opaque(mi.UInt32, seed), n)
-            spec, _, _ = self._integrator.sample(self.scene, sampler, self._rays(frame, sl))
-            return np.array(spec, dtype=np.float64).reshape(3 if self.rgb else 1, n)
-        out = np.zeros((3 if self.rgb else 1, n))
-        sampler.seed(seed, 1)
-        for k, ray in enumerate(self._scalar_rays(frame, sl)):
-            spec, _, _ = self._integrator.sample(self.scene, sampler, ray)
-            out[:, k] = list(spec) if self.rgb else float(spec[0] if hasattr(spec, "__len__") else spec)
-            sampler.advance()
-        return out
-
     def _truth_aovs(self, frame: FrameSpec, hits):
         """Position (N, 3) float64 (render origin added back), normal (N, 3) float32, float64 range and body id
         from centre-ray hits (valid, P (3, N), N (3, N), registry id); NaN / −1 where nothing was hit."""
@@ -317,7 +269,7 @@ class MitsubaBackend:
             d = cr.sample_directions(pix, cr.offsets(pix, idx - pix * m + dr.opaque(mi.UInt32, j0), shift))
         sampler = mi.load_dict({"type": "independent"})
         sampler.seed(dr.opaque(mi.UInt32, seed), n)
-        spec, _, _ = self._integrator.sample(self.scene, sampler, cr.world_rays(d, pose))
+        spec = self._sample(sampler, cr.world_rays(d, pose))
         return dr.block_sum(spec, m) if m > 1 else spec
 
     def _render_drjit(self, frame: FrameSpec, seed: int) -> RenderedFrame:
@@ -330,8 +282,7 @@ class MitsubaBackend:
         pose = FramePose(mi, dr, frame.pose.rotation.as_matrix(),
                          np.asarray(frame.pose.position_m, float) - self.origin,
                          self.settings.near_clip_m, self.settings.far_clip_m)
-        si = self.scene.ray_intersect(cr.world_rays(cr.centre_directions(dr.arange(mi.UInt32, W * H)), pose),
-                                      ray_flags=mi.RayFlags.All, coherent=True)  # camera rays: Embree's coherent mode
+        si = self._hit(cr.world_rays(cr.centre_directions(dr.arange(mi.UInt32, W * H)), pose))  # coherent mode
         truth = [si.is_valid(), si.p, si.sh_frame.n, dr.reinterpret_array(mi.UInt32, si.shape)]
         ss = np.random.SeedSequence(seed)
         if self.settings.pixel_filter == "center":
@@ -362,24 +313,6 @@ class MitsubaBackend:
         if self.scalar or self.ray_path == "numpy":
             return self._render_numpy(frame, seed)
         return self._render_drjit(frame, seed)
-
-    def _render_numpy(self, frame: FrameSpec, seed: int) -> RenderedFrame:
-        """The former path: float64 numpy rays per sample (CameraModel.unproject), one wavefront per sample."""
-        cam = frame.camera
-        W, H = cam.width, cam.height
-        self._set_sun(frame)
-        centres = cam.pixel_grid().reshape(-1, 2)
-
-        ss = np.random.SeedSequence(seed)
-        if self.settings.pixel_filter == "center":
-            offsets = np.zeros((1, W * H, 2))
-        else:
-            offsets = subpixel_offsets(self.settings.spp, W * H, np.random.default_rng(ss.spawn(1)[0]))
-        sampler_seeds = ss.generate_state(len(offsets), dtype=np.uint32)
-        acc = np.zeros((3 if self.rgb else 1, W * H), dtype=np.float64)
-        for j in range(len(offsets)):
-            acc += self._radiance(frame, centres + offsets[j], int(sampler_seeds[j]))
-        return self._frame(frame, acc / len(offsets), self._intersect(frame, centres))
 
     def _frame(self, frame: FrameSpec, radiance: np.ndarray, hits) -> RenderedFrame:
         """The RenderedFrame of mean radiance (channels, N) and centre-ray hits (valid, P, N, registry id)."""

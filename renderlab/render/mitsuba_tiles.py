@@ -9,7 +9,9 @@ place (``mi.traverse``: vertex positions, faces, the ``vertex_albedo`` attribute
 acceleration structure; the scene keeps its shapes, so the integrator's kernels stay compiled. Mitsuba rebuilds
 the structure of the whole scene, static bodies included: on the full EV5 world (1.30 M global facets) writing
 34 k tile facets back unchanged costs 2.0–2.5 s at load 4 (``benchmarks/bench_ev5_descent.py``), so a frame whose
-tile set is unchanged writes nothing (a sun-only update costs milliseconds).
+tile set is unchanged writes nothing (a sun-only update costs milliseconds). That is why JIT variants with the
+direct-sun integrator keep the tiles in a second scene instead (:mod:`renderlab.render.mitsuba_two_scene`, which
+shares :class:`TileArrays`); this one-scene form remains for scalar variants and Mitsuba's ``path`` integrator.
 
 Why one mesh and not one ``mi.Mesh`` per tile: a scene of hundreds of shapes makes every kernel dispatch
 over hundreds of shape (and BSDF) instances. Measured on a 361-tile frame of the tiny test world at 128²
@@ -25,23 +27,24 @@ import numpy as np
 _EMPTY = (np.zeros((3, 3), np.float32), np.array([0, 1, 2], np.uint32), np.ones(3, np.float32))
 
 
-class TileScenes:
-    """The tiled part of one :class:`~renderlab.render.mitsuba_backend.MitsubaBackend`'s scene."""
+class TileArrays:
+    """Per-tile float32 arrays of the tiled surfaces of one scene, built once per process and tile."""
 
-    def __init__(self, backend, static_desc: dict, static_keys: dict, tiled: list):
-        self.backend = backend
-        self.static_desc, self.static_keys = dict(static_desc), dict(static_keys)
+    def __init__(self, origin: np.ndarray, tiled: list):
+        self.origin = np.asarray(origin, np.float64)
         self.tiled = list(tiled)
         self.arrays: dict[tuple[int, object], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self.current: tuple | None = None
-        self.updates = 0  # frames that changed the tile set
+
+    def wanted(self, frame) -> tuple:
+        """Per surface, the keys of the tiles the frame needs."""
+        return tuple(tuple(surf.select(frame.camera, frame.pose)) for surf in self.tiled)
 
     def _tile(self, k: int, key):
         """(float32 vertices (render frame − origin), uint32 faces, float32 albedo) of one tile, kept."""
         if (k, key) not in self.arrays:
             body = self.tiled[k].tile_body(key)
             V = np.asarray(body.vertices, np.float64) @ np.asarray(body.R_render_from_body, float).T \
-                + (np.asarray(body.center_m, float) - self.backend.origin)
+                + (np.asarray(body.center_m, float) - self.origin)
             va = np.ones(len(V)) if body.vertex_albedo is None else np.asarray(body.vertex_albedo, np.float64)
             self.arrays[(k, key)] = (V.astype(np.float32), np.asarray(body.faces, np.uint32).ravel(),
                                      (va * float(body.albedo)).astype(np.float32))
@@ -56,32 +59,48 @@ class TileScenes:
         A = np.concatenate([p[2] for p in parts])
         return V, F, A
 
+    def body(self, k: int, keys: list):
+        """Surface ``k``'s tiles ``keys`` as one trimesh body (render frame − origin; centre at the origin)."""
+        from renderlab.render.scene import BodySpec
+
+        surf = self.tiled[k]
+        V, F, A = self.merged(k, keys)
+        return BodySpec(name=surf.name, body_id=surf.body_id, shape="trimesh", center_m=self.origin,
+                        R_render_from_body=np.eye(3), law=surf.law, albedo=1.0, vertices=V.astype(np.float64),
+                        faces=F.reshape(-1, 3), vertex_albedo=A.astype(np.float64))
+
+
+class TileScenes:
+    """The tiled part of one :class:`~renderlab.render.mitsuba_backend.MitsubaBackend`'s scene, merged into it
+    (the one-scene design: scalar variants and Mitsuba's ``path`` integrator)."""
+
+    def __init__(self, backend, static_desc: dict, static_keys: dict, tiled: list):
+        self.backend = backend
+        self.static_desc, self.static_keys = dict(static_desc), dict(static_keys)
+        self.tiles = TileArrays(backend.origin, tiled)
+        self.current: tuple | None = None
+        self.updates = 0  # frames that changed the tile set
+
     def update(self, frame) -> None:
         """Make the backend's scene hold the static bodies and the frame's tiles."""
-        want = tuple(tuple(surf.select(frame.camera, frame.pose)) for surf in self.tiled)
+        want = self.tiles.wanted(frame)
         if want == self.current:
             return
         b = self.backend
         if self.current is None:  # first frame: the scene with one mesh per surface
-            from renderlab.render.scene import BodySpec
-
             desc, keys = dict(self.static_desc), dict(self.static_keys)
-            for k, surf in enumerate(self.tiled):
-                V, F, A = self.merged(k, list(want[k]))
-                body = BodySpec(name=surf.name, body_id=surf.body_id, shape="trimesh", center_m=b.origin,
-                                R_render_from_body=np.eye(3), law=surf.law, albedo=1.0, vertices=V.astype(np.float64),
-                                faces=F.reshape(-1, 3), vertex_albedo=A.astype(np.float64))
-                desc[f"tiled{k}"] = b._trimesh(body, f"tiled{k}")
+            for k, surf in enumerate(self.tiles.tiled):
+                desc[f"tiled{k}"] = b._trimesh(self.tiles.body(k, list(want[k])), f"tiled{k}")
                 keys[f"tiled{k}"] = surf.body_id
             b._load(desc, keys)
         else:
-            from renderlab.render.mitsuba_backend import _aligned_f32 as aligned_f32
+            from renderlab.render.mitsuba_rays import aligned_f32
 
             p = b.params
-            for k in range(len(self.tiled)):
+            for k in range(len(self.tiles.tiled)):
                 if want[k] == self.current[k]:
                     continue
-                V, F, A = self.merged(k, list(want[k]))
+                V, F, A = self.tiles.merged(k, list(want[k]))
                 p[f"tiled{k}.vertex_positions"] = type(p[f"tiled{k}.vertex_positions"])(aligned_f32(V))
                 p[f"tiled{k}.faces"] = type(p[f"tiled{k}.faces"])(F)
                 p[f"tiled{k}.vertex_albedo"] = type(p[f"tiled{k}.vertex_albedo"])(aligned_f32(A))

@@ -1,0 +1,138 @@
+"""Tiled surfaces in a second Mitsuba scene: the static bodies' acceleration structure is built once.
+
+Description
+-----------
+Mitsuba 3 rebuilds the acceleration structure of the *whole* scene whenever any of its meshes changes: on the
+full EV5 world, writing a frame's 34 k site facets into a scene that also holds the 1.3 M-facet asteroid costs
+0.3–2.5 s per frame, almost all of it Embree rebuilding the static body (``benchmarks/bench_mitsuba_tile_update.py``).
+This module keeps the static bodies (and the sun) in one ``mi.Scene``, built once, and the frame's tiles in a
+second, small ``mi.Scene`` whose structure alone is rebuilt when the tile set changes (milliseconds). Each ray is
+intersected with both:
+
+* **nearest hit**: the preliminary intersections of both scenes (``ray_intersect_preliminary``) are compared and the
+  nearer kept; the tile scene wins an exact tie (a tile is the finer model of the same surface). The surface
+  interaction is computed once, for the kept hit (``PreliminaryIntersection3f.compute_surface_interaction``), as
+  ``Scene.ray_intersect`` does for one scene;
+* **shadow rays**: the sun is sampled in the static scene (``Scene.sample_emitter_direction`` without its
+  visibility test) and the shadow ray ``si.spawn_ray_to(ds.p)`` — the ray Mitsuba's own test traces — is
+  tested against both scenes (occluded if either blocks it);
+* **radiance**: the direct-sun estimator of :mod:`renderlab.render.mitsuba_direct` (L = E · r · V, one BSDF
+  evaluation), with the same sampler draws, so a frame equals the one-scene render of the same geometry except
+  where two surfaces are hit at exactly the same distance, or where the directional sun's bounding sphere (the
+  static scene's here, the merged scene's there) moves the end point of a shadow ray by float32 rounding
+  (``tests/test_mitsuba_two_scene.py`` measures both renders side by side).
+
+Tuning
+------
+None. :class:`renderlab.render.mitsuba_backend.MitsubaBackend` uses this design for every tiled scene rendered by
+a JIT variant with the direct-sun integrator (``render.max_depth = 2``, the default); longer light paths
+(Mitsuba's ``path`` integrator) and scalar variants keep the tiles in the one scene
+(:mod:`renderlab.render.mitsuba_tiles`).
+
+Use
+---
+``TileScene(backend, tiled)``; per frame ``update(frame)``; ``first_hit(ray)`` for the truth AOVs and
+``direct_sun(sampler, ray)`` for the radiance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from renderlab.render.mitsuba_rays import aligned_f32
+from renderlab.render.mitsuba_tiles import TileArrays
+
+
+class TileScene:
+    """The frame's tiles as a second ``mi.Scene`` beside the backend's static scene.
+
+    Parameters
+    ----------
+    backend : MitsubaBackend
+        Its ``scene`` holds the static bodies and the sun; its ``_register_shapes`` numbers the tile meshes.
+    tiled : list of TiledSurface
+    shadows : bool
+        Trace shadow rays (``render.shadows``).
+    """
+
+    def __init__(self, backend, tiled: list, shadows: bool = True):
+        self.backend, self.shadows = backend, bool(shadows)
+        self.tiles = TileArrays(backend.origin, tiled)
+        self.scene = None
+        self.params = None
+        self.current: tuple | None = None
+        self.updates = 0  # frames that changed the tile set
+
+    def update(self, frame) -> None:
+        """Make the tile scene hold the frame's tiles (rebuilds the tile scene's structure only)."""
+        want = self.tiles.wanted(frame)
+        if want == self.current:
+            return
+        b = self.backend
+        if self.scene is None:
+            desc, keys = {"type": "scene"}, {}
+            for k, surf in enumerate(self.tiles.tiled):
+                desc[f"tiled{k}"] = b._trimesh(self.tiles.body(k, list(want[k])), f"tiled{k}")
+                keys[f"tiled{k}"] = surf.body_id
+            self.scene = b.mi.load_dict(desc, optimize=False)
+            self.params = b.mi.traverse(self.scene)
+            b._register_shapes(self.scene, keys)
+        else:
+            p = self.params
+            for k in range(len(self.tiles.tiled)):
+                if want[k] == self.current[k]:
+                    continue
+                V, F, A = self.tiles.merged(k, list(want[k]))
+                p[f"tiled{k}.vertex_positions"] = type(p[f"tiled{k}.vertex_positions"])(aligned_f32(V))
+                p[f"tiled{k}.faces"] = type(p[f"tiled{k}.faces"])(F)
+                p[f"tiled{k}.vertex_albedo"] = type(p[f"tiled{k}.vertex_albedo"])(aligned_f32(A))
+            p.update()
+        self.current = want
+        self.updates += 1
+
+    def first_hit(self, ray, coherent: bool = True, active=True):
+        """The surface interaction of the nearer of the two scenes' hits along ``ray`` (tiles win exact ties)."""
+        mi, dr = self.backend.mi, self.backend.dr
+        pt = self.scene.ray_intersect_preliminary(ray, coherent=coherent, active=active)
+        ps = self.backend.scene.ray_intersect_preliminary(ray, coherent=coherent, active=active)
+        pi = dr.select(ps.t < pt.t, ps, pt)
+        return pi.compute_surface_interaction(ray, mi.RayFlags.All, pi.is_valid())
+
+    def direct_sun(self, sampler, ray):
+        """Radiance along ``ray``: E · r(μ0, μ, g) · V (:mod:`renderlab.render.mitsuba_direct`) over both scenes."""
+        mi, dr = self.backend.mi, self.backend.dr
+        static = self.backend.scene
+        si = self.first_hit(ray)
+        valid = si.is_valid()
+        bsdf = si.bsdf(ray)
+        ds, em_weight = static.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
+        lit = valid & (ds.pdf != 0.0)
+        if self.shadows:
+            shadow = si.spawn_ray_to(ds.p)
+            lit &= ~static.ray_test(shadow, lit)
+            lit &= ~self.scene.ray_test(shadow, lit)
+        value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
+        return dr.select(lit, em_weight * value, 0.0)
+
+
+def two_scene_capable(backend) -> bool:
+    """True where the two-scene design applies: a JIT variant, the direct-sun integrator, and the backend's
+    ``tile_design`` not ``"merged"``."""
+    from renderlab.render.mitsuba_direct import integrator_dict
+
+    if getattr(backend, "tile_design", "auto") == "merged":
+        return False
+    d = integrator_dict(backend.settings.max_depth, backend.settings.shadows, backend.integrator)
+    return not backend.scalar and d["type"] != "path"
+
+
+def register_ids(id_lut: np.ndarray, reg: np.ndarray, body_ids: list[int]) -> np.ndarray:
+    """``id_lut`` grown to hold registry ids ``reg`` mapped to ``body_ids`` (a new array when it must grow)."""
+    need = int(reg.max()) + 2 if len(reg) else 0
+    if need > len(id_lut):
+        grown = np.full(need, -1, dtype=np.int32)
+        grown[:len(id_lut)] = id_lut
+        id_lut = grown
+    for rid, bid in zip(reg, body_ids):
+        id_lut[rid] = bid
+    return id_lut
