@@ -63,7 +63,7 @@ def shadowed(site: Site, p_body: np.ndarray, sun_body: np.ndarray) -> np.ndarray
     """Cast-shadow test of body points (N, 3) on the site against its DEM."""
     p = site.to_site(p_body)
     s = site.R_body_from_site.T @ (np.asarray(sun_body, float) / np.linalg.norm(sun_body))
-    zmax = float(site.heights_m.max()) + 1e-6
+    zmax = site.max_height_m + 1e-6  # once per site, not per call
     return _march(site.heights_m, site.x0_m, site.cell_m, p[:, 0].copy(), p[:, 1].copy(), p[:, 2].copy(),
                   float(s[0]), float(s[1]), float(s[2]), zmax)
 

@@ -24,6 +24,7 @@ the global surface is unchanged).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -54,6 +55,11 @@ class Site:
     @property
     def n(self) -> int:
         return self.heights_m.shape[0]
+
+    @functools.cached_property
+    def max_height_m(self) -> float:
+        """Highest DEM height (m), computed once per site (every shadow test of every frame needs it)."""
+        return float(self.heights_m.max())
 
     @property
     def extent_m(self) -> float:
