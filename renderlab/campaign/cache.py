@@ -33,8 +33,8 @@ import numpy as np
 from renderlab.errors import UserError
 
 
-_TRUTH_PACKAGES = ("render", "worlds", "geometry", "dynamics", "scenario")
-_TRUTH_MODULES = ("sensor.py", "photometry.py", "truthset.py", "imageio.py", "pipeline.py", "config_types.py")
+_TRUTH_PACKAGES = ("render", "worlds", "geometry", "dynamics", "scenario", "pipeline")
+_TRUTH_MODULES = ("sensor.py", "sensor_noise.py", "photometry.py", "truthset.py", "imageio.py", "config_types.py")
 _RENDERER_DISTS = ("mitsuba", "drjit", "bpy")
 
 
@@ -171,39 +171,20 @@ def frame_record(spec) -> dict:
             "camera": spec.camera.to_dict(), "sun": spec.sun.to_dict()}
 
 
-class LoadedWorld:
-    """A scenario's world plan, built once, and the renderer of its current scene, loaded once and
-    reused for every frame spec rendered from it (only the camera pose changes between frames)."""
+def LoadedWorld(scenario, base_dir: Path):
+    """A scenario's world plan, built once, and the renderer of its current scene, loaded once and reused for every
+    frame spec rendered from it: the warm frame API's :class:`~renderlab.pipeline.frame_api.Renderer`."""
+    from renderlab.pipeline.frame_api import Renderer
 
-    def __init__(self, scenario, base_dir: Path):
-        from renderlab.worlds.base import make_plan
-
-        self.scenario, self.plan = scenario, make_plan(scenario, Path(base_dir))
-        self._key, self.scene, self.backend, self.loads = object(), None, None, 0
-
-    def render_seed(self, index: int) -> np.random.SeedSequence:
-        """Frame ``index``'s seed, as :func:`renderlab.pipeline.render_truthset` spawns it (a fresh
-        ``SeedSequence`` each call: ``spawn`` is stateful)."""
-        k = [s.index for s in self.plan.frames].index(index)
-        return np.random.SeedSequence(int(self.scenario.render.seed), spawn_key=(k,))
-
-    def backend_for(self, spec):
-        """(backend, scene) for ``spec``; the scene is loaded only when its :meth:`WorldPlan.scene_key` changes."""
-        from renderlab.pipeline import make_backend
-
-        key = self.plan.scene_key(spec)
-        if self.backend is None or key != self._key:
-            self.scene = self.plan.scene(key)
-            self.backend, self._key = make_backend(self.scenario, self.scene, self.scenario.render.renderer), key
-            self.loads += 1
-        return self.backend, self.scene
+    return Renderer(scenario, Path(base_dir))
 
 
-_WORLDS: dict[str, LoadedWorld] = {}  # this process's loaded world (one at a time: worlds are large)
+_WORLDS: dict = {}  # this process's loaded world (one at a time: worlds are large)
 
 
-def loaded_world(scenario, base_dir: Path) -> LoadedWorld:
-    """This process's :class:`LoadedWorld` of ``scenario`` (built on first use, kept for later runs)."""
+def loaded_world(scenario, base_dir: Path):
+    """This process's :func:`LoadedWorld` (a :class:`~renderlab.pipeline.frame_api.Renderer`) of ``scenario``
+    (built on first use, kept for later runs)."""
     data = scenario.to_dict()
     key = truth_key(data, None, file_hashes(data, base_dir))
     if key not in _WORLDS:
@@ -231,7 +212,7 @@ def cached_frames_truthset(scenario, base_dir: Path, cache_root: Path, specs: li
     return path, False
 
 
-def render_frames(world: LoadedWorld, out_dir: Path, specs: list, *, note: dict | None = None) -> Path:
+def render_frames(world, out_dir: Path, specs: list, *, note: dict | None = None) -> Path:
     """Render ``specs`` from ``world`` into a truth set at ``out_dir`` (written atomically) by the render loop of
     :func:`renderlab.pipeline.render_truthset` (:func:`renderlab.pipeline.write_frames`: same seeds,
     auto-exposure on the first frame, sensor, files, the plan's metadata and truth tables) with the world's
@@ -241,5 +222,5 @@ def render_frames(world: LoadedWorld, out_dir: Path, specs: list, *, note: dict 
     sc, plan = world.scenario, world.plan
     head = {"scenario": sc.to_dict(), "seed": int(sc.render.seed), "render_frame": plan.render_frame,
             "frame_specs_note": note or {}}
-    seeds = [world.render_seed(spec.index) for spec in specs]
-    return write_frames(out_dir, sc, plan, specs, seeds, world.backend_for, head=head)
+    seeds = [world.seed_for(spec.index) for spec in specs]
+    return write_frames(out_dir, world, specs, seeds, head=head)

@@ -74,6 +74,8 @@ class MitsubaBackend(NumpyRayPath):
     name = "mitsuba"
     #: tiled surfaces (levels of detail) are chosen per frame (renderlab.render.mitsuba_tiles)
     supports_tiles = True
+    #: ``settings.spp`` may change between frames (the frame API's ``spp=``): samples are drawn per render
+    per_frame_spp = True
     #: ``"drjit"``: primary rays generated in the kernel (JIT variants, the default); ``"numpy"``: the former
     #: path (float64 numpy rays per sample, one wavefront per sample), kept for the benchmarks; ``"drjit_grid"``:
     #: pinholes through the direction grid, as before commit 7018b77 (:meth:`render`); ``$RENDERLAB_MITSUBA_RAYS``

@@ -1,4 +1,6 @@
-"""Scenario → truth set: world, camera path, renderer, sensor, files.
+"""Scenario → truth set: world, camera path, renderer, sensor, files; and the warm frame API
+(:mod:`renderlab.pipeline.frame_api`: :class:`~renderlab.pipeline.frame_api.Renderer`, in memory), which renders
+every frame of every truth set.
 
 Seeds: the scenario's ``render.seed`` (or ``--seed``) roots a ``SeedSequence``; frame k uses its
 k-th spawned child, split again into the renderer's sample pattern and the sensor noise. The same
@@ -12,10 +14,8 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.errors import UserError
-from renderlab.geometry.rotations import quat_xyzw
 from renderlab.render.scene import RenderSettings
 from renderlab.scenario import Scenario
-from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
 from renderlab.truthset import TruthSetWriter
 from renderlab.worlds.base import frame_specs  # noqa: F401  (re-exported)
 
@@ -60,9 +60,10 @@ def render_truthset(
     """Render a scenario into a truth set folder (written atomically) and return its path.
 
     The world's :class:`renderlab.worlds.base.WorldPlan` supplies the frames, the scene(s), per-frame
-    metadata and truth-table rows; this function owns seeds, the renderer, the sensor and the files.
+    metadata and truth-table rows; :class:`renderlab.pipeline.frame_api.Renderer` renders them (seeds, renderer,
+    sensor) and this function writes the files.
     """
-    from renderlab.worlds.base import make_plan  # noqa: F401
+    from renderlab.pipeline.frame_api import Renderer
 
     seed = scenario.render.seed if seed is None else int(seed)
     if seed < 0:
@@ -74,55 +75,37 @@ def render_truthset(
         raise UserError(f"--frames must be at least 1, got {frames}")
     head = {"scenario": scenario.to_dict(), "seed": seed}
     TruthSetWriter(out_dir, head, overwrite=overwrite)  # refuses a bad output folder before the slow start
-    plan = make_plan(scenario, base_dir)
-    specs = plan.frames if frames is None else plan.frames[:frames]
-    head["render_frame"] = plan.render_frame
-    children = np.random.SeedSequence(seed).spawn(len(specs))
-    loaded = {"key": object(), "backend": None, "scene": None}
-
-    def backend_for(spec):
-        key = plan.scene_key(spec)
-        if loaded["backend"] is None or key != loaded["key"]:
-            loaded["scene"] = plan.scene(key)
-            loaded["backend"], loaded["key"] = make_backend(scenario, loaded["scene"], renderer), key
-        return loaded["backend"], loaded["scene"]
-
-    return write_frames(out_dir, scenario, plan, specs, children, backend_for, head=head, overwrite=overwrite,
-                        progress=progress)
+    r = Renderer(scenario, base_dir, renderer=renderer)
+    specs = r.plan.frames if frames is None else r.plan.frames[:frames]
+    head["render_frame"] = r.plan.render_frame
+    seeds = [r.seed_for(spec.index) for spec in specs]
+    return write_frames(out_dir, r, specs, seeds, head=head, overwrite=overwrite, progress=progress)
 
 
-def write_frames(out_dir: Path, scenario: Scenario, plan, specs: list, seeds: list, backend_for, *, head: dict,
+def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dict,
                  overwrite: bool = False, progress: bool = False) -> Path:
-    """The render loop shared by :func:`render_truthset` and the per-pose truth cache
-    (:func:`renderlab.campaign.cache.render_frames`): for each frame spec and its ``SeedSequence`` (split into
-    the renderer's sample pattern and the sensor noise), render with ``backend_for(spec) -> (backend, scene)``,
-    auto-expose on the first frame, expose, and write the frame, the plan's metadata and truth tables and a
-    contact sheet into a truth set at ``out_dir`` (staged: all or nothing). ``head`` is the manifest's head."""
+    """The truth-set loop shared by :func:`render_truthset` and the per-pose truth cache
+    (:func:`renderlab.campaign.cache.render_frames`): each frame spec and its ``SeedSequence`` through
+    :meth:`Renderer.render_spec <renderlab.pipeline.frame_api.Renderer.render_spec>` (auto-exposure chosen on the
+    first frame of this set), and the frame, the plan's metadata and truth tables and a contact sheet written
+    into a truth set at ``out_dir`` (staged: all or nothing). ``head`` is the manifest's head."""
     from tqdm import tqdm
 
-    from renderlab.signals import raise_pending
-
-    opts = SensorOptions(**scenario.sensor.options_dict())
+    plan = renderer.plan
+    renderer.reset_exposure()
     writer, rows = None, {}
     try:
         for spec, child in tqdm(list(zip(specs, seeds)), desc="render", unit="frame", disable=not progress):
-            raise_pending()  # a signal whose raise the garbage collector swallowed ends the render here
-            backend, scene = backend_for(spec)
+            frame = renderer.render_spec(spec, child)
             if writer is None:
+                backend = renderer.backend
                 info = {"name": backend.name, "version": backend.version, "variant": backend.variant}
                 writer = TruthSetWriter(out_dir, {**head, "renderer": info}, overwrite=overwrite,
-                                        exr_compression=scenario.render.exr_compression).__enter__()
+                                        exr_compression=renderer.scenario.render.exr_compression).__enter__()
                 plan.write_static(writer)
-            render_ss, sensor_ss = child.spawn(2)
-            out = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
-            lum = out.radiance if out.radiance.ndim == 2 else out.radiance.mean(-1)  # mono sensor
-            if spec is specs[0] and scenario.sensor.auto_exposure:
-                t_exp = exposure_for_peak(lum, opts, fraction=scenario.sensor.auto_exposure_fraction)
-                opts = with_exposure(opts, t_exp)
-            sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
-            writer.add_frame(spec.index, float(spec.pose.time_s), out.exr_channels(), sensor.dn,
-                             _frame_meta(spec, plan, scene, opts), dn_bits=opts.bits)
-            for name, new_rows in plan.frame_rows(spec, out).items():
+            writer.add_frame(spec.index, float(spec.pose.time_s), frame.aovs.exr_channels(), frame.dn,
+                             frame.meta, dn_bits=renderer.options.bits)
+            for name, new_rows in frame.truth.items():
                 rows.setdefault(name, []).extend(new_rows)
         for name, table_rows in rows.items():
             writer.add_table(name, _rows_to_table(table_rows))
@@ -133,21 +116,6 @@ def write_frames(out_dir: Path, scenario: Scenario, plan, specs: list, seeds: li
         raise
     writer.__exit__(None, None, None)
     return Path(out_dir)
-
-
-def _frame_meta(spec, plan, scene, opts) -> dict:
-    """A frame's manifest record: camera, pose (render frame), Sun, the plan's metadata, the sensor settings."""
-    return {
-        "camera": spec.camera.to_dict(),
-        "pose": {
-            "position_m": [float(v) for v in spec.pose.position_m],
-            "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)],
-        },
-        "sun": spec.sun.to_dict(),
-        **plan.frame_meta(spec, scene),
-        "sensor": {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
-                   "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)},
-    }
 
 
 def _rows_to_table(rows: list[dict]):
