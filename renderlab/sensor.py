@@ -11,8 +11,9 @@ pixel, with radiance ``L`` in W m⁻² sr⁻¹ integrated over the camera passba
    ``(π/4) D²`` is the aperture area and ``Ω`` the solid angle of one pixel, so their
    product is the étendue of one pixel; ``h c / λ`` turns joules into photons at the
    effective wavelength ``λ``.
-3. Shot noise: ``n = Poisson(μ)`` — one draw of the *total* mean (signal + dark).
-4. Read noise: ``e = n + Normal(0, σ_read)``.
+3. Shot noise: ``n = Poisson(μ)`` — one draw of the *total* mean (signal + dark), exact in distribution
+   (inversion below μ = 10, Hörmann's PTRS rejection from 10 up to the cap of 1e15; :mod:`renderlab.sensor_noise`).
+4. Read noise: ``e = n + Normal(0, σ_read)`` (Box–Muller on two of the pixel's own draws).
 5. Full well: ``e ← min(e, FW)``.
 6. Gain: ``DN = round(bias + e / g)``.
 7. ADC: ``DN ← clip(DN, 0, 2^bits − 1)``, stored as ``uint16``.
@@ -27,8 +28,11 @@ does not depend on the focal length at all: the sensor needs no focal length of 
 there only where ``focal_length_m / pixel_pitch_m`` agrees with the camera (0.1 %). Outside a scenario,
 :class:`SensorOptions` still takes ``aperture_diameter_m`` with ``focal_length_m`` (``N = f/D``, ``Ω = (p/f)²``).
 
-Random draws, in this order (Poisson for every pixel, then Normal for every pixel), all come
-from the ``numpy.random.Generator`` passed in, so a seed replays an image bit for bit.
+Random draws are keyed per pixel (``noise_stream = "per_pixel"``, default): every variate of pixel ``i``
+(row-major) is a pure function of (frame key, ``i``, draw number) from the counter-based Philox4x64-10
+(:mod:`renderlab.sensor_noise`), so radiance images that differ in a few pixels give DN that differ there only.
+The 128-bit frame key is two 64-bit draws of the ``numpy.random.Generator`` passed in, so a seed replays an image
+bit for bit. ``"sequential"`` keeps the former order bit for bit (``rng.poisson`` over the image, then ``rng.normal``).
 :func:`expected_dn` gives the noise-free expectation ``clip(bias + min(μ, FW)/g, 0, 2^bits−1)``
 (no rounding) and :func:`exposure_for_peak` the exposure time that puts a high percentile of
 ``μ`` at a chosen fraction of the full well (auto-exposure).
@@ -121,6 +125,10 @@ class SensorOptions:
     f_number : float or None
         Focal ratio N = f / D, > 0; None: ``focal_length_m / aperture_diameter_m`` when both are
         given, else 4. Given with both, it must agree with their ratio (0.1 %).
+    noise_stream : str
+        Order of the random draws: ``"per_pixel"`` (every pixel's draws keyed by the frame and its index; a
+        changed radiance pixel changes that pixel's DN only) or ``"sequential"`` (the former single stream,
+        bit for bit, to re-make truth sets made with it).
     """
 
     aperture_diameter_m: float | None = None
@@ -138,6 +146,7 @@ class SensorOptions:
     bits: int = 10
     psf_sigma_px: float = 0.0
     f_number: float | None = None
+    noise_stream: str = "per_pixel"
 
     def __post_init__(self) -> None:
         for name in ("aperture_diameter_m", "focal_length_m", "f_number"):
@@ -155,6 +164,8 @@ class SensorOptions:
         if not 1 <= int(self.bits) <= 16:
             raise UserError(f"sensor.bits must be in 1..16, got {self.bits!r}")
         _check_real("sensor.bias_dn", self.bias_dn, nonneg=True, upper=float(self.adc_max))
+        if not isinstance(self.noise_stream, str) or self.noise_stream not in ("per_pixel", "sequential"):
+            raise UserError(f"sensor.noise_stream must be 'per_pixel' or 'sequential', got {self.noise_stream!r}")
         self._check_optics()
 
     def _check_optics(self) -> None:
@@ -296,7 +307,7 @@ def mean_electrons(radiance: np.ndarray, options: SensorOptions) -> np.ndarray:
     return img * options.electrons_per_radiance + options.dark_current_e_per_s * options.exposure_s
 
 
-def expose(radiance: np.ndarray, options: SensorOptions, rng: np.random.Generator) -> SensorResult:
+def expose(radiance: np.ndarray, options: SensorOptions, rng) -> SensorResult:
     """Simulate one exposure: radiance → DN with shot and read noise (steps 1–7).
 
     Parameters
@@ -305,20 +316,19 @@ def expose(radiance: np.ndarray, options: SensorOptions, rng: np.random.Generato
         Band-integrated radiance, W m⁻² sr⁻¹; finite and non-negative.
     options : SensorOptions
         Camera parameters.
-    rng : numpy.random.Generator
-        Source of every random draw: first ``rng.poisson`` over the image, then
-        ``rng.normal`` over the image.
+    rng : numpy.random.Generator, numpy.random.SeedSequence or int
+        Every draw's source (a SeedSequence or int: ``default_rng(rng)``): per pixel, the frame key
+        ``rng.integers(0, 2**64, size=2, dtype=uint64)``; sequential, ``rng.poisson`` then ``rng.normal``.
 
     Returns
     -------
     SensorResult
         ``dn`` (uint16), ``electrons_mean`` (float64), ``saturated`` (bool).
     """
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    from renderlab.sensor_noise import draw_electrons  # numba: compiled on first use
+
     mu = mean_electrons(radiance, options)
-    electrons = rng.poisson(np.minimum(mu, _MAX_POISSON_MEAN)).astype(np.float64)
-    electrons += rng.normal(0.0, float(options.read_noise_e), size=mu.shape)
+    electrons = draw_electrons(np.minimum(mu, _MAX_POISSON_MEAN), options.read_noise_e, options.noise_stream, rng)
     full = electrons >= options.full_well_e
     electrons = np.minimum(electrons, float(options.full_well_e))
     dn = np.rint(float(options.bias_dn) + electrons / float(options.gain_e_per_dn))

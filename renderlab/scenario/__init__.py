@@ -23,7 +23,7 @@ from pydantic import ConfigDict, Discriminator, Field, Tag, field_validator, mod
 
 from renderlab.scenario.camera import CameraConfig, resolve_camera
 from renderlab.scenario.campaign import CampaignConfig, PerturbationConfig
-from renderlab.scenario.trajectory import SourceTrajectoryConfig, TrajectoryConfig
+from renderlab.scenario.trajectory import SOURCE_KINDS, SourceTrajectoryConfig, TrajectoryConfig
 from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
@@ -159,7 +159,10 @@ class SensorConfig(_Strict):
         if unknown:
             raise ValueError(f"unknown sensor key '{unknown[0]}'; expected one of {', '.join(sorted(known))}")
         for key, value in extra.items():
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            if key == "noise_stream":
+                if not isinstance(value, str) or value not in ("per_pixel", "sequential"):
+                    raise ValueError(f"sensor.noise_stream must be 'per_pixel' or 'sequential', got {value!r}")
+            elif isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
                 raise ValueError(f"sensor.{key} must be a finite number, got {value!r}")
         SensorOptions(**extra)  # raises UserError naming the field
         return self
@@ -172,12 +175,13 @@ def _kind_of(default: str):
     return pick
 
 
-#: world kind → the trajectory kinds that make sense for it
+#: world kind → the trajectory kinds that make sense for it (the first is its default); the file kinds (``table``,
+#: ``ccsds``, ``spice``) drive every world, each reading the file's frame as its own (docs/scenario_keys.md)
 WORLD_TRAJECTORIES = {
-    "analytic": ("line", "orbit", "table", "ccsds", "spice"),
-    "ev5": ("ev5_descent",),
-    "earth": ("leo",),
-    "microsat": ("separation",),
+    "analytic": ("line", "orbit", *SOURCE_KINDS),
+    "ev5": ("ev5_descent", *SOURCE_KINDS),
+    "earth": ("leo", *SOURCE_KINDS),
+    "microsat": ("separation", *SOURCE_KINDS),
 }
 
 World = Annotated[
@@ -195,7 +199,7 @@ Trajectory = Annotated[
     | Annotated[SeparationTrajectory, Tag("kind=separation")],
     Discriminator(_kind_of("orbit"), custom_error_type="trajectory_kind",
                   custom_error_message="kind must be one of "
-                  + ", ".join(k for ks in WORLD_TRAJECTORIES.values() for k in ks)),
+                  + ", ".join(dict.fromkeys(k for ks in WORLD_TRAJECTORIES.values() for k in ks))),
 ]
 
 
@@ -219,12 +223,17 @@ class Scenario(_Strict):
 
     @model_validator(mode="after")
     def _world_fits_trajectory(self):
-        from renderlab.scenario.kinds import world_trajectories
+        from renderlab.scenario.kinds import DEFAULT_POINTING, world_trajectories
 
         allowed = WORLD_TRAJECTORIES.get(self.world.kind) or world_trajectories()[self.world.kind]
         if self.trajectory.kind not in allowed:
             raise ValueError(f"trajectory.kind '{self.trajectory.kind}' does not fit world.kind '{self.world.kind}' "
                              f"(use {' or '.join(repr(k) for k in allowed)})")
+        traj = self.trajectory
+        if (traj.kind in SOURCE_KINDS and traj.attitude == "file" and not traj.reads_attitude()
+                and self.world.kind not in DEFAULT_POINTING):
+            raise ValueError(f"trajectory: {traj.missing_attitude()}; world.kind '{self.world.kind}' has no default "
+                             "pointing")
         return self
 
     def to_dict(self) -> dict[str, Any]:
