@@ -45,13 +45,15 @@ def _flat_stats_case(options, mean_e, shape=(400, 500), seed=1):
     return res, res.dn.astype(np.float64).ravel()
 
 
+@pytest.mark.parametrize("stream", ["per_pixel", "sequential"])
 @pytest.mark.parametrize("options, mean_e", [
     (SensorOptions(), 5000.0),                                           # 10-bit, 20 e/DN
     (SensorOptions(gain_e_per_dn=1.0, bits=16, full_well_e=60000.0,
                    bias_dn=100.0, read_noise_e=5.0, dark_current_e_per_s=1e4),
      300.0),                                                              # 1 e/DN
 ])
-def test_flat_field_mean_and_variance_follow_poisson_plus_read_noise(options, mean_e):
+def test_flat_field_mean_and_variance_follow_poisson_plus_read_noise(options, mean_e, stream):
+    options = dataclasses.replace(options, noise_stream=stream)
     res, dn = _flat_stats_case(options, mean_e)
     np.testing.assert_allclose(res.electrons_mean, mean_e, rtol=1e-12)
     g = options.gain_e_per_dn
@@ -74,12 +76,13 @@ def test_flat_field_mean_and_variance_follow_poisson_plus_read_noise(options, me
     assert not res.saturated.any()
 
 
-def test_shot_noise_is_one_poisson_draw_of_the_total_mean():
+@pytest.mark.parametrize("stream", ["per_pixel", "sequential"])
+def test_shot_noise_is_one_poisson_draw_of_the_total_mean(stream):
     # Without read noise and with 1 e/DN, DN - bias is exactly Poisson(mu): an
     # "image + poisson(image)" bug would double the mean; a Gaussian would fail the
     # lattice/positivity and the third-cumulant check (Poisson: k3 = mu).
     opts = SensorOptions(gain_e_per_dn=1.0, bits=16, full_well_e=60000.0, bias_dn=0.0,
-                         read_noise_e=0.0)
+                         read_noise_e=0.0, noise_stream=stream)
     mu = 4.0
     res, dn = _flat_stats_case(opts, mu, shape=(500, 500), seed=7)
     n = dn.size
@@ -119,10 +122,11 @@ def test_adc_clipping_high_and_low():
     assert SensorOptions(bits=12).adc_max == 4095
 
 
-def test_same_seed_identical_different_seed_different():
+@pytest.mark.parametrize("stream", ["per_pixel", "sequential"])
+def test_same_seed_identical_different_seed_different(stream):
     rng = np.random.default_rng(123)
     radiance = rng.uniform(0, 30, size=(64, 80))
-    opts = SensorOptions(psf_sigma_px=0.7)
+    opts = SensorOptions(psf_sigma_px=0.7, noise_stream=stream)
     a = expose(radiance, opts, np.random.default_rng(42)).dn
     b = expose(radiance, opts, np.random.default_rng(42)).dn
     c = expose(radiance, opts, np.random.default_rng(43)).dn
