@@ -5,7 +5,8 @@
 ``range_m·sin(elevation)`` above ``target_m`` (azimuth measured from +x toward +y).
 In both cases it looks at ``target_m`` with ``up`` toward the top of the image.
 ``table``, ``ccsds``, ``spice``: the user's own trajectory, read from files by :mod:`renderlab.trajectory_io`
-(relative paths against the scenario folder ``base_dir``).
+(relative paths against the scenario folder ``base_dir``), in the frame the files declare; every world takes them
+and says what that frame is to it (:func:`check_frame`; the analytic world: its scene frame).
 """
 
 from __future__ import annotations
@@ -30,6 +31,64 @@ class CameraPose:
     epoch_utc: str | None = None  # ISO UTC of the frame, when the trajectory has epochs
 
 
+#: trajectory kinds read from the user's files (:mod:`renderlab.trajectory_io`)
+FILE_KINDS = ("table", "ccsds", "spice")
+
+
+def _frame_key(name) -> str:
+    return str(name).strip().upper().replace("-", "").replace("_", "").replace(" ", "")
+
+
+def file_poses(fp, traj) -> list[CameraPose]:
+    """The camera poses of a sampled file trajectory (:func:`renderlab.trajectory_io.sources.frame_poses`), in the
+    frame its files declare; UserError when the files give no attitude (worlds with a default pointing, the
+    Earth's nadir, read ``fp`` themselves)."""
+    if fp.rotations is None:
+        raise UserError(f"trajectory: {traj.missing_attitude()}; this world has no default pointing")
+    return [CameraPose(time_s=float(t), position_m=p, rotation=fp.rotations[k],
+                       epoch_utc=None if fp.epochs_utc is None else fp.epochs_utc[k])
+            for k, (t, p) in enumerate(zip(fp.times_s, fp.positions_m))]
+
+
+def check_frame(fp, traj, accepted: dict[str, tuple[str, ...]], world: str, table_default: str | None = None) -> str:
+    """Which of a world's frames a file trajectory is in, by the name its files declare.
+
+    Parameters
+    ----------
+    fp : FramePoses
+        The sampled trajectory (:func:`renderlab.trajectory_io.sources.frame_poses`): ``frame`` is the OEM's
+        ``REF_FRAME``, the SPICE ``frame`` or the table's ``trajectory.frame``.
+    traj : SourceTrajectoryConfig
+        The scenario's ``[trajectory]`` (a table without ``frame`` declares none).
+    accepted : dict
+        The world's frames → the names that mean each (compared without case, ``-``, ``_`` and blanks).
+    world : str
+        The world kind, for the message.
+    table_default : str, optional
+        The key of ``accepted`` a table without ``frame`` is taken in; None: such a table is refused.
+
+    Returns
+    -------
+    str
+        The key of ``accepted`` the trajectory is in.
+
+    Raises
+    ------
+    UserError
+        One line naming the frame and the names the world accepts.
+    """
+    names = ", ".join(repr(ns[0]) for ns in accepted.values())
+    if traj.kind == "table" and traj.frame is None:
+        if table_default is not None:
+            return table_default
+        raise UserError(f"trajectory.frame: world.kind '{world}' needs the table's frame ({names})")
+    for key, aliases in accepted.items():
+        if _frame_key(fp.frame) in {_frame_key(a) for a in aliases}:
+            return key
+    where = "the OEM's REF_FRAME" if traj.kind == "ccsds" else "trajectory.frame"
+    raise UserError(f"trajectory: {where} {fp.frame!r} is not a frame world.kind '{world}' can use ({names})")
+
+
 def _fractions(n: int) -> np.ndarray:
     return np.zeros(1) if n == 1 else np.linspace(0.0, 1.0, n)
 
@@ -50,13 +109,10 @@ def camera_path(traj, base_dir: str | Path | None = None) -> list[CameraPose]:
     list of CameraPose
         One pose per frame (``epoch_utc`` set for file trajectories with epochs).
     """
-    if traj.kind in ("table", "ccsds", "spice"):
+    if traj.kind in FILE_KINDS:
         from renderlab.trajectory_io.sources import frame_poses
 
-        fp = frame_poses(traj, base_dir)
-        return [CameraPose(time_s=float(t), position_m=p, rotation=fp.rotations[k],
-                           epoch_utc=None if fp.epochs_utc is None else fp.epochs_utc[k])
-                for k, (t, p) in enumerate(zip(fp.times_s, fp.positions_m))]
+        return file_poses(frame_poses(traj, base_dir), traj)
     target = np.asarray(traj.target_m, float)
     up = np.asarray(traj.up, float)
     fr = _fractions(traj.frames)

@@ -10,17 +10,25 @@ from pydantic import Discriminator, Tag
 from renderlab.contracts.world import WorldKind, load
 
 _PATHS = "renderlab.scenario.trajectory:"
-ANALYTIC = WorldKind("analytic", "renderlab.scenario:AnalyticWorld",
-                     {"orbit": _PATHS + "TrajectoryConfig", "line": _PATHS + "TrajectoryConfig",
-                      "table": _PATHS + "SourceTrajectoryConfig", "ccsds": _PATHS + "SourceTrajectoryConfig",
-                      "spice": _PATHS + "SourceTrajectoryConfig"},
+#: the lab's camera paths (``line``, ``orbit``): a world whose plan builds its frames with
+#: :func:`renderlab.worlds.base.frame_specs` may declare them
+CAMERA_PATHS = {"orbit": _PATHS + "TrajectoryConfig", "line": _PATHS + "TrajectoryConfig"}
+#: the trajectories read from the user's files: every lab world declares them, and so may a plug-in world whose plan
+#: takes a camera path (:func:`renderlab.worlds.base.frame_specs` samples them; its frame is the file's)
+FILE_TRAJECTORIES = {"table": _PATHS + "SourceTrajectoryConfig", "ccsds": _PATHS + "SourceTrajectoryConfig",
+                     "spice": _PATHS + "SourceTrajectoryConfig"}
+#: world kind → the pointing a file trajectory without attitude gets (other worlds need the attitude in the files)
+DEFAULT_POINTING = {"earth": "nadir"}
+ANALYTIC = WorldKind("analytic", "renderlab.scenario:AnalyticWorld", {**CAMERA_PATHS, **FILE_TRAJECTORIES},
                      "renderlab.worlds.analytic:make_plan")
 EV5 = WorldKind("ev5", "renderlab.worlds.ev5.config:EV5World",
-                {"ev5_descent": "renderlab.worlds.ev5.config:EV5DescentTrajectory"}, "renderlab.worlds.ev5:make_plan")
+                {"ev5_descent": "renderlab.worlds.ev5.config:EV5DescentTrajectory", **FILE_TRAJECTORIES},
+                "renderlab.worlds.ev5:make_plan")
 EARTH = WorldKind("earth", "renderlab.worlds.earth.config:EarthWorld",
-                  {"leo": "renderlab.worlds.earth.config:LEOTrajectory"}, "renderlab.worlds.earth:make_plan")
+                  {"leo": "renderlab.worlds.earth.config:LEOTrajectory", **FILE_TRAJECTORIES},
+                  "renderlab.worlds.earth:make_plan")
 MICROSAT = WorldKind("microsat", "renderlab.worlds.microsat.config:MicrosatWorld",
-                     {"separation": "renderlab.worlds.microsat.config:SeparationTrajectory"},
+                     {"separation": "renderlab.worlds.microsat.config:SeparationTrajectory", **FILE_TRAJECTORIES},
                      "renderlab.worlds.microsat:make_plan")
 
 

@@ -38,7 +38,8 @@ class TrajectoryConfig(_Strict):
         return self
 
 
-#: trajectory kinds read from the user's files (the analytic world)
+#: trajectory kinds read from the user's files (every lab world takes them; each world says what the file's frame
+#: means to it: docs/scenario_keys.md, "File trajectories in each world")
 SOURCE_KINDS = ("table", "ccsds", "spice")
 _COMMON = {"kind", "frames", "dt_s", "start_s", "times_s", "epoch_utc", "frame", "attitude", "target_m", "up",
            "camera_mount_quat_xyzw", "interpolation"}
@@ -56,6 +57,9 @@ class SourceTrajectoryConfig(_Strict):
     declared ``quaternion_order`` (``xyzw``/``wxyz``) and ``quaternion_direction``
     (``cam_to_frame``/``frame_to_cam``); ``ccsds``: ``oem`` (positions) and ``aem`` (attitude), KVN;
     ``spice``: ``kernels`` with ``observer``, ``center``, ``frame`` and ``camera_frame`` as SPICE spells them.
+
+    Without the attitude keys (``aem``, ``camera_frame``, the table's quaternion keys) the files give positions
+    only and the world's default pointing applies (Earth: nadir); worlds without one refuse the scenario.
 
     Frame k is taken at ``start_s + k·dt_s`` (or ``times_s[k]``): seconds after ``epoch_utc`` (default: the
     source's first epoch; required for ``spice``), or on the table's own ``time_s`` axis. ``attitude =
@@ -78,11 +82,13 @@ class SourceTrajectoryConfig(_Strict):
     file: str | None = Field(None, description="table: CSV or Parquet with time_s or epoch, x_m y_m z_m, qx qy qz "
                              "qw; relative to the scenario file")
     quaternion_order: Literal["xyzw", "wxyz"] | None = Field(None, description="table: component order of the "
-                                                             "file's quaternions")
+                                                             "file's quaternions (without the quaternion keys: "
+                                                             "the world's default pointing, Earth: nadir)")
     quaternion_direction: Literal["cam_to_frame", "frame_to_cam"] | None = Field(
         None, description="table: the rotation the file's quaternions describe")
     oem: str | None = Field(None, description="ccsds: OEM file (positions), KVN, relative to the scenario file")
-    aem: str | None = Field(None, description="ccsds: AEM file (attitude), KVN, relative to the scenario file")
+    aem: str | None = Field(None, description="ccsds: AEM file (attitude), KVN, relative to the scenario file "
+                            "(without it: the world's default pointing, Earth: nadir)")
     kernels: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)] | None = Field(
         None, description="spice: kernel files (or meta-kernels), relative to the scenario file")
     observer: str | None = Field(None, description="ccsds/spice: the camera's body as the source spells it "
@@ -90,7 +96,7 @@ class SourceTrajectoryConfig(_Strict):
     center: str | None = Field(None, description="ccsds/spice: origin of frame (OEM CENTER_NAME, checked; SPICE "
                                "center)")
     camera_frame: str | None = Field(None, description="ccsds: the AEM's camera-side frame (checked); spice: the "
-                                     "camera's SPICE frame (attitude = file)")
+                                     "camera's SPICE frame (attitude = file; without it: the world's default pointing, Earth: nadir)")
     attitude: Literal["file", "look_at"] = Field("file", description="file: the source's attitude; look_at: "
                                                  "ignore it and point the camera at target_m with up up")
     target_m: Vec3 = Field([0.0, 0.0, 0.0], description="look_at: point the camera looks at [m]")
@@ -114,11 +120,13 @@ class SourceTrajectoryConfig(_Strict):
         extra = sorted(given - _COMMON - _OWN[k])
         if extra:
             raise ValueError(f"kind '{k}' does not use '{extra[0]}'")
-        needs = _NEEDS[k] + (_NEEDS_ATTITUDE[k] if self.attitude == "file" else ())
-        missing = [n for n in needs if getattr(self, n) is None]
+        missing = [n for n in _NEEDS[k] if getattr(self, n) is None]
         if missing:
-            raise ValueError(f"kind '{k}' needs '{missing[0]}'"
-                             + (" (or attitude = \"look_at\")" if missing[0] in _NEEDS_ATTITUDE[k] else ""))
+            raise ValueError(f"kind '{k}' needs '{missing[0]}'")
+        att = [n for n in _NEEDS_ATTITUDE[k] if getattr(self, n) is not None]
+        if self.attitude == "file" and att and len(att) < len(_NEEDS_ATTITUDE[k]):
+            gap = next(n for n in _NEEDS_ATTITUDE[k] if n not in att)
+            raise ValueError(f"kind '{k}' needs '{gap}' with '{att[0]}'")
         if self.attitude == "file" and given & {"target_m", "up"}:
             raise ValueError("target_m and up are for attitude = \"look_at\"")
         if k == "spice" and "interpolation" in given:
@@ -129,9 +137,24 @@ class SourceTrajectoryConfig(_Strict):
             if any(b <= a for a, b in zip(self.times_s, self.times_s[1:])):
                 raise ValueError("times_s must increase strictly")
         q = self.camera_mount_quat_xyzw
+        if q is not None and self.attitude == "file" and not att:
+            raise ValueError("camera_mount_quat_xyzw mounts the camera in the attitude file's frame; this "
+                             f"trajectory has no attitude ({' / '.join(_NEEDS_ATTITUDE[k])})")
         if q is not None and abs(sum(v * v for v in q) ** 0.5 - 1.0) > 1e-6:
             raise ValueError("camera_mount_quat_xyzw must be a unit quaternion")
         return self
+
+    def reads_attitude(self) -> bool:
+        """Whether the camera attitude comes from the files (``attitude = "file"`` and the kind's attitude keys
+        given: ``aem``, ``camera_frame`` or the table's quaternion keys). Without them the files give positions
+        only and the world's default pointing applies (Earth: nadir); a world without one refuses the scenario
+        (:meth:`missing_attitude`)."""
+        return self.attitude == "file" and all(getattr(self, n) is not None for n in _NEEDS_ATTITUDE[self.kind])
+
+    def missing_attitude(self) -> str:
+        """The message for a world that needs the attitude from the files and did not get it."""
+        keys = " and ".join(f"'{n}'" for n in _NEEDS_ATTITUDE[self.kind])
+        return f"kind '{self.kind}' needs {keys} (or attitude = \"look_at\")"
 
     def frame_times(self) -> list[float]:
         """Time of every frame on the trajectory's axis (``times_s``, else ``start_s + k·dt_s``)."""

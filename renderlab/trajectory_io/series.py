@@ -147,6 +147,26 @@ class PoseSeries:
             return CubicHermiteSpline(ts, p, self.velocities_m_s, axis=0)(t)
         return CubicSpline(ts, p, axis=0)(t)
 
+    def velocities_at(self, t, method: str = "cubic") -> np.ndarray | None:
+        """Velocities (m/s, shape (len(t), 3)) at series times ``t``: the time derivative of the curve
+        :meth:`positions_at` draws (``linear``: the slope of the segment; a single sample: its own velocity), so
+        positions and velocities agree; None for a single sample without a velocity."""
+        from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+        if self.positions_m is None:
+            raise UserError(f"{self.source}: has no positions")
+        t = self.check_covers(t)
+        ts, p, v = self.times_s, self.positions_m, self.velocities_m_s
+        if len(ts) == 1:
+            return None if v is None else np.repeat(v, len(t), axis=0)
+        if method == "linear":
+            i = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+            return (p[i + 1] - p[i]) / (ts[i + 1] - ts[i])[:, None]
+        if method != "cubic":
+            raise UserError(f"interpolation must be 'cubic' or 'linear', got {method!r}")
+        spline = CubicHermiteSpline(ts, p, v, axis=0) if v is not None else CubicSpline(ts, p, axis=0)
+        return spline(t, 1)
+
     def attitude_at(self, t) -> Rotation:
         """``R_frame_from_cam`` at series times ``t`` (SLERP between samples)."""
         from scipy.spatial.transform import Slerp

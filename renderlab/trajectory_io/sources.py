@@ -32,19 +32,27 @@ class FramePoses:
         Frame times on the trajectory's axis (seconds after the start epoch, or the table's ``time_s``).
     positions_m : numpy.ndarray, shape (n, 3)
         Camera positions in the trajectory frame.
-    rotations : scipy.spatial.transform.Rotation
-        ``R_frame_from_cam`` of every frame.
+    rotations : scipy.spatial.transform.Rotation or None
+        ``R_frame_from_cam`` of every frame; None when the files give positions only (no attitude keys: the
+        world's default pointing applies).
     epochs_utc : list of str or None
         ISO UTC epoch of every frame (None for a relative-time table).
     frame : str
-        The trajectory frame's name.
+        The trajectory frame's name (a table without ``frame``: ``SCENE``).
+    velocities_m_s : numpy.ndarray, shape (n, 3), or None
+        Camera velocities in the trajectory frame: the derivative of the interpolated positions (OEM, table), the
+        SPK state (SPICE, when asked for); None where the source cannot give them.
+    center : str or None
+        The origin of the frame as the source names it (OEM ``CENTER_NAME``, SPICE ``center``; None for a table).
     """
 
     times_s: np.ndarray
     positions_m: np.ndarray
-    rotations: Rotation
+    rotations: Rotation | None
     epochs_utc: list[str] | None
     frame: str
+    velocities_m_s: np.ndarray | None = None
+    center: str | None = None
 
 
 def resolve(base_dir, rel: str, key: str) -> Path:
@@ -74,7 +82,7 @@ def _read_ccsds(traj, base_dir) -> tuple[PoseSeries, PoseSeries | None]:
         if want is not None and want.strip().upper() != str(have).strip().upper():
             raise UserError(f"trajectory.{key} {want!r} is not {oem.source}'s "
                             f"{'OBJECT_NAME' if key == 'observer' else 'CENTER_NAME'} {have!r}")
-    if traj.attitude != "file":
+    if not traj.reads_attitude():
         return oem, None
     aem = read_aem(resolve(base_dir, traj.aem, "aem"), frame=oem.frame)
     if aem.object_name.strip().upper() != oem.object_name.strip().upper():
@@ -91,8 +99,8 @@ def _read_files(traj, base_dir) -> tuple[PoseSeries, PoseSeries | None]:
 
         s = read_table(resolve(base_dir, traj.file, "file"), quaternion_order=traj.quaternion_order,
                        quaternion_direction=traj.quaternion_direction, frame=traj.frame or "SCENE",
-                       attitude=traj.attitude == "file")
-        return s, (s if traj.attitude == "file" else None)
+                       attitude=traj.reads_attitude())
+        return s, (s if traj.reads_attitude() else None)
     if traj.kind == "ccsds":
         return _read_ccsds(traj, base_dir)
     raise UserError(f"trajectory.kind {traj.kind!r} is not a file trajectory")
@@ -113,14 +121,15 @@ def _offset(series: PoseSeries, start: Epoch | None) -> float:
     return 0.0 if start is None else start.minus(series.epoch0)
 
 
-def _spice(traj, base_dir, t: np.ndarray) -> tuple[np.ndarray, Rotation | None, Epoch]:
+def _spice(traj, base_dir, t: np.ndarray, velocities: bool):
     from renderlab.trajectory_io.spice import read_spice
 
     kernels = [resolve(base_dir, k, f"kernels.{i}") for i, k in enumerate(traj.kernels)]
     s = read_spice(kernels, observer=traj.observer, center=traj.center, frame=traj.frame,
-                   camera_frame=traj.camera_frame if traj.attitude == "file" else None,
-                   epoch_utc=traj.epoch_utc, times_s=t)
-    return s.positions_m, (Rotation.from_quat(s.quat_xyzw) if s.quat_xyzw is not None else None), s.epoch0
+                   camera_frame=traj.camera_frame if traj.reads_attitude() else None,
+                   epoch_utc=traj.epoch_utc, times_s=t, velocities=velocities)
+    rots = Rotation.from_quat(s.quat_xyzw) if s.quat_xyzw is not None else None
+    return s.positions_m, rots, s.epoch0, s.velocities_m_s
 
 
 def _look_at(traj, positions: np.ndarray) -> Rotation:
@@ -135,7 +144,7 @@ def _look_at(traj, positions: np.ndarray) -> Rotation:
     return Rotation.from_quat(np.array(rots))
 
 
-def frame_poses(traj, base_dir=None) -> FramePoses:
+def frame_poses(traj, base_dir=None, velocities: bool = False) -> FramePoses:
     """Read the trajectory's files and sample the camera pose of every frame (module docstring).
 
     Parameters
@@ -144,6 +153,9 @@ def frame_poses(traj, base_dir=None) -> FramePoses:
         The scenario's ``[trajectory]`` (kind ``table``, ``ccsds`` or ``spice``).
     base_dir : path, optional
         The scenario folder (relative file names resolve against it; default: the working directory).
+    velocities : bool
+        Ask SPICE for velocities too (``spkezr``); tables and OEMs always give them (the derivative of the
+        interpolated positions).
 
     Raises
     ------
@@ -152,17 +164,19 @@ def frame_poses(traj, base_dir=None) -> FramePoses:
     """
     t = np.asarray(traj.frame_times(), float)
     if traj.kind == "spice":
-        positions, rots, start = _spice(traj, base_dir, t)
-        frame = traj.frame
+        positions, rots, start, vel = _spice(traj, base_dir, t, velocities)
+        frame, center = traj.frame, traj.center
     else:
         pos, att = _read_files(traj, base_dir)
         start = _start(traj, pos)
         positions = pos.positions_at(t + _offset(pos, start), traj.interpolation)
+        vel = pos.velocities_at(t + _offset(pos, start), traj.interpolation)
         rots = att.attitude_at(t + _offset(att, start)) if att is not None else None  # (see series.check_covers)
-        frame = pos.frame
-    if rots is None:
+        frame, center = pos.frame, pos.center_name
+    if traj.attitude == "look_at":
         rots = _look_at(traj, positions)
-    elif traj.camera_mount_quat_xyzw is not None:
+    elif rots is not None and traj.camera_mount_quat_xyzw is not None:
         rots = rots * Rotation.from_quat(traj.camera_mount_quat_xyzw)
     epochs = None if start is None else [start.plus(float(v)).iso("UTC", 6) for v in t]
-    return FramePoses(times_s=t, positions_m=positions, rotations=rots, epochs_utc=epochs, frame=frame)
+    return FramePoses(times_s=t, positions_m=positions, rotations=rots, epochs_utc=epochs, frame=frame,
+                      velocities_m_s=vel, center=center)

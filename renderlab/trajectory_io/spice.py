@@ -1,7 +1,8 @@
 """Camera poses from SPICE kernels (``spiceypy``): SPK positions, CK/FK attitude, at the frame epochs.
 
 The kernels (SPK, CK, FK, PCK, LSK, SCLK, or a meta-kernel) are loaded for the call and unloaded after it.
-Positions: ``spkpos(observer, et, frame, "NONE", center)`` (geometric, no light time), km → m. Attitude:
+Positions: ``spkpos(observer, et, frame, "NONE", center)`` (geometric, no light time), km → m (``spkezr`` states
+when velocities are asked for). Attitude:
 ``pxform(camera_frame, frame, et)``, the matrix mapping camera-frame coordinates to ``frame`` coordinates
 (``R_frame_from_cam``); the camera frame must have the lab's axes (+z boresight, +x right, +y down) or be mounted
 with the scenario's ``camera_mount_quat_xyzw``. SPICE interpolates as each kernel's type says (no second
@@ -85,14 +86,19 @@ def _check_names(observer: str, center: str, frames: dict[str, str]) -> None:
                             "loaded FK)")
 
 
-def _sample(observer, center, frame, camera_frame, ets, labels):
+def _sample(observer, center, frame, camera_frame, ets, labels, velocities: bool = False):
     import spiceypy as sp
     from spiceypy.utils.exceptions import SpiceyError
 
     pos, quat = np.empty((len(ets), 3)), None if camera_frame is None else np.empty((len(ets), 4))
+    vel = np.empty((len(ets), 3)) if velocities else None
     for k, et in enumerate(ets):
         try:
-            pos[k] = np.asarray(sp.spkpos(observer, et, frame, "NONE", center)[0]) * 1e3
+            if velocities:
+                state = np.asarray(sp.spkezr(observer, et, frame, "NONE", center)[0]) * 1e3
+                pos[k], vel[k] = state[:3], state[3:]
+            else:
+                pos[k] = np.asarray(sp.spkpos(observer, et, frame, "NONE", center)[0]) * 1e3
         except SpiceyError as err:
             cov = _spk_coverage(sp.bods2c(observer))
             raise UserError(f"trajectory: {labels[k]} at {_utc(et)} is outside the SPK coverage of {observer!r} "
@@ -104,11 +110,11 @@ def _sample(observer, center, frame, camera_frame, ets, labels):
         except SpiceyError as err:
             raise UserError(f"trajectory: {labels[k]} at {_utc(et)} is outside the CK coverage of {camera_frame!r} "
                             f"in {frame!r} (CK coverage: {_ck_coverage(camera_frame)}; {err.short})") from None
-    return pos, quat
+    return pos, quat, vel
 
 
 def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame: str | None, epoch_utc: str,
-               times_s) -> PoseSeries:
+               times_s, velocities: bool = False) -> PoseSeries:
     """Camera positions (and attitude) from SPICE at ``epoch_utc + times_s``.
 
     Parameters
@@ -125,6 +131,8 @@ def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame:
         UTC epoch of time 0 (SPICE ``str2et`` syntax; ISO recommended).
     times_s : array_like
         Frame times, seconds after ``epoch_utc``.
+    velocities : bool
+        Also the observer's velocities (``spkezr`` states instead of ``spkpos`` positions).
 
     Raises
     ------
@@ -157,10 +165,10 @@ def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame:
         _check_names(observer, center, {"frame": frame, **({"camera_frame": camera_frame} if camera_frame else {})})
         times = np.asarray(times_s, float)
         labels = [f"frame {k}" for k in range(len(times))]
-        pos, quat = _sample(observer, center, frame, camera_frame, et0 + times, labels)
+        pos, quat, vel = _sample(observer, center, frame, camera_frame, et0 + times, labels, velocities)
     finally:
         for f in reversed(loaded):
             sp.unload(f)
     return PoseSeries(times_s=times, positions_m=pos, quat_xyzw=quat, frame=frame, epoch0=Epoch.from_et(et0),
-                      source="SPICE kernels", attitude_frame=camera_frame, object_name=observer, center_name=center,
+                      velocities_m_s=vel, source="SPICE kernels", attitude_frame=camera_frame, object_name=observer, center_name=center,
                       labels=tuple(labels))

@@ -22,4 +22,4 @@ def make_plan(scenario, base_dir):
     check_installed()
     from renderlab.worlds.earth.plan import EarthPlan
 
-    return EarthPlan.from_scenario(scenario)
+    return EarthPlan.from_scenario(scenario, base_dir)

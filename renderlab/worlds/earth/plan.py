@@ -5,7 +5,8 @@ eqs. 10-12), RK4 two-body + J2, or the high-fidelity truth propagator
 (:mod:`renderlab.dynamics.truth_orbit`, ``trajectory.truth_model = "zonal_dop853"``); the true attitude is nadir
 (plus an optional seeded pointing error); the star tracker's reported attitude (noise σ) goes to the manifest for
 the estimators. Earth orientation (GCRF → ITRF, :mod:`.orientation`) and the sun (:mod:`.sun`) are computed for
-all frame epochs at once.
+all frame epochs at once. A file trajectory (``table``, ``ccsds``, ``spice``) replaces the orbit and, where the
+files give one, the attitude (:mod:`.file_trajectory`); everything after the spacecraft state is the same.
 
 Frames named in the manifest (each frame record's ``frames``): ``inertial = "GCRF"`` (every ``*_eci`` key),
 ``earth_fixed = "ITRF"`` (every ``*_ecef`` key, the WGS-84 ellipsoid), ``render = "ENU_TILE"`` (the frame's own
@@ -17,6 +18,7 @@ true GCRF/ITRF state, the GCRF→ITRF rotation with the Earth orientation parame
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from datetime import timedelta
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -58,50 +60,90 @@ def truth_orbit(tr, epoch, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return el.state(t)
 
 
+@dataclass(frozen=True)
+class FrameOrbit:
+    """The spacecraft of every frame, whatever the trajectory: GCRF state, true attitude, what the star tracker
+    reports, the epochs and Earth orientation (the ``leo`` orbit: :func:`leo_orbit`; a file trajectory:
+    :func:`renderlab.worlds.earth.file_trajectory.file_orbit`)."""
+
+    camera: CameraModel
+    epoch: object                 # datetime (UTC) of elapsed time 0
+    time_s: np.ndarray            # (N,) frame times on the trajectory's axis
+    elapsed_s: np.ndarray         # (N,) SI seconds after ``epoch`` (Earth orientation, sun)
+    epochs_utc: list              # (N,) ISO UTC of each frame (the manifest's epoch_utc)
+    r_eci: np.ndarray             # (N, 3) GCRF position, m
+    v_eci: np.ndarray             # (N, 3) GCRF velocity, m/s
+    R_eci_from_cam: np.ndarray    # (N, 3, 3) true attitude
+    R_eci_from_cam_st: np.ndarray  # (N, 3, 3) the star tracker's
+    eo: object                    # orientation.EarthOrientation at the frame epochs
+    model: str                    # the manifest's truth_orbit_model
+    star_tracker_sigma_arcsec: float
+
+
+def leo_orbit(scenario) -> FrameOrbit:
+    """The ``leo`` trajectory's frames: the orbit of ``truth_model``, nadir attitude (+ seeded pointing error)."""
+    w, tr = scenario.world, scenario.trajectory
+    if tr.fov_deg is not None:
+        c = scenario.camera
+        camera = CameraModel.from_fov(c.width, c.height, tr.fov_deg, model=c.model, distortion=c.distortion)
+    else:
+        camera = CameraModel.from_dict(scenario.camera.model_dump())
+    epoch = wgs84.parse_epoch(tr.epoch_utc)
+    t = tr.start_s + tr.dt_s * np.arange(tr.frames)
+    r, v = truth_orbit(tr, epoch, t)
+    R_eci_cam = nadir_attitude(r, v)
+    rng = np.random.default_rng(np.random.SeedSequence([w.seed, 0xA77]))
+    if tr.pointing_error_deg > 0:
+        R_eci_cam = star_tracker_attitude(R_eci_cam, np.radians(tr.pointing_error_deg), rng)
+    R_st = star_tracker_attitude(R_eci_cam, np.radians(tr.star_tracker_sigma_arcsec / 3600.0), rng)
+    model = tr.truth_model if tr.truth_model != "j2_rk4" else ("rk4_two_body_j2" if tr.j2 else "kepler_two_body")
+    stamps = [(epoch + timedelta(seconds=float(tk))).isoformat().replace("+00:00", "Z") for tk in t]
+    return FrameOrbit(camera, epoch, t, t, stamps, r, v, R_eci_cam, R_st, orientation.earth_orientation(epoch, t),
+                      model, float(tr.star_tracker_sigma_arcsec))
+
+
 @dataclass
 class EarthPlan(WorldPlan):
     world: object = None
     traj: object = None
     epoch: object = None
     states: list = field(default_factory=list)  # per frame dict of arrays
+    orbit_model: str = ""
+    star_tracker_sigma_arcsec: float = 0.0
     _scene_cache: dict = field(default_factory=dict)
 
     @classmethod
-    def from_scenario(cls, scenario) -> "EarthPlan":
-        w, tr = scenario.world, scenario.trajectory
-        if tr.fov_deg is not None:
-            c = scenario.camera
-            camera = CameraModel.from_fov(c.width, c.height, tr.fov_deg, model=c.model, distortion=c.distortion)
+    def from_scenario(cls, scenario, base_dir=None) -> "EarthPlan":
+        """The plan of a scenario: the ``leo`` orbit, or a file trajectory (relative paths against ``base_dir``,
+        the scenario folder; :mod:`.file_trajectory`)."""
+        if scenario.trajectory.kind == "leo":
+            orbit = leo_orbit(scenario)
         else:
-            camera = CameraModel.from_dict(scenario.camera.model_dump())
-        epoch = wgs84.parse_epoch(tr.epoch_utc)
-        t = tr.start_s + tr.dt_s * np.arange(tr.frames)
-        r, v = truth_orbit(tr, epoch, t)
-        jd = wgs84.julian_date(epoch, t)
-        eo = orientation.earth_orientation(epoch, t)
+            from renderlab.worlds.earth.file_trajectory import file_orbit
+
+            orbit = file_orbit(scenario, base_dir)
+        eo, r, v = orbit.eo, orbit.r_eci, orbit.v_eci
+        jd = wgs84.julian_date(orbit.epoch, orbit.elapsed_s)
         R_ef = eo.R_itrf_from_gcrf
         r_ef, v_ef = eo.to_itrf(r, v)
-        R_eci_cam = nadir_attitude(r, v)
-        rng = np.random.default_rng(np.random.SeedSequence([w.seed, 0xA77]))
-        if tr.pointing_error_deg > 0:
-            R_eci_cam = star_tracker_attitude(R_eci_cam, np.radians(tr.pointing_error_deg), rng)
-        R_st = star_tracker_attitude(R_eci_cam, np.radians(tr.star_tracker_sigma_arcsec / 3600.0), rng)
         s_eci, dist_au = sunmod.sun_gcrf(eo.time)
         frames, states = [], []
-        for k in range(len(t)):
+        for k, tk in enumerate(orbit.time_s):
             pos, vel = r_ef[k], v_ef[k]
-            R_ecef_cam = R_ef[k] @ R_eci_cam[k]
+            R_ecef_cam = R_ef[k] @ orbit.R_eci_from_cam[k]
             tile = tiles.TileFrame.at_boresight(pos, R_ecef_cam)
             R_ren = tile.R_ecef_from_render
             s_ecef = R_ef[k] @ s_eci[k]
-            pose = CameraPose(float(t[k]), tile.to_render(pos), Rotation.from_matrix(R_ren.T @ R_ecef_cam))
+            pose = CameraPose(float(tk), tile.to_render(pos), Rotation.from_matrix(R_ren.T @ R_ecef_cam))
             sun = SunSpec(R_ren.T @ s_ecef, float(sunmod.sun_irradiance(dist_au[k])))
-            frames.append(FrameSpec(k, pose, camera, sun))
-            states.append(dict(t=float(t[k]), jd=float(jd[k]), r_eci=r[k], v_eci=v[k], r_ecef=pos, v_ecef=vel,
-                               R_ecef_from_eci=R_ef[k], R_ecef_from_cam=R_ecef_cam, R_eci_from_cam_st=R_st[k],
-                               sun_eci=s_eci[k], sun_ecef=s_ecef, tile=tile, earth_orientation=eo.record(k)))
+            frames.append(FrameSpec(k, pose, orbit.camera, sun))
+            states.append(dict(t=float(tk), jd=float(jd[k]), r_eci=r[k], v_eci=v[k], r_ecef=pos, v_ecef=vel,
+                               R_ecef_from_eci=R_ef[k], R_ecef_from_cam=R_ecef_cam,
+                               R_eci_from_cam_st=orbit.R_eci_from_cam_st[k], sun_eci=s_eci[k], sun_ecef=s_ecef,
+                               tile=tile, earth_orientation=eo.record(k), epoch_utc=orbit.epochs_utc[k]))
         return cls(frames=frames, render_frame={"name": "ENU_TILE", "parent_frame": "ITRF", "inertial_frame": "GCRF"},
-                   world=w, traj=tr, epoch=epoch, states=states)
+                   world=scenario.world, traj=scenario.trajectory, epoch=orbit.epoch, states=states,
+                   orbit_model=orbit.model, star_tracker_sigma_arcsec=orbit.star_tracker_sigma_arcsec)
 
     # ------------------------------------------------------------------ scenes
     def scene_key(self, spec: FrameSpec):
@@ -163,16 +205,13 @@ class EarthPlan(WorldPlan):
         st = self.states[spec.index]
         vec = lambda a: [float(x) for x in np.ravel(a)]  # noqa: E731
         mat = lambda a: [[float(x) for x in row] for row in a]  # noqa: E731
-        from datetime import timedelta
-
         return {
             "bodies": {b.name: b.state() for b in scene.bodies},
             "render_frame": {**st["tile"].to_dict(), "parent_frame": "ITRF"},
             "frames": dict(FRAMES),
             "earth_orientation": st["earth_orientation"],
-            "truth_orbit_model": self.traj.truth_model if self.traj.truth_model != "j2_rk4"
-            else ("rk4_two_body_j2" if self.traj.j2 else "kepler_two_body"),
-            "epoch_utc": (self.epoch + timedelta(seconds=st["t"])).isoformat().replace("+00:00", "Z"),
+            "truth_orbit_model": self.orbit_model,
+            "epoch_utc": st["epoch_utc"],
             "julian_date_utc": st["jd"],
             "spacecraft": {"r_eci_m": vec(st["r_eci"]), "v_eci_mps": vec(st["v_eci"]),
                            "r_ecef_m": vec(st["r_ecef"]), "v_ecef_mps": vec(st["v_ecef"]),
@@ -180,7 +219,7 @@ class EarthPlan(WorldPlan):
                            "quat_ecef_from_cam_xyzw": vec(Rotation.from_matrix(st["R_ecef_from_cam"]).as_quat()),
                            "star_tracker_quat_eci_from_cam_xyzw":
                                vec(Rotation.from_matrix(st["R_eci_from_cam_st"]).as_quat()),
-                           "star_tracker_sigma_arcsec": float(self.traj.star_tracker_sigma_arcsec)},
+                           "star_tracker_sigma_arcsec": self.star_tracker_sigma_arcsec},
             "sun_eci": vec(st["sun_eci"]), "sun_ecef": vec(st["sun_ecef"]),
             "gsd_m": self.gsd_m(spec.index),
         }

@@ -1,7 +1,8 @@
 """EV5 world: procedural 2008 EV5, boulder-field landing site, maplet catalog, descent, landmark truth.
 
 Render frame = EV5 body-fixed frame (``EV5_FIXED``): the asteroid is static; the camera and the
-sun move per frame (:mod:`.descent`), so one Mitsuba scene serves every frame. Bodies: id 0 the
+sun move per frame (:mod:`.descent`, or the user's file trajectory in ``EV5_FIXED``: :mod:`.file_trajectory`), so
+one Mitsuba scene serves every frame. Bodies: id 0 the
 global mesh (:mod:`.shape`, cut under the site), id 1 the landing-site DEM (:mod:`.site`; with
 ``world.site.lod`` as tiles with levels of detail chosen per frame, :mod:`.tiles`). The built shape and
 site are cached in the lab cache by content key (:mod:`.world_cache`). The
@@ -130,32 +131,47 @@ def _rounded(value, digits: int = 10):
 
 
 def make_plan(scenario, base_dir: Path):
-    """World plan of an EV5 descent scenario (module docstring)."""
+    """World plan of an EV5 scenario (module docstring): the descent, or a file trajectory in ``EV5_FIXED``
+    (:mod:`.file_trajectory`)."""
     from renderlab.geometry.camera import CameraModel
     from renderlab.render.scene import FrameSpec, SceneDescription, SunSpec
     from renderlab.worlds.base import WorldPlan
     from renderlab.worlds.ev5.descent import descent_states
     from renderlab.worlds.ev5.landmark_truth import landmark_rows
 
+    traj = scenario.trajectory
+    poses = None
+    if traj.kind != "ev5_descent":  # a file trajectory (.file_trajectory): read and checked before the world build
+        from renderlab.worlds.ev5.file_trajectory import file_poses
+
+        poses = file_poses(traj, Path(base_dir))
     model = build_model(scenario.world, Path(base_dir))
     camera = CameraModel.from_dict(scenario.camera.model_dump())
-    states = descent_states(scenario.trajectory, model.spin, model.site.origin_m, model.site.R_body_from_site)
+    if poses is None:
+        states = descent_states(traj, model.spin, model.site.origin_m, model.site.R_body_from_site)
+    else:
+        from renderlab.worlds.ev5.file_trajectory import file_states
+
+        states = file_states(poses, scenario.sun.direction, model.spin, model.site.origin_m,
+                             model.site.R_body_from_site)
     irr = scenario.sun.irradiance_w_m2
     frames = [FrameSpec(index=k, pose=s.pose, camera=camera,
                         sun=SunSpec(direction_render=s.sun_dir_body, irradiance_w_m2=irr)) for k, s in enumerate(states)]
 
     epoch0 = None
-    if scenario.trajectory.epoch_utc:
+    if traj.epoch_utc and poses is None:
         from renderlab.trajectory_io.timescales import parse_epoch
 
-        epoch0 = parse_epoch(scenario.trajectory.epoch_utc, "UTC", "trajectory.epoch_utc")
+        epoch0 = parse_epoch(traj.epoch_utc, "UTC", "trajectory.epoch_utc")
 
     class EV5Plan(WorldPlan):
         def frame_meta(self, spec, scene):
             st = states[spec.index]
             T = model.spin.T_eclip_from_body(st.time_s)
-            epoch = {} if epoch0 is None else {"epoch_utc": epoch0.plus(st.time_s).iso("UTC", 6)}
-            ev5 = {"altitude_m": st.altitude_m, "spin_matched": st.spin_matched, "spin": model.spin.to_dict(st.time_s),
+            stamp = st.pose.epoch_utc or (None if epoch0 is None else epoch0.plus(st.time_s).iso("UTC", 6))
+            epoch = {} if stamp is None else {"epoch_utc": stamp}
+            matched = {} if st.spin_matched is None else {"spin_matched": st.spin_matched}  # descent only
+            ev5 = {"altitude_m": st.altitude_m, **matched, "spin": model.spin.to_dict(st.time_s),
                    "sun_direction_eclip": [float(v) for v in T.apply(st.sun_dir_body)]}
             bodies = {b.name: b.state() for b in scene.bodies}
             for t in scene.tiled:  # the tiles and levels this frame rendered (renderlab.worlds.ev5.tiles)

@@ -29,13 +29,14 @@ from renderlab.geometry.rotations import look_at
 
 @dataclass(frozen=True)
 class DescentState:
-    """One sample of the descent: time, altitude, camera pose and sun (body frame)."""
+    """One sample of the descent: time, altitude, camera pose and sun (body frame); ``spin_matched`` None for a
+    file trajectory (:mod:`.file_trajectory`)."""
 
     time_s: float
     altitude_m: float
     pose: CameraPose
     sun_dir_body: np.ndarray
-    spin_matched: bool
+    spin_matched: bool | None
 
 
 class DescentProfile:

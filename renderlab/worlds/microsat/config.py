@@ -22,6 +22,28 @@ def _nonzero(v, name):
         raise ValueError(f"{name} must be a non-zero vector")
 
 
+class MicrosatTumble(Strict):
+    """The target's tumble under a file trajectory (``[world.tumble]``; the ``separation`` trajectory sets it with
+    its own keys): attitude and absolute body rate at trajectory time 0, propagated by Euler + gravity gradient on
+    the chaser's circular orbit of ``altitude_m``. Defaults: those of the ``separation`` trajectory."""
+
+    q0_lvlh_from_body_xyzw: Annotated[list[Finite], Field(min_length=4, max_length=4)] = Field(
+        [0.2, -0.1, 0.3, 0.93], description="Target attitude at trajectory time 0 (normalised), x y z w")
+    omega0_body_deg_s: Vec3 = Field([1.5, 3.6, 1.5], description="Absolute body rate of the target at trajectory "
+                                    "time 0, body axes [deg/s]")
+    altitude_m: Annotated[float, Field(gt=100e3, lt=50000e3, allow_inf_nan=False)] = Field(
+        600e3, description="Circular orbit altitude of the chaser (mean motion, gravity gradient, the sun's turn in "
+        "LVLH) [m]")
+    attitude_substeps: Annotated[int, Field(ge=1, le=1000)] = Field(10, description="Attitude integration steps "
+                                                                    "per frame interval")
+
+    @model_validator(mode="after")
+    def _checks(self):
+        if math.hypot(*self.q0_lvlh_from_body_xyzw) < 1e-9:
+            raise ValueError("q0_lvlh_from_body_xyzw must be a non-zero quaternion")
+        return self
+
+
 class MicrosatWorld(Strict):
     """A Chibis-M-like microsatellite: bus, two solar panels, long thin antennas whose tips carry small
     bright knobs (the reference features). Body frame = principal axes, origin at the centre of mass."""
@@ -45,6 +67,9 @@ class MicrosatWorld(Strict):
     albedo_antenna: Albedo = Field(0.25, description="Albedo of the antennas")
     albedo_knob: Albedo = Field(0.9, description="Albedo of the antenna-tip knobs")
     sun_lvlh: Vec3 = Field([0.4, 0.7, 0.5], description="Toward the sun at t = 0, chaser LVLH frame (non-zero)")
+    tumble: MicrosatTumble | None = Field(None, description="The target's tumble under a file trajectory "
+                                          "([world.tumble]; default: the separation trajectory's defaults); the "
+                                          "separation trajectory sets it with its own keys")
 
     @model_validator(mode="after")
     def _checks(self):

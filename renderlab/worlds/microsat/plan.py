@@ -12,6 +12,9 @@ loaded once. Per frame t_k = k·dt:
   ``position_body = Rᵀ(d − r)`` and ``R_body_from_cam = Rᵀ R_lvlh_from_cam`` (eq. 3 read backwards);
 * the sun is inertially fixed, seen in LVLH as ``Rz(−n t) s0``. No Earth in the view: the
   background is black space (the paper's algorithm needs a dark background, §4).
+
+A file trajectory (``table``, ``ccsds``, ``spice``) replaces the Clohessy-Wiltshire motion and the fixed camera by
+the camera's own LVLH pose relative to the target (:mod:`.file_trajectory`); the tumble and the sun stay.
 """
 
 from __future__ import annotations
@@ -44,9 +47,15 @@ class SeparationTruth:
     inertia: np.ndarray          # (3,)
     n: float                     # mean motion, rad/s
     camera_offset_lvlh: np.ndarray
-    R_lvlh_from_cam: np.ndarray
+    R_lvlh_from_cam: np.ndarray  # (3, 3), or (N, 3, 3) for a file trajectory
     sun_lvlh: np.ndarray         # (N, 3)
     features_body: np.ndarray    # (M, 3)
+    epochs_utc: list | None = None  # ISO UTC of each frame (a file trajectory with epochs)
+
+    def R_lc(self, k: int) -> np.ndarray:
+        """``R_lvlh_from_cam`` of frame k."""
+        R = np.asarray(self.R_lvlh_from_cam)
+        return R if R.ndim == 2 else R[k]
 
 
 def separation_truth(scenario, features_body: np.ndarray) -> SeparationTruth:
@@ -72,14 +81,17 @@ class MicrosatPlan(WorldPlan):
 
     def frame_meta(self, spec: FrameSpec, scene: SceneDescription) -> dict:
         k, t = spec.index, self.truth
+        epoch = {} if t.epochs_utc is None else {"epoch_utc": t.epochs_utc[k]}
+        v = t.rv_lvlh[k, 3:]
         return {
             "bodies": {b.name: b.state() for b in scene.bodies},
+            **epoch,
             "microsat": {
-                "r_lvlh_m": t.rv_lvlh[k, :3].tolist(), "v_lvlh_mps": t.rv_lvlh[k, 3:].tolist(),
+                "r_lvlh_m": t.rv_lvlh[k, :3].tolist(), "v_lvlh_mps": v.tolist() if np.isfinite(v).all() else None,
                 "quat_lvlh_from_body_xyzw": t.quat_lvlh_from_body[k].tolist(),
                 "omega_body_rad_s": t.omega_body[k].tolist(), "inertia_kg_m2": t.inertia.tolist(),
                 "mean_motion_rad_s": t.n, "camera_offset_lvlh_m": t.camera_offset_lvlh.tolist(),
-                "quat_lvlh_from_cam_xyzw": Rotation.from_matrix(t.R_lvlh_from_cam).as_quat().tolist(),
+                "quat_lvlh_from_cam_xyzw": Rotation.from_matrix(t.R_lc(k)).as_quat().tolist(),
                 "sun_lvlh": t.sun_lvlh[k].tolist(),
             },
         }
@@ -126,12 +138,21 @@ def feature_truth_rows(spec: FrameSpec, rendered: RenderedFrame, features_body, 
 
 
 def make_plan(scenario, base_dir) -> MicrosatPlan:
-    """The microsat world plan: one static scene in the target body frame, camera and sun per frame."""
+    """The microsat world plan: one static scene in the target body frame, camera and sun per frame (the
+    separation, or a file trajectory: :mod:`.file_trajectory`)."""
     from renderlab.photometry import make_law
 
-    if scenario.trajectory.kind != "separation":
-        raise UserError(f"world.kind 'microsat' needs trajectory.kind 'separation', got '{scenario.trajectory.kind}'")
+    file_kind = scenario.trajectory.kind != "separation"
+    if not file_kind and scenario.world.tumble is not None:
+        raise UserError("world.tumble: the separation trajectory sets the tumble itself (q0_lvlh_from_body_xyzw, "
+                        "omega0_body_deg_s, altitude_m); [world.tumble] is for file trajectories")
     parts, tips = build_parts(scenario.world)
+    if file_kind:
+        from .file_trajectory import file_truth
+
+        truth = file_truth(scenario, base_dir, tips)
+    else:
+        truth = separation_truth(scenario, tips)
     law = make_law("lambert")
     bodies, knob_ids = [], []
     for p in parts:
@@ -142,18 +163,19 @@ def make_plan(scenario, base_dir) -> MicrosatPlan:
         bodies.append(BodySpec(name=p.name, body_id=bid, shape="trimesh", center_m=np.zeros(3),
                                R_render_from_body=np.eye(3), law=law, albedo=p.albedo,
                                vertices=p.vertices, faces=p.faces))
-    truth = separation_truth(scenario, tips)
     camera = CameraModel.from_dict(scenario.camera.model_dump())
     E = scenario.sun.irradiance_w_m2
     frames = []
     for k, t in enumerate(truth.times_s):
         R_lb = Rotation.from_quat(truth.quat_lvlh_from_body[k]).as_matrix()
         pos_b = R_lb.T @ (truth.camera_offset_lvlh - truth.rv_lvlh[k, :3])
-        R_bc = R_lb.T @ truth.R_lvlh_from_cam
+        R_bc = R_lb.T @ truth.R_lc(k)
         if (R_bc.T @ -pos_b)[2] <= 0:
             raise UserError(f"trajectory: at frame {k} the target is behind the camera "
-                            "(check r0_lvlh_m, camera_offset_lvlh_m and camera_boresight_lvlh)")
-        frames.append(FrameSpec(index=k, pose=CameraPose(float(t), pos_b, Rotation.from_matrix(R_bc)),
+                            + ("(check the file's positions and attitude: LVLH, the camera relative to the target)"
+                               if file_kind else "(check r0_lvlh_m, camera_offset_lvlh_m and camera_boresight_lvlh)"))
+        epoch = None if truth.epochs_utc is None else truth.epochs_utc[k]
+        frames.append(FrameSpec(index=k, pose=CameraPose(float(t), pos_b, Rotation.from_matrix(R_bc), epoch),
                                 camera=camera, sun=SunSpec(R_lb.T @ truth.sun_lvlh[k], E)))
     return MicrosatPlan(frames=frames, render_frame={"name": "MICROSAT_BODY"},
                         static_scene=SceneDescription(bodies=bodies, render_frame={"name": "MICROSAT_BODY"}),
