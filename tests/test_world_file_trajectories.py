@@ -15,7 +15,8 @@ project onto their bodies, the Earth's sub-satellite point (geodetic, by a fixed
 where the position AOV interpolated at OpenCV's pixel says. The sun: EV5's turns with the spin from ``[sun]`` at
 time 0, the microsat's from ``world.sun_lvlh`` with the mean motion; frame 0 at time 0 carries the tumble's q0.
 Bad inputs (a frame the world cannot use, no attitude, no epochs for the Earth) are one line, exit 2, nothing
-written.
+written. A plug-in world that declares the file kinds (``renderlab.scenario.kinds.FILE_TRAJECTORIES``) flies one
+through ``frame_specs``; without them the scenario is refused.
 """
 
 from __future__ import annotations
@@ -426,3 +427,49 @@ def test_bad_file_trajectories_are_one_line(tmp_path, capsys, case):
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err.count("\n") == 0 and err.startswith("renderlab: error: ") and needle in err, err
     assert not (tmp_path / "out").exists() and not list(tmp_path.glob(".out*"))
+
+
+# ---------------------------------------------------------------------- a plug-in world declares the file kinds
+def test_plugin_world_that_declares_file_trajectories_flies_one(tmp_path):
+    from typing import Literal
+
+    from renderlab import plugins
+    from renderlab.config_types import Strict
+    from renderlab.contracts.world import WorldKind
+    from renderlab.errors import UserError
+    from renderlab.scenario import load_scenario
+    from renderlab.scenario.kinds import CAMERA_PATHS, FILE_TRAJECTORIES
+
+    class Rock(Strict):
+        kind: Literal["rock"] = "rock"
+
+    def rock_plan(scenario, base_dir):
+        from renderlab.photometry import make_law
+        from renderlab.render.scene import BodySpec, SceneDescription
+        from renderlab.worlds.base import WorldPlan, frame_specs
+
+        body = BodySpec(name="rock", body_id=0, shape="sphere", center_m=np.zeros(3), R_render_from_body=np.eye(3),
+                        law=make_law("lambert"), albedo=0.2, radius_m=150.0)
+        return WorldPlan(frames=frame_specs(scenario, base_dir), render_frame={"name": "ROCK_FIXED"},
+                         static_scene=SceneDescription(bodies=[body], render_frame={"name": "ROCK_FIXED"}))
+
+    pos, vel, rots = ev5_truth(T_SAMPLES)
+    quat = write_csv(tmp_path / "traj.csv", pos, vel, rots)
+    text = (f'[world]\nkind = "rock"\n{CAMERA.format(f=30.0)}[render]\nspp = 1\nnear_clip_m = 1.0\n'
+            f'[trajectory]\nkind = "table"\nfile = "traj.csv"\n{quat}times_s = {T_FRAMES}\n')
+    plugins.worlds.register("rock", WorldKind("rock", Rock, {**CAMERA_PATHS, **FILE_TRAJECTORIES}, rock_plan))
+    try:
+        frames, chans = render(tmp_path, text)
+        for k, (rec, ch) in enumerate(zip(frames, chans)):
+            i = int(np.flatnonzero(T_SAMPLES == T_FRAMES[k])[0])
+            assert np.abs(np.array(rec["pose"]["position_m"]) - pos[i]).max() < 1e-6
+            assert reprojection_px(ch, rots[i], pos[i], rec) < 1e-3
+    finally:
+        plugins.worlds.unregister("rock")
+    plugins.worlds.register("rock", WorldKind("rock", Rock, dict(CAMERA_PATHS), rock_plan))
+    try:
+        (tmp_path / "sc.toml").write_text(text)
+        with pytest.raises(UserError, match="trajectory.kind 'table' does not fit world.kind 'rock'"):
+            load_scenario(tmp_path / "sc.toml")
+    finally:
+        plugins.worlds.unregister("rock")

@@ -176,7 +176,7 @@ def _kind_of(default: str):
 
 
 #: world kind → the trajectory kinds that make sense for it (the first is its default); the file kinds (``table``,
-#: ``ccsds``, ``spice``) drive every world, each reading the file's frame as its own (docs/scenario_keys.md)
+#: ``ccsds``, ``spice``) drive every world, each in its own frame (SourceTrajectoryConfig, docs/scenario_keys.md)
 WORLD_TRAJECTORIES = {
     "analytic": ("line", "orbit", *SOURCE_KINDS),
     "ev5": ("ev5_descent", *SOURCE_KINDS),

@@ -38,8 +38,8 @@ class TrajectoryConfig(_Strict):
         return self
 
 
-#: trajectory kinds read from the user's files (every lab world takes them; each world says what the file's frame
-#: means to it: docs/scenario_keys.md, "File trajectories in each world")
+#: trajectory kinds read from the user's files (every lab world takes them, each in its own frame: the docstring of
+#: SourceTrajectoryConfig, docs/scenario_keys.md)
 SOURCE_KINDS = ("table", "ccsds", "spice")
 _COMMON = {"kind", "frames", "dt_s", "start_s", "times_s", "epoch_utc", "frame", "attitude", "target_m", "up",
            "camera_mount_quat_xyzw", "interpolation"}
@@ -51,7 +51,13 @@ _NEEDS_ATTITUDE = {"table": ("quaternion_order", "quaternion_direction"), "ccsds
 
 
 class SourceTrajectoryConfig(_Strict):
-    """Camera path read from the user's files (:mod:`renderlab.trajectory_io`); paths relative to the scenario.
+    """Camera path read from the user's files (:mod:`renderlab.trajectory_io`); paths relative to the scenario. Every
+    world takes it, each in its own frame (named by ``frame``, the OEM's REF_FRAME or the SPICE frame): analytic —
+    the scene frame; ev5 — ``EV5_FIXED``, the asteroid's body-fixed frame, with ``[sun] direction`` at time 0 turning
+    with the spin; earth — ``GCRF`` or ``ITRF`` about the geocentre, epochs required, nadir pointing when the files
+    give no attitude; microsat — the chaser's ``LVLH``, the camera relative to the target, whose tumble
+    ``[world.tumble]`` sets (:mod:`renderlab.worlds.ev5.file_trajectory`, :mod:`renderlab.worlds.earth.file_trajectory`,
+    :mod:`renderlab.worlds.microsat.file_trajectory`).
 
     ``table``: ``file`` (CSV or Parquet: ``time_s`` or ``epoch``, ``x_m y_m z_m``, ``qx qy qz qw``) with the
     declared ``quaternion_order`` (``xyzw``/``wxyz``) and ``quaternion_direction``
@@ -78,7 +84,8 @@ class SourceTrajectoryConfig(_Strict):
     epoch_utc: str | None = Field(None, description="ISO UTC epoch of time 0 (default: the source's first epoch; "
                                   "required for spice)")
     frame: Annotated[str, Field(min_length=1)] | None = Field(None, description="Reference frame of the positions "
-                                                              "as the source names it (spice: required)")
+                                                              "as the source names it (spice: required); ev5: "
+                                                              "EV5_FIXED, earth: GCRF or ITRF, microsat: LVLH")
     file: str | None = Field(None, description="table: CSV or Parquet with time_s or epoch, x_m y_m z_m, qx qy qz "
                              "qw; relative to the scenario file")
     quaternion_order: Literal["xyzw", "wxyz"] | None = Field(None, description="table: component order of the "
