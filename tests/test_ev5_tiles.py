@@ -278,3 +278,25 @@ def test_tiled_render_range_within_the_gsd_where_levels_are_coarser(renders):
     assert lod[0].radiance.mean() == pytest.approx(full[0].radiance.mean(), rel=0.01)
     bad = _range_error_in_gsd(coarse[0], full[0], plan.frames[0])
     assert np.percentile(bad, 99) > 0.25
+
+
+@pytest.mark.parametrize("name", ["nadir_40m", "oblique_12m", "oblique_far"])
+def test_facet_budget_caps_the_frame_and_only_coarsens(model, name):
+    """world.site.facets_per_pixel: the selected tiles' facets (counted from the meshes tile_mesh builds, not from the
+    selection's own formula) stay within budget · W · H; each tile keeps the frustum selection and is at its
+    unbudgeted level or coarser; a budget the frame already meets changes nothing; the same pose selects the same."""
+    pose = _pose(model.site, *POSES[name])
+    free = model.tiled_site(32, 1.0).select(CAM, pose)
+    n_free = sum(len(model.tiled_site(32, 1.0).tile_mesh(k)[1]) for k in free)
+    for budget in (0.5 * n_free / (CAM.width * CAM.height), 0.2 * n_free / (CAM.width * CAM.height)):
+        ts = model.tiled_site(32, 1.0, facets_per_pixel=budget)
+        keys = ts.select(CAM, pose)
+        assert keys == ts.select(CAM, pose)
+        assert [(k.row, k.col) for k in keys] == [(k.row, k.col) for k in free]
+        assert all(k.level >= f.level for k, f in zip(keys, free)) and any(k.level > f.level for k, f in zip(keys, free))
+        n = sum(len(ts.tile_mesh(k)[1]) for k in keys)
+        coarsest = sum(len(ts.tile_mesh(type(k)(k.row, k.col, ts.max_level(k.row, k.col)))[1]) for k in keys)
+        assert n <= max(budget * CAM.width * CAM.height, coarsest), (n, budget)
+        assert ts.last_lod_pixels > 1.0 and ts.lod_summary(keys)["lod_pixels_used"] == ts.last_lod_pixels
+    roomy = model.tiled_site(32, 1.0, facets_per_pixel=1.01 * n_free / (CAM.width * CAM.height))
+    assert roomy.select(CAM, pose) == free

@@ -304,5 +304,6 @@ def frame_meta(spec: FrameSpec, plan, scene, opts) -> dict:
     }
     if opts is not None:
         meta["sensor"] = {"exposure_s": float(opts.exposure_s), "bits": int(opts.bits),
-                          "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn)}
+                          "gain_e_per_dn": float(opts.gain_e_per_dn), "bias_dn": float(opts.bias_dn),
+                          "noise_stream": str(opts.noise_stream)}
     return meta

@@ -9,8 +9,8 @@ This module keeps the static bodies (and the sun) in one ``mi.Scene``, built onc
 second, small ``mi.Scene`` whose structure alone is rebuilt when the tile set changes (milliseconds). Each ray is
 intersected with both:
 
-* **nearest hit**: the preliminary intersections of both scenes (``ray_intersect_preliminary``) are compared and the
-  nearer kept; the tile scene wins an exact tie (a tile is the finer model of the same surface). The surface
+* **nearest hit**: the tile scene is intersected first, then the static scene with the ray cut at the tile hit
+  (``maxt``; Embree prunes everything beyond it), and the nearer hit is kept; the tile scene wins an exact tie (a tile is the finer model of the same surface). The surface
   interaction is computed once, for the kept hit (``PreliminaryIntersection3f.compute_surface_interaction``), as
   ``Scene.ray_intersect`` does for one scene;
 * **shadow rays**: the sun is sampled in the static scene (``Scene.sample_emitter_direction`` without its
@@ -94,7 +94,9 @@ class TileScene:
         """The surface interaction of the nearer of the two scenes' hits along ``ray`` (tiles win exact ties)."""
         mi, dr = self.backend.mi, self.backend.dr
         pt = self.scene.ray_intersect_preliminary(ray, coherent=coherent, active=active)
-        ps = self.backend.scene.ray_intersect_preliminary(ray, coherent=coherent, active=active)
+        short = type(ray)(ray)  # the static scene is searched only up to the tile hit: Embree prunes the rest
+        short.maxt = dr.minimum(ray.maxt, pt.t)
+        ps = self.backend.scene.ray_intersect_preliminary(short, coherent=coherent, active=active)
         pi = dr.select(ps.t < pt.t, ps, pt)
         return pi.compute_surface_interaction(ray, mi.RayFlags.All, pi.is_valid())
 
@@ -107,10 +109,10 @@ class TileScene:
         bsdf = si.bsdf(ray)
         ds, em_weight = static.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
         lit = valid & (ds.pdf != 0.0)
-        if self.shadows:
+        if self.shadows:  # the tile scene first: near the site most shadows are cast by its own relief
             shadow = si.spawn_ray_to(ds.p)
-            lit &= ~static.ray_test(shadow, lit)
             lit &= ~self.scene.ray_test(shadow, lit)
+            lit &= ~static.ray_test(shadow, lit)
         value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
         return dr.select(lit, em_weight * value, 0.0)
 

@@ -238,3 +238,16 @@ def consistent(L: np.ndarray, truth: PixelTruth, spp: int, k: int) -> np.ndarray
     tol = (3.0 * truth.sample_std * (1.0 / np.sqrt(spp) + 1.0 / k) + 2.0 * truth.sample_max / spp
            + 0.01 * truth.unshadowed + 1e-9)
     return np.abs(np.asarray(L, float) - truth.radiance) <= tol
+
+
+def centre_ranges(sc: OracleScene, spec, sl: np.ndarray) -> np.ndarray:
+    """Float64 range (m, camera centre to first hit; inf where nothing is hit) along the rays through the pixel
+    centres ``sl`` (N, 2) of frame ``spec``: the exact counterpart of the renderers' range AOV."""
+    R, o = spec.pose.rotation.as_matrix(), np.asarray(spec.pose.position_m, float)
+    d = spec.camera.unproject(np.asarray(sl, float)) @ R.T
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    t = np.full(len(d), np.inf)
+    for i in range(len(d)):
+        cand = _near_ray(sc, o, d[i], 1e-6)
+        t[i] = _first_hit(sc, o[None], d[i:i + 1], cand, 0.0)[0][0]
+    return t

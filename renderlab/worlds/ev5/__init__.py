@@ -55,12 +55,12 @@ class EV5Model:
                                 vertex_albedo=np.asarray(self.site.albedo).reshape(-1), **common))
         return out
 
-    def tiled_site(self, tile_cells: int, lod_pixels: float):
+    def tiled_site(self, tile_cells: int, lod_pixels: float, facets_per_pixel: float | None = None):
         """The site as tiles with levels of detail (:class:`~renderlab.worlds.ev5.tiles.TiledSite`)."""
         from renderlab.worlds.ev5.tiles import TiledSite
 
         return TiledSite(self.site, tile_cells, lod_pixels, body_id=SITE_ID, name="landing_site", law=self.law,
-                         albedo=self.albedo)
+                         albedo=self.albedo, facets_per_pixel=facets_per_pixel)
 
 
 def _build_shape_site(world, base_dir: Path, bar):
@@ -197,7 +197,7 @@ def make_plan(scenario, base_dir: Path):
                                                     model.site, self._footprints)}
 
     lod = scenario.world.site
-    tiled = [model.tiled_site(lod.tile_cells, lod.lod_pixels)] if lod.lod else []
+    tiled = [model.tiled_site(lod.tile_cells, lod.lod_pixels, lod.facets_per_pixel)] if lod.lod else []
     plan = EV5Plan(frames=frames, render_frame={"name": "EV5_FIXED"},
                    static_scene=SceneDescription(bodies=model.bodies(site=not lod.lod), render_frame={"name": "EV5_FIXED"},
                                                  origin_m=np.array(model.site.origin_m, float), tiled=tiled))

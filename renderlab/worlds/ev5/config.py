@@ -78,6 +78,9 @@ class EV5Site(Strict):
                                                             "two (the coarsest level has one cell per tile) [cells]")
     lod_pixels: Annotated[float, Field(gt=0, le=64, allow_inf_nan=False)] = Field(
         1.0, description="Coarsest facet a tile may use, in pixels at the tile's nearest point [px]")
+    facets_per_pixel: Annotated[float, Field(gt=0, le=1024, allow_inf_nan=False)] | None = Field(
+        None, description="Facet budget of a frame: at most this many site facets per image pixel (tiles coarsened "
+        "by raising lod_pixels for that frame until they fit; unset: no budget) [facets/px]")
 
     @field_validator("tile_cells")
     @classmethod

@@ -16,7 +16,11 @@ computes (the *LOD height error bound* of the tile at that level, along the site
 Level choice (:meth:`TiledSite.select`): d = distance from the camera centre to the tile's bounding box
 (site frame, heights included), GSD = d / σ with σ the largest singular value of the camera's 2×2 pixel map
 K (Retina eq. 4; the finest pixel scale at the principal point, distortion not included); L = the largest
-level with cell·2^L ≤ lod_pixels·GSD. Frustum: the tile's box corners against the pyramid spanned by the
+level with cell·2^L ≤ lod_pixels·GSD. Facet budget (``facets_per_pixel``, optional): where the frame's tiles
+would hold more than ``facets_per_pixel · W · H`` facets (lod_pixels = 1 puts 2–8 facets in a pixel, more where
+tiles reach beyond the image), the facet limit is raised from lod_pixels to the smallest value (bisection on its
+log) whose levels fit — the same rule with a coarser limit, a pure function of the pose; the manifest's
+``ev5.lod.lod_pixels_used`` records it and ``max_height_error_m`` the resulting bound. Frustum: the tile's box corners against the pyramid spanned by the
 image border unprojected (:meth:`CameraModel.unproject` of 32 points per side, bounding box of x/z, y/z,
 widened by 2 px); a tile is dropped when all eight corners are behind the camera or outside one face.
 A camera whose border does not unproject in front (wide fisheye) keeps every tile.
@@ -92,8 +96,11 @@ class TiledSite:
     ``tile_body``, ``full_body``, ``state``. ``law``/``albedo`` and the body pose are those of the site body.
     """
 
-    def __init__(self, site, tile_cells: int, lod_pixels: float, *, body_id: int, name: str, law, albedo: float):
+    def __init__(self, site, tile_cells: int, lod_pixels: float, *, body_id: int, name: str, law, albedo: float,
+                 facets_per_pixel: float | None = None):
         self.site, self.tile_cells, self.lod_pixels = site, int(tile_cells), float(lod_pixels)
+        self.facets_per_pixel = None if facets_per_pixel is None else float(facets_per_pixel)
+        self.last_lod_pixels = self.lod_pixels  # the facet limit (px) the last selection used
         self.body_id, self.name, self.law, self.albedo = int(body_id), name, law, float(albedo)
         cells = site.n - 1
         self.edges = np.r_[np.arange(0, cells, self.tile_cells), cells].astype(np.int64)
@@ -145,25 +152,48 @@ class TiledSite:
 
     # ------------------------------------------------------------------ per frame
     def select(self, camera, pose, R_render_from_body=None, center_m=None) -> list[TileKey]:
-        """The tiles in the frustum of ``camera`` at ``pose`` (render frame), each at its level."""
+        """The tiles in the frustum of ``camera`` at ``pose`` (render frame), each at its level; with a facet budget,
+        coarsened until the frame renders at most ``facets_per_pixel`` facets per image pixel."""
         R_rb = np.eye(3) if R_render_from_body is None else np.asarray(R_render_from_body, float)
         c_rb = np.zeros(3) if center_m is None else np.asarray(center_m, float)
         R = pose.rotation.as_matrix()  # render ← camera
         t = np.asarray(pose.position_m, float)
         corners = self.corners_body() @ R_rb.T + c_rb
         p = (corners - t) @ R  # camera frame
-        keep = _in_frustum(camera, p)
+        rows, cols = np.nonzero(_in_frustum(camera, p))
         t_site = self.site.to_site(R_rb.T @ (t - c_rb))
         box = self._boxes()
         d = np.linalg.norm(np.maximum(np.maximum(box[..., 0, :] - t_site, t_site - box[..., 1, :]), 0.0), axis=-1)
         sigma = float(np.linalg.norm(np.array([[camera.fx, camera.skew], [camera.skew_yx, camera.fy]]), 2))
-        gsd = d / sigma
+        gsd = (d / sigma)[rows, cols]
+        cap = np.minimum(self._axis_level[rows], self._axis_level[cols])
+        tau = self.lod_pixels
+        level = self._levels(gsd, tau, cap)
+        if self.facets_per_pixel is not None:
+            budget = self.facets_per_pixel * camera.width * camera.height
+            if self._facets(rows, cols, level) > budget:
+                lo, hi = math.log2(tau), math.log2(tau) + 2.0 * cap.max(initial=0) + 8.0
+                for _ in range(40):  # the smallest facet limit (px) whose levels fit the budget (facets fall with it)
+                    mid = 0.5 * (lo + hi)
+                    lo, hi = (lo, mid) if self._facets(rows, cols, self._levels(gsd, 2.0 ** mid, cap)) <= budget \
+                        else (mid, hi)
+                tau = 2.0 ** hi
+                level = self._levels(gsd, tau, cap)
+        self.last_lod_pixels = float(tau)
+        return [TileKey(int(r), int(c), int(lv)) for r, c, lv in zip(rows, cols, level)]
+
+    def _levels(self, gsd: np.ndarray, lod_pixels: float, cap: np.ndarray) -> np.ndarray:
+        """Per tile the largest level with cell·2^L ≤ lod_pixels·GSD, within 0 … its cap."""
         with np.errstate(divide="ignore"):
-            level = np.floor(np.log2(np.maximum(self.lod_pixels * gsd, 1e-300) / self.site.cell_m))
-        out = []
-        for r, c in zip(*np.nonzero(keep)):
-            out.append(TileKey(int(r), int(c), int(np.clip(level[r, c], 0, self.max_level(r, c)))))
-        return out
+            level = np.floor(np.log2(np.maximum(lod_pixels * gsd, 1e-300) / self.site.cell_m))
+        return np.clip(level, 0, cap).astype(np.int64)
+
+    def _facets(self, rows: np.ndarray, cols: np.ndarray, level: np.ndarray) -> int:
+        """Facets (skirts included) of tiles (rows, cols) at ``level``, as :meth:`tile_mesh` builds them."""
+        e = self.edges
+        ny = (e[rows + 1] - e[rows]) // 2 ** level
+        nx = (e[cols + 1] - e[cols]) // 2 ** level
+        return int(np.sum(2 * ny * nx + 4 * (ny + nx)))
 
     def tile_mesh(self, key: TileKey) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Body-frame vertices (float64), faces (int32) and relative albedo of a tile at its level, skirt included."""
@@ -207,7 +237,7 @@ class TiledSite:
     def state(self) -> dict:
         out = self._body().state()
         out.update(shape="trimesh_tiles", n_faces=int(2 * (self.site.n - 1) ** 2), tile_cells=self.tile_cells,
-                   lod_pixels=self.lod_pixels)
+                   lod_pixels=self.lod_pixels, facets_per_pixel=self.facets_per_pixel)
         return out
 
     def lod_summary(self, keys: list[TileKey]) -> dict:
@@ -222,8 +252,11 @@ class TiledSite:
             nx = (e[k.col + 1] - e[k.col]) // 2 ** k.level
             n_faces += int(2 * ny * nx + 4 * (ny + nx))
             err = max(err, self.error(k)[0])
-        return {"tiles": len(keys), "levels": dict(sorted(levels.items())), "n_faces": n_faces,
-                "max_height_error_m": err, "cell_m": self.site.cell_m, "lod_pixels": self.lod_pixels}
+        out = {"tiles": len(keys), "levels": dict(sorted(levels.items())), "n_faces": n_faces,
+               "max_height_error_m": err, "cell_m": self.site.cell_m, "lod_pixels": self.lod_pixels}
+        if self.facets_per_pixel is not None:  # the budget and the facet limit it set for this frame
+            out.update(facets_per_pixel=self.facets_per_pixel, lod_pixels_used=self.last_lod_pixels)
+        return out
 
 
 def _in_frustum(camera, p: np.ndarray) -> np.ndarray:
