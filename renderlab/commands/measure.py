@@ -1,10 +1,13 @@
 """``renderlab measure TRUTHSET --method NAME|module:attr [--out FILE] [--seed S]``: landmark measurements of an
 EV5 truth set by any registered landmark method (see :mod:`renderlab.measurement.runner`); writes one Parquet
-table and prints a one-line bias/noise summary."""
+table and prints a one-line summary: median, robust σ and the mean without gross errors per axis."""
 
 from __future__ import annotations
 
 import math
+
+MAD_TO_SIGMA = 1.482602218505602  # σ of a normal distribution per unit median absolute deviation
+GROSS_PX = 1.0  # |err| above this on either axis is a gross error (the reports' default), px
 
 
 def add_parser(subparsers) -> None:
@@ -101,19 +104,35 @@ def _split(table, out, args):
     return tables["measurements"], out
 
 
-def summary_line(table) -> str:
-    """One line: results / rows, and per axis the bias and robust σ (MAD·1.4826) of err, px."""
+def summary_line(table, gross_px: float = GROSS_PX) -> str:
+    """One line of robust statistics of ``err = meas − truth`` among the rows with a result.
+
+    Per axis: the median (robust location) and the robust σ (1.4826 · MAD about the median), then the mean over the
+    results that are not gross errors. A gross error is a result with ``|err| > gross_px`` on either axis (the
+    reports' definition, :mod:`renderlab.report.landmark_stats`); how many were excluded from that mean is stated,
+    and the mean over all results is printed only labelled as such (one wild match moves it by far more than the
+    median: −0.346 px beside a median of −0.021 px on a published table).
+    """
     import numpy as np
 
     has = np.asarray(table.column("has_result").to_pylist(), bool)
+    es, el = (np.asarray(table.column(f"err_{a}").to_numpy(zero_copy_only=False), float) for a in "sl")
+    ok = has & np.isfinite(es) & np.isfinite(el)
+    gross = ok & ((np.abs(es) > gross_px) | (np.abs(el) > gross_px))
+    n_ok, n_gross = int(ok.sum()), int(gross.sum())
     parts = [f"{int(has.sum())}/{table.num_rows} with a result"]
-    for axis, name in (("s", "sample"), ("l", "line")):
-        e = np.asarray(table.column(f"err_{axis}").to_numpy(zero_copy_only=False), float)
-        e = e[has & np.isfinite(e)]
-        if e.size:
-            med = float(np.median(e))
-            parts.append(f"{name} bias {float(e.mean()):+.3f} px, robust sigma "
-                         f"{1.482602218505602 * float(np.median(np.abs(e - med))):.3f} px")
+    if n_ok:
+        parts.append(f"{n_gross} gross error{'s' if n_gross != 1 else ''} (|err| > {gross_px:g} px) excluded from "
+                     "the mean")
+    for e, name in ((es, "sample"), (el, "line")):
+        e_ok, e_kept = e[ok], e[ok & ~gross]
+        if not e_ok.size:
+            continue
+        med = float(np.median(e_ok))
+        text = (f"{name} median {med:+.3f} px, robust sigma {MAD_TO_SIGMA * float(np.median(np.abs(e_ok - med))):.3f}"
+                f" px, mean without gross errors ")
+        text += f"{float(e_kept.mean()):+.3f} px" if e_kept.size else "n/a"
+        parts.append(text + f" (mean of all results {float(e_ok.mean()):+.3f} px)")
     return "; ".join(parts)
 
 
