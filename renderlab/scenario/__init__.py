@@ -221,6 +221,14 @@ class Scenario(_Strict):
                                               "campaign run ([perturbations])")
     campaign: CampaignConfig = Field(CampaignConfig(), description="What a campaign runs ([campaign])")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _one_field_of_view(cls, data: Any) -> Any:
+        """The Earth orbit's older ``trajectory.fov_deg`` moves into the camera (refused when it disagrees)."""
+        from renderlab.worlds.earth.config import leo_camera
+
+        return leo_camera(data) if isinstance(data, dict) else data
+
     @model_validator(mode="after")
     def _world_fits_trajectory(self):
         from renderlab.scenario.kinds import DEFAULT_POINTING, world_trajectories

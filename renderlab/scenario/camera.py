@@ -10,6 +10,9 @@ Besides explicit intrinsics (``fx, fy, cx, cy, skew, skew_yx, model, distortion`
   tan(fov_deg/2)``, principal point at the image centre ``((width-1)/2, (height-1)/2)`` unless
   ``cx``/``cy`` are given; it refuses ``fx``/``fy`` beside it.
 
+The camera section is the one source of the field of view: the Earth orbit's older ``trajectory.fov_deg`` is
+moved into it (and refused when it disagrees, :func:`renderlab.worlds.earth.config.leo_camera`).
+
 :func:`resolve_camera` turns both into plain intrinsics once, when the scenario is loaded (the file path
 needs the scenario's folder), so the validated scenario and the manifest hold plain ``fx, fy, cx, cy,
 model, distortion``; it also ties the sensor's optics to the camera's focal length (:func:`resolve_optics`).
@@ -146,7 +149,12 @@ def resolve_camera(scenario: dict[str, Any], base_dir: str | Path) -> dict[str, 
         return out  # validation names it
     if "calibration_file" in cam:
         cam = _from_calibration(cam, Path(base_dir))
-    cam = _fov_intrinsics(cam)
+    if cam or "camera" in out:
+        out["camera"] = cam
+    from renderlab.worlds.earth.config import leo_camera
+
+    out = leo_camera(out)  # the Earth orbit's older trajectory.fov_deg → the camera, checked
+    cam = _fov_intrinsics(out.get("camera", {}))
     if cam or "camera" in out:
         out["camera"] = cam
     sensor = out.get("sensor")

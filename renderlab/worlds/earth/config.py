@@ -3,12 +3,14 @@
 
 from __future__ import annotations
 
+import math
 from datetime import datetime, timezone
 from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
 from renderlab.config_types import NonNegative, Positive, Seed, Strict
+from renderlab.errors import UserError
 
 Fraction = Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)]
 Albedo = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
@@ -56,9 +58,10 @@ class EarthWorld(Strict):
 class LEOTrajectory(Strict):
     """A LEO orbit from classical elements, nadir-pointing camera.
 
-    Frame k is taken at ``start_s + k·dt_s`` after ``epoch_utc`` (where the elements hold). ``fov_deg``
-    (if set) replaces the camera's fx, fy, cx, cy by a centred square-pixel pinhole whose image width spans
-    it. ``pointing_error_deg`` is the true attitude's random offset from nadir (1σ per axis, seeded by
+    Frame k is taken at ``start_s + k·dt_s`` after ``epoch_utc`` (where the elements hold). The camera is the
+    ``[camera]`` section, the one source of the field of view (:func:`leo_camera`): ``fov_deg`` here is the older
+    spelling of ``camera.fov_deg`` (a centred square-pixel pinhole whose image width spans it), folded into the
+    camera when the scenario is validated and refused when the camera says otherwise. ``pointing_error_deg`` is the true attitude's random offset from nadir (1σ per axis, seeded by
     ``world.seed``); ``star_tracker_sigma_arcsec`` the noise of the attitude the star tracker reports.
 
     The elements are osculating elements in GCRF (the Earth world's inertial frame, see
@@ -107,8 +110,9 @@ class LEOTrajectory(Strict):
     dt_s: Positive = Field(30.0, description="Time between frames [s]")
     start_s: NonNegative = Field(0.0, description="Time of frame 0 after epoch_utc [s]")
     fov_deg: Annotated[float, Field(gt=0, lt=120, allow_inf_nan=False)] | None = Field(
-        30.0, description="If set, replaces the camera's fx, fy, cx, cy by a centred square-pixel pinhole whose "
-        "image width spans it [deg]")
+        None, description="Older spelling of camera.fov_deg (a centred square-pixel pinhole, fx = fy = (width/2) / "
+        "tan(fov_deg/2)), moved into the camera; refused when the camera gives another focal length, principal point "
+        "or skew. Neither given (no camera.fx/fy/fov_deg/calibration_file): the Earth camera's default, 30 [deg]")
     pointing_error_deg: NonNegative = Field(0.0, description="True attitude's random offset from nadir, 1σ per "
                                             "axis, seeded by world.seed [deg]")
     star_tracker_sigma_arcsec: NonNegative = Field(5.0, description="Noise of the attitude the star tracker "
@@ -142,3 +146,72 @@ class LEOTrajectory(Strict):
         if self.truth_model == "j2_rk4" and given:
             raise ValueError(f"{', '.join(given)} need(s) truth_model = 'zonal_dop853' (truth_model is 'j2_rk4')")
         return self
+
+
+#: field of view of the ``leo`` camera when the scenario gives no focal length (the coastline paper's 30°)
+DEFAULT_FOV_DEG = 30.0
+#: camera keys that set the focal length (any of them makes the camera section the source of the field of view)
+_FOCAL_KEYS = ("fx", "fy", "fov_deg", "calibration_file")
+
+
+def _int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v > 0
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def leo_camera(data: dict) -> dict:
+    """Scenario data whose ``[camera]`` section is the one source of the ``leo`` camera's field of view.
+
+    ``trajectory.fov_deg`` (the older spelling) becomes the camera it always meant — ``fx = fy = (W/2) /
+    tan(fov/2)``, principal point ``((W-1)/2, (H-1)/2)``, no skew, the camera's own distortion — and leaves the
+    trajectory. A camera key that disagrees with it (``fov_deg``, ``fx``, ``fy``, ``cx``, ``cy``, ``skew``,
+    ``skew_yx``; relative 1e-9 on the focal length, 1e-6 px on the principal point) is refused. A scenario that
+    gives no focal length at all (neither key, no ``camera.fx``/``fy``/``fov_deg``/``calibration_file``) gets
+    ``camera.fov_deg =`` :data:`DEFAULT_FOV_DEG` (the camera's own ``cx``/``cy``, if given, are kept). Other trajectory kinds, and values of the wrong type (left for the
+    sections' validation to name), pass unchanged.
+
+    Parameters
+    ----------
+    data : dict
+        Raw scenario data (after ``--set`` overrides; the loader resolves ``camera.calibration_file`` first);
+        not modified.
+
+    Returns
+    -------
+    dict
+        ``data``, or a copy with the camera filled in and ``trajectory.fov_deg`` removed.
+
+    Raises
+    ------
+    UserError
+        One line naming ``trajectory.fov_deg`` and the camera key it disagrees with.
+    """
+    traj, cam = data.get("trajectory"), data.get("camera", {})
+    if not isinstance(traj, dict) or traj.get("kind") != "leo" or not isinstance(cam, dict):
+        return data
+    fov = traj.get("fov_deg")
+    if fov is None and any(k in cam for k in _FOCAL_KEYS):
+        return data
+    if fov is None:  # no focal length anywhere: the Earth camera's default field of view, in the camera
+        return {**data, "camera": {**cam, "fov_deg": DEFAULT_FOV_DEG}}
+    width, height = cam.get("width", 256), cam.get("height", 192)
+    if not (_number(fov) and 0 < fov < 120 and _int(width) and _int(height)) or "calibration_file" in cam:
+        return data  # LEOTrajectory / CameraConfig name the bad value
+    f = (width / 2.0) / math.tan(math.radians(fov) / 2.0)
+    want = {"fx": f, "fy": f, "cx": (width - 1) / 2.0, "cy": (height - 1) / 2.0, "skew": 0.0, "skew_yx": 0.0}
+    tol = {"fx": 1e-9 * f, "fy": 1e-9 * f, "cx": 1e-6, "cy": 1e-6, "skew": 1e-9 * f, "skew_yx": 1e-9 * f}
+    clash = [k for k in want if k in cam and not (_number(cam[k]) and abs(cam[k] - want[k]) <= tol[k])]
+    if "fov_deg" in cam and not (_number(cam["fov_deg"]) and abs(cam["fov_deg"] - fov) <= 1e-9 * fov):
+        clash.insert(0, "fov_deg")
+    if clash:
+        k = clash[0]
+        raise UserError(f"trajectory.fov_deg = {fov:g} (fx = fy = {f:.10g} px, principal point at the image centre "
+                        f"({want['cx']:g}, {want['cy']:g}), no skew) disagrees with camera.{k} = {cam[k]!r}; give "
+                        "the field of view once, in the [camera] section (camera.fov_deg, or fx/fy/cx/cy)")
+    out = dict(data)
+    out["camera"] = {**{k: v for k, v in cam.items() if k != "fov_deg"}, **want}
+    out["trajectory"] = {k: v for k, v in traj.items() if k != "fov_deg"}
+    return out

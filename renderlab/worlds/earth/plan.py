@@ -83,11 +83,12 @@ class FrameOrbit:
 def leo_orbit(scenario) -> FrameOrbit:
     """The ``leo`` trajectory's frames: the orbit of ``truth_model``, nadir attitude (+ seeded pointing error)."""
     w, tr = scenario.world, scenario.trajectory
-    if tr.fov_deg is not None:
-        c = scenario.camera
-        camera = CameraModel.from_fov(c.width, c.height, tr.fov_deg, model=c.model, distortion=c.distortion)
-    else:
-        camera = CameraModel.from_dict(scenario.camera.model_dump())
+    if tr.fov_deg is not None:  # validation moves it into the camera (config.leo_camera); a hand-built one is refused
+        from renderlab.errors import UserError
+
+        raise UserError("trajectory.fov_deg is not used by the Earth world (the [camera] section is the one source "
+                        "of the field of view); validate the scenario, or give camera.fov_deg")
+    camera = CameraModel.from_dict(scenario.camera.model_dump())
     epoch = wgs84.parse_epoch(tr.epoch_utc)
     t = tr.start_s + tr.dt_s * np.arange(tr.frames)
     r, v = truth_orbit(tr, epoch, t)
