@@ -131,14 +131,15 @@ def test_truthset_round_trip_matches_backend(sets):
     assert m["scenario"] == expected
     assert len(ts) == N_FRAMES
 
-    opts = SensorOptions(**sc.sensor.options_dict())
+    base = SensorOptions(**sc.sensor.options_dict())
+    opts = base
     children = np.random.SeedSequence(seed).spawn(N_FRAMES)
     for spec, child in zip(specs, children):
         k = spec.index
         render_ss, sensor_ss = child.spawn(2)
         direct = backend.render(spec, seed=int(render_ss.generate_state(1)[0]))
-        if k == 0 and sc.sensor.auto_exposure:
-            opts = with_exposure(opts, exposure_for_peak(direct.radiance, opts,
+        if sc.sensor.auto_exposure:  # per frame, from each frame's own radiance
+            opts = with_exposure(base, exposure_for_peak(direct.radiance, base,
                                                          fraction=sc.sensor.auto_exposure_fraction))
         dn = expose(direct.radiance, opts, np.random.default_rng(sensor_ss)).dn
 

@@ -175,3 +175,21 @@ def test_outputs_subset_and_spp_override():
     assert f.dn is None and f.aovs is None and f.truth == {} and f.radiance is not None
     assert f.radiance.tobytes() != g.radiance.tobytes()
     assert abs(float(f.radiance.mean()) / float(g.radiance.mean()) - 1) < 0.05
+
+
+def test_auto_exposure_is_chosen_per_frame_and_saturation_recorded():
+    """sensor.auto_exposure: each frame's exposure is exposure_for_peak of its own radiance (the documented behaviour;
+    the former code kept frame 0's for every frame), and each record counts its saturated pixels."""
+    from renderlab import Renderer
+    from renderlab.sensor import exposure_for_peak
+
+    with Renderer(ANALYTIC, overrides=SMALL + ["trajectory.azimuth_end_deg=120"]) as r:
+        frames = [r.frame(k) for k in range(r.n_frames)]
+        want = [exposure_for_peak(f.radiance, r.options, fraction=r.scenario.sensor.auto_exposure_fraction)
+                for f in frames]
+        fixed = r.frame(1, exposure_s=2 * want[1])
+    assert [f.exposure_s for f in frames] == want
+    assert len(set(want)) == len(want)  # the scene's brightness changes along the orbit
+    assert all(f.meta["sensor"]["exposure_s"] == f.exposure_s for f in frames)
+    assert all(f.meta["sensor"]["saturated_px"] == f.saturated_px >= 0 for f in frames)
+    assert fixed.exposure_s == 2 * want[1] and fixed.saturated_px >= frames[1].saturated_px

@@ -86,14 +86,14 @@ def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dic
                  overwrite: bool = False, progress: bool = False) -> Path:
     """The truth-set loop shared by :func:`render_truthset` and the per-pose truth cache
     (:func:`renderlab.campaign.cache.render_frames`): each frame spec and its ``SeedSequence`` through
-    :meth:`Renderer.render_spec <renderlab.pipeline.frame_api.Renderer.render_spec>` (auto-exposure chosen on the
-    first frame of this set), and the frame, the plan's metadata and truth tables and a contact sheet written
-    into a truth set at ``out_dir`` (staged: all or nothing). ``head`` is the manifest's head."""
+    :meth:`Renderer.render_spec <renderlab.pipeline.frame_api.Renderer.render_spec>` (auto-exposure per frame), and
+    the frame, the plan's metadata and truth tables and a contact sheet written into a truth set at ``out_dir``
+    (staged: all or nothing); a warning names the frames with more than 1 % saturated pixels. ``head`` is the
+    manifest's head."""
     from tqdm import tqdm
 
     plan = renderer.plan
-    renderer.reset_exposure()
-    writer, rows = None, {}
+    writer, rows, saturated = None, {}, []
     try:
         for spec, child in tqdm(list(zip(specs, seeds)), desc="render", unit="frame", disable=not progress):
             frame = renderer.render_spec(spec, child)
@@ -107,6 +107,8 @@ def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dic
                              frame.meta, dn_bits=renderer.options.bits)
             for name, new_rows in frame.truth.items():
                 rows.setdefault(name, []).extend(new_rows)
+            if frame.saturated_px > 0.01 * frame.dn.size:
+                saturated.append((spec.index, frame.saturated_px / frame.dn.size))
         for name, table_rows in rows.items():
             writer.add_table(name, _rows_to_table(table_rows))
         writer.add_file("contact_sheet.png", _contact_sheet_png(writer))
@@ -115,6 +117,13 @@ def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dic
             writer.__exit__(type(exc), exc, exc.__traceback__)
         raise
     writer.__exit__(None, None, None)
+    if saturated:
+        import sys
+
+        worst = max(saturated, key=lambda x: x[1])
+        print(f"renderlab: warning: {len(saturated)} frame(s) have more than 1 % saturated pixels (worst: frame "
+              f"{worst[0]}, {100 * worst[1]:.1f} %); each frame's count is in the manifest (sensor.saturated_px)",
+              file=sys.stderr)
     return Path(out_dir)
 
 

@@ -23,9 +23,10 @@ tangent tile per footprint) declares ``scene_follows_pose`` and refuses a moved 
 spawns them), split into the sample pattern and the sensor noise; ``seed=`` gives another root. The sensor noise
 is keyed per pixel (:mod:`renderlab.sensor`), so two frames that differ in a few radiance pixels differ in those DN.
 
-**Exposure.** With ``sensor.auto_exposure`` the exposure time is chosen on the first frame this renderer makes
-with DN and kept (a camera with its exposure locked after the first image, as ``renderlab render`` does over a
-truth set); :meth:`Renderer.reset_exposure` unlocks it, ``exposure_s=`` fixes it for one frame.
+**Exposure.** With ``sensor.auto_exposure`` every frame gets its own exposure time, chosen from its own radiance
+(:func:`renderlab.sensor.exposure_for_peak`: a high percentile of the mean charge at ``auto_exposure_fraction`` of
+full scale), as the scenario key says; otherwise ``sensor.exposure_s``. ``exposure_s=`` fixes it for one frame. Each
+frame's record carries the exposure and its count of saturated pixels (``sensor.saturated_px``).
 """
 
 from __future__ import annotations
@@ -138,7 +139,6 @@ class Renderer:
         self.plan = make_plan(self.scenario, self.base_dir)
         self._by_index = {s.index: k for k, s in enumerate(self.plan.frames)}
         self._key, self.scene, self.backend, self.loads = object(), None, None, 0
-        self.exposure_s: float | None = None
 
     # ------------------------------------------------------------------ the world
     @property
@@ -195,10 +195,6 @@ class Renderer:
         return spec
 
     # ------------------------------------------------------------------ frames
-    def reset_exposure(self) -> None:
-        """Forget the locked auto-exposure: the next frame with DN chooses it again."""
-        self.exposure_s = None
-
     def frame(self, index: int = 0, *, pose=None, sun=None, camera=None, spp: int | None = None,
               outputs=OUTPUTS, seed: int | None = None, exposure_s: float | None = None) -> Frame:
         """Render world state ``index`` from ``pose`` (default: the planned camera) into memory.
@@ -227,16 +223,15 @@ class Renderer:
             lum = rendered.radiance if rendered.radiance.ndim == 2 else rendered.radiance.mean(-1)  # mono sensor
             opts = self.options
             if exposure_s is not None:
-                opts = with_exposure(opts, float(exposure_s))
-            else:
-                if self.exposure_s is None:
-                    self.exposure_s = (exposure_for_peak(lum, opts, fraction=self.scenario.sensor.auto_exposure_fraction)
-                                       if self.scenario.sensor.auto_exposure else opts.exposure_s)
-                opts = with_exposure(opts, self.exposure_s)
+                opts = with_exposure(opts, _exposure(exposure_s))
+            elif self.scenario.sensor.auto_exposure:  # per frame, from the frame's own radiance
+                opts = with_exposure(opts, exposure_for_peak(lum, opts,
+                                                             fraction=self.scenario.sensor.auto_exposure_fraction))
             sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
             out.dn, out.exposure_s = sensor.dn, float(opts.exposure_s)
             out.saturated_px = int(np.count_nonzero(sensor.saturated))
             out.meta = frame_meta(spec, self.plan, scene, opts)
+            out.meta["sensor"]["saturated_px"] = out.saturated_px
         else:
             out.meta = frame_meta(spec, self.plan, scene, None)
         if "truth" in outputs:
@@ -254,6 +249,13 @@ class Renderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _exposure(value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not np.isfinite(value) \
+            or not 0 < value <= 3600:
+        raise UserError(f"exposure_s must be a number of seconds in (0, 3600], got {str(value)[:40]}")
+    return float(value)
 
 
 def _outputs(outputs) -> tuple:
