@@ -43,7 +43,12 @@ LOADER_KEYS = {
                 "principal point at the image centre unless cx/cy are given; not with fx/fy"),
                ("calibration_file", "string", "—", "", "",
                 "OpenCV (cv2.FileStorage YAML/JSON) or ROS camera_info calibration, relative to the scenario "
-                "file; sets every intrinsic (width/height may be given and must match)")],
+                "file; sets every intrinsic (width/height may be given and must match)"),
+               ("calibration_model", "string", "—", "plumb_bob, radtan, brown, opencv, rational_polynomial, "
+                "equidistant, fisheye, kannala_brandt, none, pinhole", "",
+                "Distortion model of calibration_file: required when the file holds 4 coefficients and no fisheye "
+                "flag (fisheye_model / fisheye: 1 or 0) or distortion_model of its own (OpenCV's k1 k2 p1 p2 and "
+                "cv2.fisheye's k1..k4 look alike); checked against the file's flag or name when it has one")],
 }
 _SENSOR_UNITS = {"_e_per_s": "e⁻/s", "_e_per_dn": "e⁻/DN", "_dn": "DN", "_e": "e⁻", "_px": "px", "_m": "m",
                  "_s": "s"}

@@ -87,6 +87,7 @@ def test_filestorage_short_key_names_and_four_coefficients(tmp_path):
     fs = cv2.FileStorage(str(tmp_path / "k.yml"), cv2.FILE_STORAGE_WRITE)
     fs.write("K", K)
     fs.write("D", np.array([[-0.2, 0.04, 1e-3, -1e-3]]))
+    fs.write("fisheye_model", 0)  # 4 coefficients: the model must be declared (tests/test_calibration_model.py)
     fs.release()
     cam_dict = read_calibration(tmp_path / "k.yml")
     assert "width" not in cam_dict and cam_dict["model"] == "brown" and cam_dict["distortion"]["p2"] == -1e-3

@@ -5,16 +5,22 @@ Two kinds of file are read:
 - an OpenCV calibration written by ``cv2.FileStorage`` as YAML (``%YAML:1.0`` header, ``!!opencv-matrix``
   nodes) or JSON (``type_id: opencv-matrix`` nodes): the camera matrix under ``camera_matrix`` / ``K`` /
   ``cameraMatrix``, the distortion vector under ``distortion_coefficients`` / ``D`` / ``distCoeffs``, the
-  size under ``image_width`` / ``image_height``, and the fisheye flag ``fisheye_model: 1`` (also
+  size under ``image_width`` / ``image_height``, and the fisheye flag ``fisheye_model: 1`` / ``0`` (also
   ``fisheye``, or a ``distortion_model`` string as below);
 - a ROS ``camera_info`` YAML (``camera_calibration_parsers``): ``image_width``, ``image_height``,
   ``camera_matrix: {rows, cols, data}``, ``distortion_model`` (``plumb_bob``, ``rational_polynomial`` or
   ``equidistant``) and ``distortion_coefficients: {rows, cols, data}``; the flat message form
   (``width``, ``height``, ``K`` / ``k``, ``D`` / ``d``) is read too.
 
-OpenCV distortion vectors map onto the lab's models by length: 4 or 5 coefficients
-``(k1, k2, p1, p2[, k3])`` → ``brown``; 8, 12 or 14 ``(k1, k2, p1, p2, k3, k4, k5, k6[, s1..s4[, tau_x,
-tau_y]])`` → ``opencv``; the fisheye's 4 ``(k1, k2, k3, k4)`` → ``kannala_brandt``; none → ``pinhole``.
+OpenCV distortion vectors map onto the lab's models by length: 5 coefficients ``(k1, k2, p1, p2, k3)`` →
+``brown``; 8, 12 or 14 ``(k1, k2, p1, p2, k3, k4, k5, k6[, s1..s4[, tau_x, tau_y]])`` → ``opencv``; none →
+``pinhole``. Four coefficients are either ``cv2.projectPoints``' ``(k1, k2, p1, p2)`` (``brown``) or
+``cv2.fisheye``'s ``(k1, k2, k3, k4)`` (``kannala_brandt``), which differ by pixels to tens of pixels: such a
+vector is read only when the model is declared — by the file (``fisheye_model`` / ``fisheye``: 1 or 0, or a
+``distortion_model`` name) or by the caller (``model``; the scenario's ``camera.calibration_model``), and the
+two must agree. Declared names (:data:`MODEL_NAMES`): ``plumb_bob``, ``radtan``, ``brown``, ``opencv``,
+``rational_polynomial`` (OpenCV's vector), ``equidistant``, ``fisheye``, ``kannala_brandt`` (``cv2.fisheye``),
+``none``, ``pinhole``.
 OpenCV and ROS put pixel centres at integers with (0, 0) the centre of the top-left pixel, as the lab does, so the
 camera matrix is used as it is: ``fx = K[0,0]``, ``skew = K[0,1]``, ``cx = K[0,2]``, ``skew_yx = K[1,0]``,
 ``fy = K[1,1]``, ``cy = K[1,2]``.
@@ -37,15 +43,19 @@ from .camera import CameraModel
 from .distortion_opencv import KEYS as OPENCV_KEYS
 from .fisheye import KEYS as FISHEYE_KEYS
 
-__all__ = ["read_calibration", "camera_from_opencv", "opencv_intrinsics"]
+__all__ = ["MODEL_NAMES", "read_calibration", "camera_from_opencv", "opencv_intrinsics"]
 
 _K_KEYS = ("camera_matrix", "K", "k", "cameraMatrix")
 _D_KEYS = ("distortion_coefficients", "D", "d", "distCoeffs", "dist_coeffs")
 _W_KEYS, _H_KEYS = ("image_width", "width"), ("image_height", "height")
 #: ``distortion_model`` names (ROS, OpenCV tools) → the lab's model; ``None``: decide by the vector length
-_MODEL_NAMES = {"plumb_bob": "brown", "radtan": None, "brown": None, "rational_polynomial": "opencv",
+_MODEL_NAMES = {"plumb_bob": "brown", "radtan": None, "brown": None, "opencv": None, "rational_polynomial": "opencv",
                 "equidistant": "kannala_brandt", "fisheye": "kannala_brandt", "kannala_brandt": "kannala_brandt",
                 "none": "pinhole", "pinhole": None}
+#: the distortion-model names a file (``distortion_model``) or the caller (``camera.calibration_model``) may declare
+MODEL_NAMES = tuple(_MODEL_NAMES)
+_DECLARE = ("declare the model: fisheye_model: 1 (cv2.fisheye) or 0, or distortion_model: plumb_bob | equidistant "
+            "in the file, or camera.calibration_model in the scenario")
 #: model → its coefficient names in OpenCV's vector order (``brown``: OpenCV's first five)
 _VECTOR_ORDER = {"pinhole": (), "brown": ("k1", "k2", "p1", "p2", "k3"), "opencv": OPENCV_KEYS,
                  "kannala_brandt": FISHEYE_KEYS}
@@ -93,8 +103,12 @@ def _matrix(node: Any, name: str) -> np.ndarray:
     return np.array(values, dtype=np.float64).reshape(rows, cols)
 
 
-def _model_for(n_coeffs: int, fisheye: bool, named: str | None, name: str) -> str:
-    """The lab's model for a distortion vector of `n_coeffs` (no coefficients: ``pinhole``)."""
+def _model_for(n_coeffs: int, fisheye: bool | None, named: str | None, name: str, declared: bool) -> str:
+    """The lab's model for a distortion vector of `n_coeffs` (no coefficients: ``pinhole``); four coefficients need a
+    `declared` model (a fisheye flag or a model name)."""
+    if n_coeffs == 4 and not declared:
+        raise UserError(f"{name}: 4 coefficients are either OpenCV's (k1, k2, p1, p2) or cv2.fisheye's (k1, k2, k3, "
+                        f"k4) and nothing says which; {_DECLARE}")
     if fisheye or named == "kannala_brandt":
         if n_coeffs not in (0, 4):
             raise UserError(f"{name}: a fisheye model has 4 coefficients (k1, k2, k3, k4), got {n_coeffs}")
@@ -112,7 +126,7 @@ def _model_for(n_coeffs: int, fisheye: bool, named: str | None, name: str) -> st
 
 
 def camera_from_opencv(K: Any, D: Any = None, width: int | None = None, height: int | None = None, *,
-                       fisheye: bool = False, distortion_model: str | None = None,
+                       fisheye: bool | None = None, distortion_model: str | None = None,
                        where: str = "calibration") -> dict[str, Any]:
     """The lab's camera dict from an OpenCV / ROS camera matrix and distortion vector.
 
@@ -124,10 +138,12 @@ def camera_from_opencv(K: Any, D: Any = None, width: int | None = None, height: 
         Distortion vector of 0, 4, 5, 8, 12 or 14 coefficients (fisheye: 4), any 1xN / Nx1 shape.
     width, height : int, optional
         Image size in pixels; left out of the result when None.
-    fisheye : bool
-        The vector is ``cv2.fisheye``'s ``(k1, k2, k3, k4)``.
+    fisheye : bool, optional
+        True: the vector is ``cv2.fisheye``'s ``(k1, k2, k3, k4)``; False: it is ``cv2.projectPoints``'; None: not
+        declared (then a 4-vector needs `distortion_model`).
     distortion_model : str, optional
-        ROS name (``plumb_bob``, ``rational_polynomial``, ``equidistant``; also ``fisheye``, ``radtan``, ``none``).
+        A name of :data:`MODEL_NAMES` (ROS: ``plumb_bob``, ``rational_polynomial``, ``equidistant``; also
+        ``fisheye``, ``radtan``, ``none``...); it must agree with `fisheye` when both are given.
     where : str
         Prefix of error messages (the file name).
 
@@ -141,7 +157,8 @@ def camera_from_opencv(K: Any, D: Any = None, width: int | None = None, height: 
     ------
     UserError
         Wrong shape, non-finite value, a camera matrix that is not ``[[fx, s, cx], [., fy, cy], [0, 0, 1]]``
-        with positive ``fx, fy``, an unknown distortion model or a vector length the model does not have.
+        with positive ``fx, fy``, an unknown distortion model or a vector length the model does not have, four
+        coefficients without a declared model, a fisheye flag that contradicts the model name.
     """
     k = _matrix(K, f"{where}: camera_matrix")
     if k.size != 9:
@@ -162,7 +179,11 @@ def camera_from_opencv(K: Any, D: Any = None, width: int | None = None, height: 
             raise UserError(f"{where}: distortion_model {distortion_model!r} is not one of "
                             "plumb_bob, rational_polynomial, equidistant (or fisheye, radtan, none)")
         named = _MODEL_NAMES[key]
-    model = _model_for(d.size, fisheye, named, f"{where}: distortion_coefficients")
+    if fisheye is not None and distortion_model is not None and bool(fisheye) != (named == "kannala_brandt"):
+        raise UserError(f"{where}: the fisheye flag says {int(bool(fisheye))} but the model is "
+                        f"{distortion_model!r}; they must agree")
+    model = _model_for(d.size, fisheye, named, f"{where}: distortion_coefficients",
+                       fisheye is not None or distortion_model is not None)
     names = _VECTOR_ORDER[model]
     out: dict[str, Any] = {} if width is None or height is None else {"width": width, "height": height}
     out.update(fx=float(k[0, 0]), fy=float(k[1, 1]), cx=float(k[0, 2]), cy=float(k[1, 2]),
@@ -247,13 +268,47 @@ def _size(data: Mapping[str, Any], keys: Sequence[str], name: str) -> int | None
     return int(value)
 
 
-def read_calibration(path: str | Path) -> dict[str, Any]:
+def _flag(data: Mapping[str, Any], name: str) -> bool | None:
+    """The file's fisheye flag (``fisheye_model`` or ``fisheye``: 1 or 0), None when it has none."""
+    for key in ("fisheye_model", "fisheye"):
+        if key in data:
+            flag = data[key]
+            if not isinstance(flag, (bool, int)) or flag not in (0, 1):
+                raise UserError(f"{name}: {key} must be 0 or 1, got {flag!r}")
+            return bool(flag)
+    return None
+
+
+def _declared(model: str | None, flag: bool | None, model_name: str | None, name: str) -> str | None:
+    """The caller's `model` checked against the file's own flag and name; the name to read the vector with."""
+    if model is None:
+        return model_name or None
+    key = str(model).strip().lower()
+    if key not in _MODEL_NAMES:
+        raise UserError(f"calibration model {model!r} is not one of {', '.join(MODEL_NAMES)}")
+    fish = _MODEL_NAMES[key] == "kannala_brandt"
+    file_named = _MODEL_NAMES.get(str(model_name).strip().lower()) if model_name else None
+    clash = (flag is not None and flag != fish) or (
+        model_name is not None and ((file_named == "kannala_brandt") != fish
+                                    or None not in (file_named, _MODEL_NAMES[key]) and file_named != _MODEL_NAMES[key]))
+    if clash:
+        says = f"distortion_model: {model_name}" if model_name is not None else f"fisheye flag {int(flag)}"
+        raise UserError(f"{name}: the file says {says} but the model declared for it (camera.calibration_model) is "
+                        f"{model!r}; they must agree")
+    return model_name or key
+
+
+def read_calibration(path: str | Path, model: str | None = None) -> dict[str, Any]:
     """Read an OpenCV (``cv2.FileStorage`` YAML/JSON) or ROS ``camera_info`` calibration file.
 
     Parameters
     ----------
     path : str or Path
         The file; ``.json`` (or text starting with ``{``) is JSON, anything else YAML.
+    model : str, optional
+        The distortion model the caller declares for the file (a name of :data:`MODEL_NAMES`; the scenario's
+        ``camera.calibration_model``): needed for a 4-coefficient vector whose file does not say whether it is
+        ``cv2.fisheye``'s; it must agree with the file's own flag or name.
 
     Returns
     -------
@@ -264,7 +319,8 @@ def read_calibration(path: str | Path) -> dict[str, Any]:
     ------
     UserError
         One line naming the file and the problem: missing camera matrix, wrong shape, NaN, unknown
-        distortion model, unreadable file.
+        distortion model, a model that cannot be told (4 coefficients, nothing declared), a declared model the file
+        contradicts, unreadable file.
     """
     p = Path(path)
     data = _load_text(p)
@@ -273,12 +329,10 @@ def read_calibration(path: str | Path) -> dict[str, Any]:
     if k_key is None:
         raise UserError(f"{name}: no camera matrix (expected one of {', '.join(_K_KEYS)})")
     _, D = _first(data, _D_KEYS)
-    flag = data.get("fisheye_model", data.get("fisheye", False))
-    if not isinstance(flag, (bool, int)) or flag not in (0, 1):
-        raise UserError(f"{name}: fisheye_model must be 0 or 1, got {flag!r}")
+    flag = _flag(data, name)
     model_name = data.get("distortion_model")
     if model_name is not None and not isinstance(model_name, str):
         raise UserError(f"{name}: distortion_model must be a name, got {model_name!r}")
     return camera_from_opencv(K, D, _size(data, _W_KEYS, name),
-                              _size(data, _H_KEYS, name), fisheye=bool(flag),
-                              distortion_model=model_name or None, where=name)
+                              _size(data, _H_KEYS, name), fisheye=flag,
+                              distortion_model=_declared(model, flag, model_name, name), where=name)

@@ -5,7 +5,11 @@ Besides explicit intrinsics (``fx, fy, cx, cy, skew, skew_yx, model, distortion`
 - ``calibration_file``: an OpenCV (``cv2.FileStorage`` YAML/JSON) or ROS ``camera_info`` calibration,
   relative to the scenario file (:func:`renderlab.geometry.calibration.read_calibration`). It sets every
   intrinsic, so it refuses any of them beside it; ``width``/``height`` may be given and must then match
-  the file's image size (or supply it when the file has none);
+  the file's image size (or supply it when the file has none). ``calibration_model`` declares the file's
+  distortion model (``plumb_bob``, ``equidistant``, ... :data:`renderlab.geometry.calibration.MODEL_NAMES`):
+  required when the file holds 4 coefficients and no fisheye flag or ``distortion_model`` of its own
+  (``cv2.projectPoints``' ``k1 k2 p1 p2`` and ``cv2.fisheye``'s ``k1..k4`` look alike), checked against them
+  otherwise;
 - ``fov_deg``: the horizontal field of view over the full image width, ``fx = fy = (width/2) /
   tan(fov_deg/2)``, principal point at the image centre ``((width-1)/2, (height-1)/2)`` unless
   ``cx``/``cy`` are given; it refuses ``fx``/``fy`` beside it.
@@ -87,6 +91,8 @@ class CameraConfig(_Strict):
     def _plain_intrinsics(cls, data: Any) -> Any:
         if not isinstance(data, dict):
             return data
+        if "calibration_model" in data and "calibration_file" not in data:
+            raise ValueError("calibration_model declares the model of calibration_file, which is not given")
         if "calibration_file" in data:
             raise ValueError("calibration_file is read when the scenario file is loaded (load_scenario, which knows "
                              "its folder); pass the data through renderlab.scenario.camera.resolve_camera first")
@@ -102,15 +108,18 @@ def _from_calibration(cam: dict[str, Any], base_dir: Path) -> dict[str, Any]:
     rel = cam["calibration_file"]
     if not isinstance(rel, str) or not rel.strip():
         raise UserError(f"camera.calibration_file must be a file name, got {rel!r}")
+    declared = cam.get("calibration_model")
+    if declared is not None and (not isinstance(declared, str) or not declared.strip()):
+        raise UserError(f"camera.calibration_model must be a model name, got {declared!r}")
     clash = [k for k in _CALIBRATED if k in cam]
     if clash:
         raise UserError(f"camera.calibration_file and camera.{clash[0]} are both given; the calibration file "
                         f"sets the intrinsics (remove camera.{clash[0]})")
     try:
-        cal = read_calibration(Path(base_dir) / rel)
+        cal = read_calibration(Path(base_dir) / rel, model=declared)
     except UserError as err:
         raise UserError(f"camera.calibration_file: {err}") from None
-    out = {k: v for k, v in cam.items() if k != "calibration_file"}
+    out = {k: v for k, v in cam.items() if k not in ("calibration_file", "calibration_model")}
     for key in ("width", "height"):
         if key in cal and key in out and out[key] != cal[key]:
             raise UserError(f"camera.{key} = {out[key]!r} but the calibration file {rel} is for "
@@ -149,6 +158,8 @@ def resolve_camera(scenario: dict[str, Any], base_dir: str | Path) -> dict[str, 
         return out  # validation names it
     if "calibration_file" in cam:
         cam = _from_calibration(cam, Path(base_dir))
+    elif "calibration_model" in cam:
+        raise UserError("camera.calibration_model declares the model of camera.calibration_file, which is not given")
     if cam or "camera" in out:
         out["camera"] = cam
     from renderlab.worlds.earth.config import leo_camera
