@@ -15,8 +15,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("truthset", metavar="TRUTHSET", nargs="?", help="truth set folder with a landmark catalog")
     p.add_argument("--images", metavar="APRIORI.json",
                    help="measure your own images instead of a truth set: a JSON file listing the images with their "
-                        "a-priori pose, covariance and sun direction, and the camera (renderlab.measurement.images); "
-                        "needs --catalog and --out")
+                        "a-priori pose, covariance and sun direction, the camera and the body frame (format: "
+                        "docs/apriori_file.md; 'renderlab export TRUTHSET --apriori FILE' writes one); needs "
+                        "--catalog and --out")
     p.add_argument("--catalog", metavar="DIR", help="with --images: folder holding landmarks.parquet and maplets/")
     p.add_argument("--method", required=True, metavar="NAME",
                    help="landmark method: a registered name (retina, spc, or one an installed package adds through "
@@ -141,6 +142,7 @@ def _run_images(args, opts) -> int:
     from pathlib import Path
 
     from renderlab.errors import UserError
+    from renderlab.measurement.apriori import check_frame
     from renderlab.measurement.images import measure_images, read_apriori
     from renderlab.measurement.runner import write_table
     from renderlab.worlds.ev5.catalog import read_catalog
@@ -152,7 +154,8 @@ def _run_images(args, opts) -> int:
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise UserError(f"output {out} exists (use --overwrite to replace it)")
-    read_apriori(Path(args.images))  # validated before anything else is read
+    _, _, frame, _ = read_apriori(Path(args.images))  # validated before anything else is read
+    check_frame(frame, Path(args.catalog), Path(args.images).name)
     maplets = read_catalog(Path(args.catalog))
     table = measure_images(Path(args.images), maplets, args.method, opts, allow_reference=True, progress=not args.quiet)
     write_table(table, out, overwrite=args.overwrite)
