@@ -193,3 +193,14 @@ def test_auto_exposure_is_chosen_per_frame_and_saturation_recorded():
     assert all(f.meta["sensor"]["exposure_s"] == f.exposure_s for f in frames)
     assert all(f.meta["sensor"]["saturated_px"] == f.saturated_px >= 0 for f in frames)
     assert fixed.exposure_s == 2 * want[1] and fixed.saturated_px >= frames[1].saturated_px
+
+
+def test_a_world_whose_scene_follows_the_planned_pose_refuses_a_moved_camera():
+    """Earth builds a tangent tile around each planned footprint: moving the camera would render the wrong tile."""
+    from renderlab import Renderer
+
+    r = Renderer(REPO / "scenes" / "earth_leo.toml", overrides=["camera.width=32", "camera.height=32",
+                                                                "trajectory.frames=1"])
+    p = r.spec(0).pose
+    with pytest.raises(UserError, match="builds its scene around each planned pose"):
+        r.frame(0, pose=(p.position_m + 10.0, p.rotation))

@@ -105,6 +105,9 @@ def leo_orbit(scenario) -> FrameOrbit:
 
 @dataclass
 class EarthPlan(WorldPlan):
+    #: the scene is a local tangent tile built around each planned frame's footprint: the frame API refuses to move
+    #: the camera of such a world (renderlab.pipeline.frame_api)
+    scene_follows_pose = True
     world: object = None
     traj: object = None
     epoch: object = None
