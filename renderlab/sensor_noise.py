@@ -170,12 +170,13 @@ def _poisson_ptrs(m, i, k0, k1, w2, w3):  # pragma: no cover - numba
             return k
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def _electrons_kernel(mu, read_noise_e, k0, k1, out):  # pragma: no cover - numba
-    """``out[i] = Poisson(mu[i]) + read_noise_e · z_i`` with pixel i's counter-based draws."""
+    """``out[i] = Poisson(mu[i]) + read_noise_e · z_i`` with pixel i's counter-based draws (pixels in parallel:
+    each depends on its own counters only, so the result does not depend on the thread count)."""
     zero = _U(0)
     two_pi = 2.0 * math.pi
-    for i in range(mu.size):
+    for i in numba.prange(mu.size):
         w0, w1, w2, w3 = _philox_block(_U(i), zero, zero, zero, k0, k1)
         z = math.sqrt(-2.0 * math.log(_unit(w0))) * math.cos(two_pi * _unit(w1))
         m = mu[i]

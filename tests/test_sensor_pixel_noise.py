@@ -247,3 +247,21 @@ def test_noise_stream_option_and_scenario_key(tmp_path):
             load_scenario(bad)
         msg = str(info.value)
         assert "\n" not in msg and "sensor.noise_stream must be 'per_pixel' or 'sequential'" in msg
+
+
+def test_parallel_kernel_does_not_depend_on_the_thread_count():
+    """Pixels are drawn in parallel (numba prange): one thread and every thread give the same bytes."""
+    import numba
+
+    from renderlab.sensor_noise import per_pixel_electrons
+
+    mu = np.random.default_rng(3).gamma(2.0, 40.0, (96, 80))
+    mu[::7, ::5] = 3e5  # PTRS pixels beside inversion ones
+    key = np.array([11, 12], np.uint64)
+    n = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = per_pixel_electrons(mu, 5.0, key)
+    finally:
+        numba.set_num_threads(n)
+    assert per_pixel_electrons(mu, 5.0, key).tobytes() == one.tobytes()
