@@ -6,7 +6,10 @@
 #      box 16 spp and centre 1 spp), with seconds per frame of both;
 #      (the lab's default integrator: rl_direct_sun, renderlab/render/mitsuba_direct.py);
 #   3. the lab path vs mi.render on the GPU (benchmarks/bench_mitsuba_lab_vs_render.py, 1024², 16 spp): rl_direct_sun
-#      and Mitsuba's path in the lab path and in mi.render, and Mitsuba's own direct integrator, side by side.
+#      and Mitsuba's path in the lab path and in mi.render, and Mitsuba's own direct integrator, side by side;
+#   4. the warm frame API on the GPU: its tests and the tiled site in a second scene forced on CUDA
+#      (RENDERLAB_MITSUBA_TILE_DESIGN=two: does OptiX trace two scenes in one kernel, and do the images equal the
+#      one-scene design's?), then benchmarks/bench_frame_api.py on the descent-navigation world.
 # Needs the project environment (./setup.sh) and a CUDA driver. Figures go to $OUT (default $TMPDIR/renderlab_gpu_check);
 # exit status 0 when everything passed, 1 when a step failed, 2 when there is no usable GPU.
 # Run from anywhere:  bash benchmarks/gpu_check.sh        (about 5 minutes; each step has its own timeout)
@@ -34,5 +37,10 @@ step tests 240 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest -q -p no:cachepro
   tests/test_shadows_switch.py -k "not cycles"
 step gpu_vs_llvm 150 $PY benchmarks/bench_mitsuba_gpu_vs_llvm.py --size 1024 --json "$OUT/gpu_vs_llvm.json"
 step lab_vs_render_cuda 180 $PY benchmarks/bench_mitsuba_lab_vs_render.py --variant cuda_ad_mono --size 1024 --repeats 5
+step frame_api_tests 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest -q -p no:cacheprovider \
+  tests/test_frame_api.py tests/test_mitsuba_two_scene.py
+step two_scenes_on_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda RENDERLAB_MITSUBA_TILE_DESIGN=two $PY -m pytest -q \
+  -p no:cacheprovider tests/test_mitsuba_two_scene.py
+step frame_api_bench_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_frame_api.py --skip-full
 echo "gpu_check: $([ $status = 0 ] && echo PASSED || echo FAILED); figures in $OUT/"
 exit $status

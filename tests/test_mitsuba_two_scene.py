@@ -54,7 +54,7 @@ def _render(tmp_path, design: str):
 @pytest.fixture(scope="module")
 def renders(tmp_path_factory, monkeypatch_module):
     tmp = tmp_path_factory.mktemp("two_scene")
-    return {d: _render(tmp, d) for d in ("auto", "merged")}
+    return {d: _render(tmp, d) for d in ("two", "merged")}
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +66,7 @@ def monkeypatch_module(tmp_path_factory):
 
 
 def test_two_scene_design_is_used_and_static_scene_is_built_once(renders):
-    two, static, _ = renders["auto"]
+    two, static, _ = renders["two"]
     one, _, _ = renders["merged"]
     assert two._two is not None and one._two is None
     assert two.scene is static  # never reloaded: the tile updates went to the second scene
@@ -74,7 +74,7 @@ def test_two_scene_design_is_used_and_static_scene_is_built_once(renders):
 
 
 def test_truth_aovs_identical_and_radiance_equal_but_for_shadow_edge_samples(renders):
-    _, _, a = renders["auto"]
+    _, _, a = renders["two"]
     _, _, b = renders["merged"]
     for fa, fb in zip(a, b):
         assert (fa.body_id == 1).mean() > 0.5  # the site fills most of the frame
@@ -90,3 +90,12 @@ def test_truth_aovs_identical_and_radiance_equal_but_for_shadow_edge_samples(ren
         if differ.any():
             step = np.abs(fa.radiance - fb.radiance)[differ]
             assert np.all(step <= fb.radiance.max() / 4 * 1.001)
+
+
+def test_default_design_on_llvm_is_two_scenes_and_a_bad_design_is_one_line(tmp_path, monkeypatch_module):
+    from renderlab.errors import UserError
+
+    backend, _, _ = _render(tmp_path, "auto")
+    assert backend._two is not None  # llvm_ad_mono + direct sun
+    with pytest.raises(UserError, match="tile design"):
+        _render(tmp_path, "bvh")

@@ -83,9 +83,11 @@ class MitsubaBackend(NumpyRayPath):
     #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) for max_depth 2, else ``path``;
     #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before issue 19), kept for the benchmarks
     integrator = "auto"
-    #: tiled surfaces: ``"auto"``, in a second scene where the design applies (renderlab.render.mitsuba_two_scene);
-    #: ``"merged"``, in the one scene (the design before; kept for the benchmarks and the side-by-side tests)
-    tile_design = "auto"
+    #: tiled surfaces: ``"auto"``, in a second scene where the design applies (LLVM variants with the direct-sun
+    #: integrator; renderlab.render.mitsuba_two_scene); ``"two"``, a second scene on CUDA variants too (not yet
+    #: checked on a GPU: benchmarks/gpu_check.sh does); ``"merged"``, in the one scene (the design before; kept for the
+    #: benchmarks and the side-by-side tests); ``$RENDERLAB_MITSUBA_TILE_DESIGN`` sets the default
+    tile_design = os.environ.get("RENDERLAB_MITSUBA_TILE_DESIGN") or "auto"
     #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
     samples_per_pass = MAX_SAMPLES_PER_PASS
 

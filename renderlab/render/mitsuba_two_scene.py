@@ -25,9 +25,10 @@ intersected with both:
 Tuning
 ------
 None. :class:`renderlab.render.mitsuba_backend.MitsubaBackend` uses this design for every tiled scene rendered by
-a JIT variant with the direct-sun integrator (``render.max_depth = 2``, the default); longer light paths
-(Mitsuba's ``path`` integrator) and scalar variants keep the tiles in the one scene
-(:mod:`renderlab.render.mitsuba_tiles`).
+an LLVM variant with the direct-sun integrator (``render.max_depth = 2``, the default); longer light paths
+(Mitsuba's ``path`` integrator), scalar variants and, until checked on a GPU, CUDA variants keep the tiles in the one
+scene (:mod:`renderlab.render.mitsuba_tiles`); ``MitsubaBackend.tile_design`` (``$RENDERLAB_MITSUBA_TILE_DESIGN``)
+chooses explicitly.
 
 Use
 ---
@@ -118,14 +119,21 @@ class TileScene:
 
 
 def two_scene_capable(backend) -> bool:
-    """True where the two-scene design applies: a JIT variant, the direct-sun integrator, and the backend's
-    ``tile_design`` not ``"merged"``."""
+    """True where the two-scene design applies: the direct-sun integrator on an LLVM variant (on a CUDA variant only
+    with ``tile_design = "two"``: OptiX traces one scene per kernel launch in Mitsuba's CUDA back end unless shown
+    otherwise on a device), and ``tile_design`` not ``"merged"``."""
+    from renderlab.errors import UserError
     from renderlab.render.mitsuba_direct import integrator_dict
 
-    if getattr(backend, "tile_design", "auto") == "merged":
+    design = getattr(backend, "tile_design", "auto")
+    if design not in ("auto", "two", "merged"):
+        raise UserError(f"Mitsuba tile design ($RENDERLAB_MITSUBA_TILE_DESIGN) must be auto, two or merged, "
+                        f"got {str(design)[:40]!r}")
+    if design == "merged" or backend.scalar:
         return False
-    d = integrator_dict(backend.settings.max_depth, backend.settings.shadows, backend.integrator)
-    return not backend.scalar and d["type"] != "path"
+    if backend.variant.startswith("cuda") and design != "two":
+        return False
+    return integrator_dict(backend.settings.max_depth, backend.settings.shadows, backend.integrator)["type"] != "path"
 
 
 def register_ids(id_lut: np.ndarray, reg: np.ndarray, body_ids: list[int]) -> np.ndarray:
