@@ -1,5 +1,15 @@
 """CCSDS Orbit and Attitude Ephemeris Messages (OEM 502.0, AEM 504.0) in KVN: read and write.
 
+Versions, from the ``CCSDS_OEM_VERS`` / ``CCSDS_AEM_VERS`` line: OEM 1.0, 2.0 and 3.0 (502.0-B-1, -B-2, -B-3: the
+same META keywords and data lines for what the lab reads) and AEM 1.0 (ADM 504.0-B-1) and 2.0 (504.0-B-2); any
+other version is refused by its number. ADM 2.0 differs from 1.0 in what the lab reads by (504.0-B-2 §4 and its
+annex of changes): no ``ATTITUDE_DIR`` (the rotation is always A2B; a ``B2A`` is refused), no ``QUATERNION_TYPE``
+(the data line is ``Q1 Q2 Q3 QC``, scalar last; an explicit ``QUATERNION_TYPE`` is honoured), and
+``QUATERNION/ANGVEL`` (quaternion + 3 angular rates) instead of ``QUATERNION/RATE``. The ``ccsds-ndm`` package
+(3.1) writes AEM 2.0 quaternions scalar first with a lower-case ``ATTITUDE_TYPE = quaternion``: such a file
+(lower-case type, no ``QUATERNION_TYPE``) is refused with a line asking for ``QUATERNION_TYPE``, rather than read
+with the components shifted.
+
 Read subset. META: ``OBJECT_NAME``, ``CENTER_NAME``, ``REF_FRAME`` (OEM), ``REF_FRAME_A``/``REF_FRAME_B``,
 ``ATTITUDE_DIR`` (``A2B``/``B2A``), ``ATTITUDE_TYPE`` (``QUATERNION``, ``QUATERNION/DERIVATIVE``,
 ``QUATERNION/RATE``; only the quaternion is used), ``QUATERNION_TYPE`` (``FIRST``/``LAST``) (AEM),
@@ -30,6 +40,25 @@ from renderlab.trajectory_io.timescales import Epoch, parse_epoch
 #: frame names that mean the same axes (CCSDS spells J2000 EME2000)
 FRAME_ALIASES = {"EME2000": "J2000"}
 QUAT_TYPES = ("QUATERNION", "QUATERNION/DERIVATIVE", "QUATERNION/RATE")
+#: versions read → their standard; ADM 2.0's quaternion types (QUATERNION/RATE is 1.0 only) and data line widths
+OEM_VERSIONS = {"1.0": "502.0-B-1", "2.0": "502.0-B-2", "3.0": "502.0-B-3"}
+AEM_VERSIONS = {"1.0": "504.0-B-1", "2.0": "504.0-B-2"}
+QUAT_TYPES_V2 = ("QUATERNION", "QUATERNION/DERIVATIVE", "QUATERNION/ANGVEL")
+_WIDTH = {"QUATERNION": 4, "QUATERNION/DERIVATIVE": 8, "QUATERNION/RATE": 7, "QUATERNION/ANGVEL": 7}
+
+
+def message_version(header: dict[str, str], kind: str, src: str) -> str:
+    """The message's version (``"1.0"``...) from its ``CCSDS_<kind>_VERS`` line, refused unless the lab reads it."""
+    known = OEM_VERSIONS if kind == "OEM" else AEM_VERSIONS
+    raw = header.get(f"CCSDS_{kind}_VERS", "")
+    try:
+        version = f"{float(raw):.1f}"
+    except ValueError:
+        version = None
+    if version not in known:
+        names = ", ".join(f"{v} ({std})" for v, std in known.items())
+        raise UserError(f"{src}: CCSDS_{kind}_VERS = {raw or '(empty)'} is not a version this lab reads ({kind} {names})")
+    return version
 
 
 def same_frame(a: str | None, b: str | None) -> bool:
@@ -76,6 +105,7 @@ def read_oem(path) -> PoseSeries:
     """Positions (m) and velocities (m/s) of a KVN OEM (module docstring), in its ``REF_FRAME``."""
     header, segments = read_kvn(path, "OEM")
     src = Path(path).name
+    message_version(header, "OEM", src)
     for seg in segments:
         require(seg.meta, ("OBJECT_NAME", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM"), src, seg.line)
     meta = _shared(segments, ("OBJECT_NAME", "CENTER_NAME", "REF_FRAME", "TIME_SYSTEM"), src)
@@ -83,6 +113,21 @@ def read_oem(path) -> PoseSeries:
     return PoseSeries(times_s=np.array([e.minus(epochs[0]) for e in epochs]), positions_m=vals[:, 0:3] * 1e3,
                       quat_xyzw=None, frame=meta["REF_FRAME"], epoch0=epochs[0], velocities_m_s=vals[:, 3:6] * 1e3,
                       source=src, object_name=meta["OBJECT_NAME"], center_name=meta["CENTER_NAME"], labels=labels)
+
+
+def _quaternion_type(meta: dict[str, str], v2: bool, src: str) -> str:
+    """``FIRST`` or ``LAST``: the file's ``QUATERNION_TYPE``, else ADM 2.0's scalar last (module docstring)."""
+    given = meta.get("QUATERNION_TYPE")
+    if given is None:
+        raw = meta["ATTITUDE_TYPE"]
+        if raw.upper().startswith("QUATERNION") and raw != raw.upper():
+            raise UserError(f"{src}: ATTITUDE_TYPE = {raw} in lower case is how ccsds-ndm 3.1 writes AEM 2.0, with the "
+                            "quaternion scalar first (QC Q1 Q2 Q3) where 504.0-B-2 puts it last (Q1 Q2 Q3 QC); add "
+                            "QUATERNION_TYPE = FIRST (or LAST) to the META block to say which")
+        return "LAST"
+    if given.upper() not in ("FIRST", "LAST"):
+        raise UserError(f"{src}: QUATERNION_TYPE must be FIRST or LAST, got {given!r}")
+    return given.upper()
 
 
 def read_aem(path, frame: str | None = None) -> PoseSeries:
@@ -103,23 +148,27 @@ def read_aem(path, frame: str | None = None) -> PoseSeries:
     """
     header, segments = read_kvn(path, "AEM")
     src = Path(path).name
-    keys = ("OBJECT_NAME", "REF_FRAME_A", "REF_FRAME_B", "ATTITUDE_DIR", "TIME_SYSTEM", "ATTITUDE_TYPE",
-            "QUATERNION_TYPE")
+    v2 = message_version(header, "AEM", src) == "2.0"
+    keys = ("OBJECT_NAME", "REF_FRAME_A", "REF_FRAME_B", "TIME_SYSTEM", "ATTITUDE_TYPE")
     for seg in segments:
-        require(seg.meta, keys, src, seg.line)
-    meta = _shared(segments, keys, src)
+        require(seg.meta, keys if v2 else (*keys, "ATTITUDE_DIR", "QUATERNION_TYPE"), src, seg.line)
+    meta = _shared(segments, (*keys, "ATTITUDE_DIR", "QUATERNION_TYPE"), src)
     a, b = meta["REF_FRAME_A"], meta["REF_FRAME_B"]
-    direction, att_type, qtype = (meta[k].upper() for k in ("ATTITUDE_DIR", "ATTITUDE_TYPE", "QUATERNION_TYPE"))
+    direction, att_type = meta.get("ATTITUDE_DIR", "A2B").upper(), meta["ATTITUDE_TYPE"].upper()
     if direction not in ("A2B", "B2A"):
         raise UserError(f"{src}: ATTITUDE_DIR must be A2B or B2A, got {meta['ATTITUDE_DIR']!r}")
-    if att_type not in QUAT_TYPES:
-        raise UserError(f"{src}: ATTITUDE_TYPE {meta['ATTITUDE_TYPE']!r} is not supported (use {', '.join(QUAT_TYPES)})")
-    if qtype not in ("FIRST", "LAST"):
-        raise UserError(f"{src}: QUATERNION_TYPE must be FIRST or LAST, got {meta['QUATERNION_TYPE']!r}")
+    if v2 and direction != "A2B":
+        raise UserError(f"{src}: CCSDS_AEM_VERS 2.0 rotates from REF_FRAME_A to REF_FRAME_B; ATTITUDE_DIR = "
+                        f"{meta['ATTITUDE_DIR']} is ADM 1.0 only (504.0-B-2)")
+    types = QUAT_TYPES_V2 if v2 else QUAT_TYPES
+    if att_type not in types:
+        raise UserError(f"{src}: ATTITUDE_TYPE {meta['ATTITUDE_TYPE']!r} is not supported in CCSDS_AEM_VERS "
+                        f"{'2.0' if v2 else '1.0'} (use {', '.join(types)})")
+    qtype = _quaternion_type(meta, v2, src)
     frame = a if frame is None else frame
     if not (same_frame(frame, a) or same_frame(frame, b)):
         raise UserError(f"{src}: neither REF_FRAME_A {a!r} nor REF_FRAME_B {b!r} is the trajectory frame {frame!r}")
-    width = {"QUATERNION": 4, "QUATERNION/DERIVATIVE": 8, "QUATERNION/RATE": 7}[att_type]
+    width = _WIDTH[att_type]
     epochs, vals, labels = _epochs_values(segments, (width,), src, att_type)
     q = vals[:, [1, 2, 3, 0]] if qtype == "FIRST" else vals[:, 0:4]
     # an X2Y quaternion is R_X_from_Y: invert unless X is the trajectory frame
