@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.contracts.result_folder import figures_wanted
+
 __all__ = ["figure", "markdown_table", "write_images", "read_images", "is_crosscheck_folder", "write_report"]
 
 TABLE = "crosscheck.parquet"
@@ -289,7 +291,8 @@ def _load(folder: Path):
 
 def write_report(folder: Path, out_dir: Path) -> list[Path]:
     """``crosscheck.md`` and ``crosscheck.png`` / ``.svg`` of ``folder`` into ``out_dir``, from the folder's two
-    tables alone; every file is written under a hidden name first and renamed into place when all are done."""
+    tables alone (the page only under :func:`~renderlab.contracts.result_folder.tables_only`); every file is written
+    under a hidden name first and renamed into place when all are done."""
     import os
     import shutil
     import tempfile
@@ -305,9 +308,12 @@ def write_report(folder: Path, out_dir: Path) -> list[Path]:
     stage = Path(tempfile.mkdtemp(prefix=".crosscheck-report-", dir=out_dir))
     try:
         (stage / "crosscheck.md").write_text(markdown_table(rows, title, TARGETS), encoding="utf-8")
-        figure(drawn, images, stage / "crosscheck.png", TARGETS, max_frames=len(drawn))
+        names = ["crosscheck.md"]
+        if figures_wanted():  # not under renderlab report --tables-only
+            figure(drawn, images, stage / "crosscheck.png", TARGETS, max_frames=len(drawn))
+            names += ["crosscheck.png", "crosscheck.svg"]
         done = []
-        for name in ("crosscheck.md", "crosscheck.png", "crosscheck.svg"):
+        for name in names:
             os.replace(stage / name, out_dir / name)
             done.append(out_dir / name)
         return done

@@ -1,11 +1,14 @@
-"""Published study folders regenerate from their raw tables alone: ``renderlab report results/<study>`` on a copy of
-the folder (tables/, campaign.json, runs.json; the committed report removed) gives the committed summary CSVs.
+"""Published study folders regenerate from their raw tables alone: ``renderlab report results/<study> --tables-only``
+on a copy of the folder (tables/, campaign.json, runs.json; the committed report removed) gives the committed summary
+CSVs, and its page names exactly the committed figures (the figures are not redrawn: the published tier checks
+numbers; the code tier draws every kind of figure from small campaigns).
 
 The folders directly under ``results/`` and the coastline study's nested ones (one per Monte Carlo; other studies'
 nested folders have their own tests); a nested published folder is left out of its parent's copy."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -19,6 +22,7 @@ RESULTS = REPO / "results"
 COASTLINE = ["coastline_ekf", "coastline_ekf/sensitivity_1pt_5mrad", "coastline_ekf/image_in_the_loop",
              "coastline_ekf/truth_not_model/j2_rk4", "coastline_ekf/truth_not_model/zonal_dop853"]
 TRUTH_PERTURBED = ["retina_vs_spc_truth_perturbed", "retina_vs_spc_truth_perturbed/nominal"]
+pytestmark = pytest.mark.published
 PUBLISHED = sorted({p for p in RESULTS.iterdir() if p.is_dir() and is_published(p)}
                    | {RESULTS / c for c in COASTLINE + TRUTH_PERTURBED if is_published(RESULTS / c)})
 
@@ -46,14 +50,16 @@ def _own_files(folder: Path):
 def test_report_regenerates_from_the_published_tables(folder, tmp_path, capsys):
     copy = tmp_path / folder.name
     shutil.copytree(folder, copy, ignore=_own_files(folder))
-    assert main(["report", str(copy)]) == 0
+    assert main(["report", str(copy), "--tables-only"]) == 0
     capsys.readouterr()
     committed = sorted(p.name for p in (folder / "report").glob("*.csv"))
     assert committed, "the published report has CSV tables"
     for name in committed + sorted(p.name for p in (folder / "report").glob("*.md") if p.name != "README.md"):
         assert (copy / "report" / name).read_text() == (folder / "report" / name).read_text(), name
+    assert not [p for p in (copy / "report").iterdir() if p.suffix in (".png", ".svg")], "--tables-only draws none"
     figures = {p.name for p in (folder / "report").glob("*.png")}
-    assert figures and figures == {p.name for p in (copy / "report").glob("*.png")}
+    page = (copy / "report" / "index.html").read_text()
+    assert figures and figures == set(re.findall(r'<img src="([^"]+\.png)"', page)), "the page names the figures"
     assert figures == {p.with_suffix(".png").name for p in (folder / "report").glob("*.svg")}, "PNG + SVG"
 
 

@@ -1,15 +1,17 @@
 """The published unknown-satellite campaigns (Ivanov et al. 2018) regenerate from their committed tables alone.
 
 ``results/unknown_satellite/campaign_30s`` (20 runs, 30 s arc) and ``long_arc_120s`` (8 runs, 120 s arc, with the
-Fisher-information table ``inertia_observability``) are published study folders: ``renderlab report`` on a copy of
-their tables/, campaign.json and runs.json gives the committed summary CSVs (every number) and the same figures
-(PNG + SVG); no figure, table or script lies outside tables/ and report/. On the 20-run tables the study section
+Fisher-information table ``inertia_observability``) are published study folders: ``renderlab report --tables-only``
+on a copy of their tables/, campaign.json and runs.json gives the committed summary CSVs (every number) and a page
+that names the committed figures (PNG + SVG; not redrawn here, tests/test_unknown_satellite_campaign.py draws them);
+no figure, table or script lies outside tables/ and report/. On the 20-run tables the study section
 reports score ids in the unit of their values, flags as a rate with "k of 20", and explains the large stage-2
 attitude error (it follows the stage-1 epoch attitude; unobservable inertia ratios).
 """
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -18,6 +20,7 @@ import pytest
 from renderlab.campaign.publish import is_published, load_published_tables
 from renderlab.cli import main
 
+pytestmark = pytest.mark.published
 REPO = Path(__file__).resolve().parents[1]
 HERE = REPO / "results" / "unknown_satellite"
 FOLDERS = [HERE / "campaign_30s", HERE / "long_arc_120s"]
@@ -36,14 +39,15 @@ def test_the_study_publishes_two_folders_and_nothing_else():
 def test_report_regenerates_from_the_published_tables(folder, tmp_path, capsys):
     copy = tmp_path / folder.name
     shutil.copytree(folder, copy, ignore=shutil.ignore_patterns("report", "README.md"))
-    assert main(["report", str(copy)]) == 0
+    assert main(["report", str(copy), "--tables-only"]) == 0
     capsys.readouterr()
     csvs = sorted(p.name for p in (folder / "report").glob("*.csv"))
     assert "unknown_satellite_summary.csv" in csvs
     for name in csvs:
         assert (copy / "report" / name).read_text() == (folder / "report" / name).read_text(), name
     pngs = {p.name for p in (folder / "report").glob("*.png")}
-    assert pngs == {p.name for p in (copy / "report").glob("*.png")}
+    assert not [p for p in (copy / "report").iterdir() if p.suffix in (".png", ".svg")], "--tables-only draws none"
+    assert pngs == set(re.findall(r'<img src="([^"]+\.png)"', (copy / "report" / "index.html").read_text()))
     assert pngs == {p.with_suffix(".png").name for p in (folder / "report").glob("*.svg")}, "PNG + SVG"
     want = {f"unknown_satellite_{f}.png" for f in ("fig5_convergence", "fig6_inertia", "fig7_points",
                                                    "fig13_stage2_position", "fig14_stage2_attitude")}

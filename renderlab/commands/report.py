@@ -1,4 +1,4 @@
-"""``renderlab report CAMPAIGN_DIR [--out DIR]`` (summary CSVs, figures and index.html from a campaign's tables; for a
+"""``renderlab report CAMPAIGN_DIR [--out DIR] [--tables-only]`` (summary CSVs, figures and index.html from a campaign's tables; for a
 registered result-folder kind — a ``renderlab crosscheck`` folder, an error budget — its own report from its
 tables, :mod:`renderlab.contracts.result_folder`) and
 ``renderlab publish CAMPAIGN_DIR --out RESULTS_DIR`` (the raw tables as a study folder, then its report)."""
@@ -15,6 +15,9 @@ def add_parser(subparsers) -> None:
                                                                "renderlab crosscheck")
     p.add_argument("--out", metavar="DIR", help="report folder (files in it are replaced; default for a published "
                                                 "study folder: CAMPAIGN_DIR/report)")
+    p.add_argument("--tables-only", action="store_true",
+                   help="write the CSV and text outputs only, no PNG/SVG figure: checks quickly that a published "
+                        "folder's numbers follow from its tables")
     q = subparsers.add_parser("publish", help="copy a campaign's raw tables into a study folder (tables/*.parquet, "
                                               "campaign.json, runs.json) and write its report there")
     q.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder made by renderlab campaign")
@@ -37,8 +40,7 @@ def _result_folder_kind(folder: Path):
 
 
 def run(args) -> int:
-    from renderlab.campaign.publish import is_published, publish_campaign
-    from renderlab.errors import UserError
+    from renderlab.campaign.publish import publish_campaign
     from renderlab.report.campaign_report import make_report
 
     if getattr(args, "publish", False):
@@ -46,6 +48,20 @@ def run(args) -> int:
         page = make_report(out, out / "report")
         print(f"renderlab: published {out} (tables/, campaign.json, runs.json); report {page}")
         return 0
+    if getattr(args, "tables_only", False):
+        from renderlab.contracts.result_folder import tables_only
+
+        with tables_only():
+            return _report(args)
+    return _report(args)
+
+
+def _report(args) -> int:
+    """``renderlab report``: a registered result-folder kind's report, else the campaign report."""
+    from renderlab.campaign.publish import is_published
+    from renderlab.errors import UserError
+    from renderlab.report.campaign_report import make_report
+
     src = Path(args.campaign)
     if not src.is_dir():
         raise UserError(f"{src} is not a campaign folder: no such folder (renderlab report reads a campaign, "

@@ -10,12 +10,35 @@ that does writes the report from the folder's committed tables alone.
 Rules: ``recognises`` only looks for the kind's marker file (cheap, no table read); ``write_report`` validates
 the tables before it creates any output, writes staged (all or nothing) and raises
 :class:`~renderlab.errors.UserError` (one line) for a missing or unreadable table.
+
+Figures: inside :func:`tables_only` (``renderlab report --tables-only``) :func:`figures_wanted` is False and every
+report — the campaign report and each kind's ``write_report`` — writes its tables and text (CSV, Markdown, HTML)
+but no PNG or SVG: the quick check that a published folder's numbers still follow from its tables.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 from pathlib import Path
-from typing import Protocol, runtime_checkable
+from typing import Iterator, Protocol, runtime_checkable
+
+_FIGURES: contextvars.ContextVar[bool] = contextvars.ContextVar("renderlab_report_figures", default=True)
+
+
+def figures_wanted() -> bool:
+    """Whether reports draw their figures (False inside :func:`tables_only`)."""
+    return _FIGURES.get()
+
+
+@contextlib.contextmanager
+def tables_only() -> Iterator[None]:
+    """Within the block, reports write their tables and text only: no PNG or SVG is drawn (module docstring)."""
+    token = _FIGURES.set(False)
+    try:
+        yield
+    finally:
+        _FIGURES.reset(token)
 
 
 @runtime_checkable

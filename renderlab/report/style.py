@@ -11,6 +11,8 @@ import html
 import math
 from pathlib import Path
 
+from renderlab.contracts.result_folder import figures_wanted
+
 OKABE_ITO = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442", "#000000")
 
 #: column → (label, unit) for axis labels and table headers; a raw column name never reaches a reader
@@ -56,9 +58,14 @@ def plt():
 
 
 def save(fig, path_stem: Path) -> list[str]:
-    """Save ``fig`` as ``<stem>.png`` (150 dpi) and ``<stem>.svg``; returns the two file names."""
+    """Save ``fig`` as ``<stem>.png`` (150 dpi) and ``<stem>.svg``; returns the two file names. Under
+    ``renderlab report --tables-only`` (:func:`renderlab.contracts.result_folder.tables_only`) nothing is drawn or
+    written: the figure is closed and the names are returned all the same."""
     pyplot = plt()
     stem = Path(path_stem)
+    if not figures_wanted():
+        pyplot.close(fig)
+        return [stem.with_suffix(".png").name, stem.with_suffix(".svg").name]
     fig.savefig(stem.with_suffix(".png"), dpi=150)
     fig.savefig(stem.with_suffix(".svg"), metadata={"Date": None})
     pyplot.close(fig)
