@@ -300,3 +300,14 @@ def test_facet_budget_caps_the_frame_and_only_coarsens(model, name):
         assert ts.last_lod_pixels > 1.0 and ts.lod_summary(keys)["lod_pixels_used"] == ts.last_lod_pixels
     roomy = model.tiled_site(32, 1.0, facets_per_pixel=1.01 * n_free / (CAM.width * CAM.height))
     assert roomy.select(CAM, pose) == free
+
+
+def test_lod_auto_renders_small_sites_whole_and_large_sites_as_tiles():
+    """world.site.lod = "auto" (the default): a site of at most static_max_facets facets (2 per DEM cell) is one static
+    body (exact, structure built once); a larger one is tiled; true/false force either."""
+    from renderlab.worlds.ev5.config import EV5Site
+
+    assert EV5Site().lod == "auto" and EV5Site().tiled()  # 64 m at 2 cm: 20.5 M facets
+    assert not EV5Site(extent_m=40.0, cell_m=0.04).tiled()  # 2.0 M facets
+    assert EV5Site(extent_m=40.0, cell_m=0.04, static_max_facets=1_000_000).tiled()
+    assert EV5Site(extent_m=40.0, cell_m=0.04, lod=True).tiled() and not EV5Site(lod=False).tiled()

@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 ANALYTIC = REPO / "scenes" / "analytic_sphere_box.toml"
 SMALL = ["camera.width=64", "camera.height=48", "camera.fx=66.0", "camera.fy=65.0", "camera.cx=32.3",
          "camera.cy=23.4", "render.spp=4", "trajectory.frames=3"]
-EV5 = 'name = "frame_api_ev5"\n' + TINY_EV5_WORLD + """
+EV5 = 'name = "frame_api_ev5"\n' + TINY_EV5_WORLD.replace("[world.site]\n", "[world.site]\nlod = true\n", 1) + """
 [trajectory]
 kind = "ev5_descent"
 altitudes_m = [60.0, 25.0]
@@ -204,3 +204,18 @@ def test_a_world_whose_scene_follows_the_planned_pose_refuses_a_moved_camera():
     p = r.spec(0).pose
     with pytest.raises(UserError, match="builds its scene around each planned pose"):
         r.frame(0, pose=(p.position_m + 10.0, p.rotation))
+
+
+def test_first_frame_exposure_mode_keeps_the_first_frames_exposure(tmp_path):
+    """sensor.auto_exposure = "first_frame" re-makes the former behaviour: every frame of a truth set gets frame 0's."""
+    from renderlab import Renderer
+    from renderlab.sensor import exposure_for_peak
+    from renderlab.truthset import TruthSet
+
+    sets = SMALL + ["trajectory.azimuth_end_deg=120", "sensor.auto_exposure=\"first_frame\""]
+    _cli_render(ANALYTIC, tmp_path / "ts", sets)
+    ts = TruthSet.open(tmp_path / "ts")
+    with Renderer(ANALYTIC, overrides=sets) as r:
+        f0 = r.frame(0)
+        t0 = exposure_for_peak(f0.radiance, r.options, fraction=r.scenario.sensor.auto_exposure_fraction)
+    assert [fr["sensor"]["exposure_s"] for fr in ts.frames] == [t0] * 3

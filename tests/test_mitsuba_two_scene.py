@@ -12,7 +12,7 @@ import pytest
 
 from tiny_ev5 import TINY_EV5_WORLD
 
-SCENARIO = 'name = "two_scene"\n' + TINY_EV5_WORLD.replace("[world.site]\n", "[world.site]\ntile_cells = 32\n", 1) + """
+SCENARIO = 'name = "two_scene"\n' + TINY_EV5_WORLD.replace("[world.site]\n", "[world.site]\nlod = true\ntile_cells = 32\n", 1) + """
 [trajectory]
 kind = "ev5_descent"
 altitudes_m = [120.0, 60.0, 30.0, 15.0]

@@ -93,6 +93,7 @@ def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dic
     from tqdm import tqdm
 
     plan = renderer.plan
+    renderer.reset_exposure()  # auto_exposure = "first_frame": this set's first frame
     writer, rows, saturated = None, {}, []
     try:
         for spec, child in tqdm(list(zip(specs, seeds)), desc="render", unit="frame", disable=not progress):

@@ -27,6 +27,8 @@ is keyed per pixel (:mod:`renderlab.sensor`), so two frames that differ in a few
 (:func:`renderlab.sensor.exposure_for_peak`: a high percentile of the mean charge at ``auto_exposure_fraction`` of
 full scale), as the scenario key says; otherwise ``sensor.exposure_s``. ``exposure_s=`` fixes it for one frame. Each
 frame's record carries the exposure and its count of saturated pixels (``sensor.saturated_px``).
+``auto_exposure = "first_frame"`` keeps the exposure of the first frame (of a truth set, or since
+:meth:`Renderer.reset_exposure`): the behaviour before, to re-make truth sets made with it.
 """
 
 from __future__ import annotations
@@ -139,6 +141,7 @@ class Renderer:
         self.plan = make_plan(self.scenario, self.base_dir)
         self._by_index = {s.index: k for k, s in enumerate(self.plan.frames)}
         self._key, self.scene, self.backend, self.loads = object(), None, None, 0
+        self._locked_exposure: float | None = None  # auto_exposure = "first_frame"
 
     # ------------------------------------------------------------------ the world
     @property
@@ -195,6 +198,10 @@ class Renderer:
         return spec
 
     # ------------------------------------------------------------------ frames
+    def reset_exposure(self) -> None:
+        """With ``sensor.auto_exposure = "first_frame"``: the next frame with DN chooses the exposure again."""
+        self._locked_exposure = None
+
     def frame(self, index: int = 0, *, pose=None, sun=None, camera=None, spp: int | None = None,
               outputs=OUTPUTS, seed: int | None = None, exposure_s: float | None = None) -> Frame:
         """Render world state ``index`` from ``pose`` (default: the planned camera) into memory.
@@ -225,8 +232,11 @@ class Renderer:
             if exposure_s is not None:
                 opts = with_exposure(opts, _exposure(exposure_s))
             elif self.scenario.sensor.auto_exposure:  # per frame, from the frame's own radiance
-                opts = with_exposure(opts, exposure_for_peak(lum, opts,
-                                                             fraction=self.scenario.sensor.auto_exposure_fraction))
+                t = exposure_for_peak(lum, opts, fraction=self.scenario.sensor.auto_exposure_fraction)
+                if self.scenario.sensor.auto_exposure == "first_frame":  # locked on the set's first frame
+                    self._locked_exposure = t if self._locked_exposure is None else self._locked_exposure
+                    t = self._locked_exposure
+                opts = with_exposure(opts, t)
             sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
             out.dn, out.exposure_s = sensor.dn, float(opts.exposure_s)
             out.saturated_px = int(np.count_nonzero(sensor.saturated))

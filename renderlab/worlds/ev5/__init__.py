@@ -197,9 +197,9 @@ def make_plan(scenario, base_dir: Path):
                                                     model.site, self._footprints)}
 
     lod = scenario.world.site
-    tiled = [model.tiled_site(lod.tile_cells, lod.lod_pixels, lod.facets_per_pixel)] if lod.lod else []
+    tiled = [model.tiled_site(lod.tile_cells, lod.lod_pixels, lod.facets_per_pixel)] if lod.tiled() else []
     plan = EV5Plan(frames=frames, render_frame={"name": "EV5_FIXED"},
-                   static_scene=SceneDescription(bodies=model.bodies(site=not lod.lod), render_frame={"name": "EV5_FIXED"},
+                   static_scene=SceneDescription(bodies=model.bodies(site=not tiled), render_frame={"name": "EV5_FIXED"},
                                                  origin_m=np.array(model.site.origin_m, float), tiled=tiled))
     plan._footprints = {}
     plan.model = model

@@ -72,8 +72,12 @@ class EV5Site(Strict):
                                  "albedo [fraction]")
     albedo_corr_m: Positive = Field(0.3, description="Correlation length of the albedo variation [m]")
     # levels of detail (renderlab.worlds.ev5.tiles): the renderer gets only the tiles in the frustum
-    lod: bool = Field(True, description="Render the site as tiles with levels of detail, only those in the "
-                      "frustum (false: the full-resolution DEM in every frame, the old path)")
+    lod: bool | Literal["auto"] = Field(
+        "auto", description="Render the site as tiles with levels of detail, only those in the frustum (true); the "
+        "full-resolution DEM in every frame (false: exact, its acceleration structure built once); auto: whole up to "
+        "static_max_facets, tiles above")
+    static_max_facets: Annotated[int, Field(ge=0, le=10**9)] = Field(
+        4_000_000, description="With lod = auto: the largest site rendered whole (2 facets per DEM cell) [facets]")
     tile_cells: Annotated[int, Field(ge=2, le=4096)] = Field(128, description="Tile side in DEM cells, a power of "
                                                             "two (the coarsest level has one cell per tile) [cells]")
     lod_pixels: Annotated[float, Field(gt=0, le=64, allow_inf_nan=False)] = Field(
@@ -81,6 +85,12 @@ class EV5Site(Strict):
     facets_per_pixel: Annotated[float, Field(gt=0, le=1024, allow_inf_nan=False)] | None = Field(
         None, description="Facet budget of a frame: at most this many site facets per image pixel (tiles coarsened "
         "by raising lod_pixels for that frame until they fit; unset: no budget) [facets/px]")
+
+    def tiled(self) -> bool:
+        """Whether the site is rendered as tiles (``lod``; with ``"auto"``, above ``static_max_facets``)."""
+        if self.lod == "auto":
+            return 2 * round(self.extent_m / self.cell_m) ** 2 > self.static_max_facets
+        return bool(self.lod)
 
     @field_validator("tile_cells")
     @classmethod

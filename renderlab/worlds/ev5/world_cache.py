@@ -5,7 +5,7 @@ only on the world keys that shape the body and the site and on the code that bui
 is the SHA-256 (first 24 hex digits) of
 
 * the canonical JSON of ``world`` without the keys that do not change the built arrays (the landmark
-  catalog, photometry, the levels-of-detail keys ``site.lod/tile_cells/lod_pixels/facets_per_pixel`` and ``build_cache``),
+  catalog, photometry, the levels-of-detail keys ``site.lod/tile_cells/lod_pixels/facets_per_pixel/static_max_facets`` and ``build_cache``),
 * the content hash of ``world.shape_file`` (a changed file under the same name is a new key),
 * the builder's code version: the sources of ``worlds/ev5/{__init__,shape,site,terrain,world_cache}.py``
   and ``render/mesh_io.py``, the numpy version and :data:`FORMAT`.
@@ -36,7 +36,7 @@ _CODE = ("worlds/ev5/__init__.py", "worlds/ev5/shape.py", "worlds/ev5/site.py", 
 #: world keys that do not change the built shape or site
 _NOT_BUILT = ("landmarks", "law", "law_params", "albedo", "mapping_error_m", "mapping_error_corr_cells",
               "albedo_error_rms", "build_cache")
-_NOT_BUILT_SITE = ("lod", "tile_cells", "lod_pixels", "facets_per_pixel")
+_NOT_BUILT_SITE = ("lod", "tile_cells", "lod_pixels", "facets_per_pixel", "static_max_facets")
 _SHAPE = ("vertices", "faces", "vertex_albedo")
 _SITE = ("heights_m", "albedo", "origin_m", "R_body_from_site", "target_center_xy")
 
