@@ -1,9 +1,9 @@
 """Acceptance figures of the scenario's own world (scenes/ev5_descent.toml), not the tests' tiny one.
 
-    .venv/bin/python results/ev5_descent/check_full_world.py [--old-catalog TRUTHSET]
+    .venv/bin/python investigations/ev5_descent/check_full_world.py [--old-catalog TRUTHSET]
 
 Builds the full world (1 m global facets, 64 m site at 2 cm, 72 landmarks) and writes
-``full_world_checks.json`` next to this script:
+``results/ev5_descent/full_world_checks.json`` (``--out``):
 
 * global body: extents vs 420 × 410 × 390 m (±10 %), volume-equivalent diameter vs 400 m;
 * site: grid size, boulders, craters, target boulder height above its surroundings;
@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-REPO = HERE.parents[1]
+REPO = Path(__file__).resolve().parents[2]
+RESULT = REPO / "results" / "ev5_descent"
 sys.path.insert(0, str(REPO))
 
 
@@ -68,6 +68,7 @@ def mitsuba_truth_differences(model) -> tuple[dict[int, np.ndarray], list[int]]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--old-catalog", help="a truth set of the same world whose maplets to compare with")
+    ap.add_argument("--out", default=str(RESULT), help="folder of full_world_checks.json (default: %(default)s)")
     args = ap.parse_args()
 
     from renderlab.scenario import load_scenario
@@ -83,7 +84,7 @@ def main() -> None:
     site = model.site
     ring = [site.height_at(3.0 * np.cos(a), 3.0 * np.sin(a)) for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
     out = {
-        "command": "python results/ev5_descent/check_full_world.py"
+        "command": "python investigations/ev5_descent/check_full_world.py"
                    + (f" --old-catalog {args.old_catalog}" if args.old_catalog else ""),
         "world_build_s": round(t_build, 1),
         "peak_rss_after_world_build_gb": round(peak_build, 2),
@@ -121,7 +122,7 @@ def main() -> None:
                                             "maplets_changed_over_0.1mm": n_changed,
                                             "old_rms_m": round(float(np.sqrt(np.nanmean(old_d ** 2))), 5)}
     out["peak_rss_gb"] = round(_peak_gb(), 2)
-    (HERE / "full_world_checks.json").write_text(json.dumps(out, indent=1) + "\n")
+    (Path(args.out) / "full_world_checks.json").write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps(out, indent=1))
 
 

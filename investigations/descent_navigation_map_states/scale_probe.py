@@ -6,13 +6,16 @@ albedo_error_rms = 0``, :mod:`renderlab.campaign.maplets`); prints per image the
 and their rms. A diagnostic, not a study: search distance 8 px, no filter. With a campaign's
 ``descent_landmarks.parquet`` (LANDMARKS), only the landmarks that campaign's METHOD kept at the image in at least
 half its runs (the few the study selects, :func:`kept_items`): the true-pose share of that campaign's
-``descent_pattern.csv`` scale.
+``descent_pattern.csv`` scale. It explains part of ``results/descent_navigation_map_states/README.md``; an
+investigation, not part of the lab (nothing imports it).
 
-    python -m renderlab.studies.descent_navigation.scale_probe SCENARIO TRUTHSET METHOD FRAMES [LANDMARKS]
+    .venv/bin/python investigations/descent_navigation_map_states/scale_probe.py SCENARIO TRUTHSET METHOD FRAMES \
+        [LANDMARKS]
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -93,12 +96,17 @@ def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int], kep
 
 
 def main(argv=None) -> int:
-    a = list(sys.argv[1:] if argv is None else argv)
-    if len(a) not in (4, 5):
-        print(__doc__.strip().splitlines()[-1].strip(), file=sys.stderr)
-        return 2
-    kept = kept_items(Path(a[4]), a[2]) if len(a) == 5 else None
-    for line in probe(Path(a[0]), Path(a[1]), a[2], [int(v) for v in a[3].split(",")], kept):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scenario", metavar="SCENARIO", type=Path, help="the campaign's scenario.toml")
+    ap.add_argument("truthset", metavar="TRUTHSET", type=Path, help="the campaign's truth set (its truth cache)")
+    ap.add_argument("method", metavar="METHOD", help="a registered landmark method (retina, spc, ...)")
+    ap.add_argument("frames", metavar="FRAMES", help="comma-separated image indices, e.g. 0,3,12")
+    ap.add_argument("landmarks", metavar="LANDMARKS", type=Path, nargs="?",
+                    help="a campaign's descent_landmarks.parquet: probe only the landmarks it kept")
+    a = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    kept = kept_items(a.landmarks, a.method) if a.landmarks is not None else None
+    for line in probe(a.scenario, a.truthset, a.method, [int(v) for v in a.frames.split(",")], kept):
         print(line, flush=True)
     return 0
 

@@ -2,16 +2,17 @@
 
     .venv/bin/python -m renderlab render scenes/ev5_descent.toml --out OUT \
         --set 'trajectory.altitudes_m=[1000.0, 200.0, 50.0]'
-    .venv/bin/python results/ev5_descent/make_figures.py OUT
+    .venv/bin/python investigations/ev5_descent/make_figures.py OUT [--results DIR]
 
-writes ``frame_<alt>m.png`` (sensor DN image; each landmark's maplet outline projected with the
+writes into ``results/ev5_descent/`` (``--results``) ``frame_<alt>m.png`` (sensor DN image; each landmark's maplet outline projected with the
 true pose, coloured by tier; solid = visible, dashed = occluded; the label is gsd_ratio) and
 ``summary.csv`` (per frame and tier: in view, visible, occluded, median gsd_ratio, median shadow
-fraction) and a copy of the truth set's ``landmark_truth.parquet`` next to this script.
+fraction) and a copy of the truth set's ``landmark_truth.parquet``.
 """
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 import shutil
@@ -20,12 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parents[1]))
+REPO = Path(__file__).resolve().parents[2]
+RESULT = REPO / "results" / "ev5_descent"
+sys.path.insert(0, str(REPO))
 COLORS = {"regional": "#ffb000", "approach": "#00d0ff", "site": "#ff4fd8"}
 
 
-def main(truthset: str) -> None:
+def main(truthset: str, out: Path = RESULT) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -75,7 +77,7 @@ def main(truthset: str) -> None:
                      fontsize=7)
         ax.axis("off")
         fig.tight_layout()
-        fig.savefig(HERE / f"frame_{alt:.0f}m.png")
+        fig.savefig(out / f"frame_{alt:.0f}m.png")
         plt.close(fig)
         for tier, idx in sorted(per_tier.items()):
             view = [i for i in idx if lt["in_view"][i]]
@@ -84,15 +86,18 @@ def main(truthset: str) -> None:
                             "occluded": sum(lt["occluded"][i] for i in idx),
                             "median_gsd_ratio": round(float(np.median([lt["gsd_ratio"][i] for i in idx])), 3),
                             "median_shadow_fraction": round(float(np.median([lt["shadow_fraction"][i] for i in idx])), 3)})
-    with open(HERE / "summary.csv", "w", newline="") as fh:
+    with open(out / "summary.csv", "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(summary[0]))
         w.writeheader()
         w.writerows(summary)
-    shutil.copyfile(root / "landmark_truth.parquet", HERE / "landmark_truth.parquet")
-    print(f"wrote {len(manifest['frames'])} figures, summary.csv and landmark_truth.parquet to {HERE}")
+    shutil.copyfile(root / "landmark_truth.parquet", out / "landmark_truth.parquet")
+    print(f"wrote {len(manifest['frames'])} figures, summary.csv and landmark_truth.parquet to {out}")
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit(__doc__)
-    main(sys.argv[1])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
+    ap.add_argument("truthset", metavar="OUT", help="the truth set renderlab render wrote")
+    ap.add_argument("--results", type=Path, default=RESULT, help="folder of the figures (default: %(default)s)")
+    args = ap.parse_args()
+    main(args.truthset, args.results)

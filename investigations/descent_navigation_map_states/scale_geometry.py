@@ -1,5 +1,5 @@
-r"""Geometry probe of the image-scale part of the landmark errors (:mod:`.scale_probe`): does the rendered truth
-surface lie off the surface the landmarks are defined on, and does that offset predict the measured scale?
+r"""Geometry probe of the image-scale part of the landmark errors (``scale_probe.py`` beside it): does the rendered
+truth surface lie off the surface the landmarks are defined on, and does that offset predict the measured scale?
 
 A landmark's truth pixel is the projection of its centre c, a point of the full-resolution site DEM; the maplets
 are cell means of that DEM. The truth image is rendered from the frame's tiles at their levels of detail
@@ -10,7 +10,7 @@ seen at c + δz n instead of c, so the landmark is measured at
 .. math::  \mathbf e = \pi(\mathbf c + \delta z\,\mathbf n) - \pi(\mathbf c)   \quad (G1)
 
 (π the true projection, Retina eqs. 1–4), a scale of δz/R about the principal point for a nadir view. Per
-landmark in view (the :mod:`.scale_probe` selection) it gives three offsets δz:
+landmark in view (the ``scale_probe.in_view`` selection) it gives three offsets δz:
 
 * ``dz_lod`` — the frame's tile surface minus the DEM, h_L − h, averaged over the maplet's grid nodes
   (the footprint the template correlates over);
@@ -18,7 +18,7 @@ landmark in view (the :mod:`.scale_probe` selection) it gives three offsets δz:
   minus c, along n (what was actually rendered on the landmark's line of sight, at one point);
 * ``dz_map`` — the maplet (heights along its +z) minus the DEM under each node, averaged (the map's own offset).
 
-and the scale of the similarity fit (:func:`.scale_probe.similarity_scale`) of the errors of eq. G1 over the
+and the scale of the similarity fit (``scale_probe.similarity_scale``) of the errors of eq. G1 over the
 image's landmarks, for each.
 
 A second probe (:func:`probe_fresh`) asks whether the scale belongs to the *image* or to the catalogue's few
@@ -30,10 +30,12 @@ and averages out over many. The interval is a bootstrap over the fresh landmarks
 footprints may overlap, which the bootstrap does not model: it is the spread of the landmark set's draw).
 Beside it: the mean gradient-weighted relief offset of the fresh maplets (:func:`relief_offset`, the DEM above the
 maplet's smoothed surface where the image has contrast) and the scale eq. G1 predicts from it.
-A diagnostic, not a study:
+A diagnostic, not a study: it explains part of ``results/descent_navigation_map_states/README.md`` and is not part
+of the lab (nothing imports it).
 
-    python -m renderlab.studies.descent_navigation.scale_geometry SCENARIO TRUTHSET FRAMES   # FRAMES: 0,3,12
-    python -m renderlab.studies.descent_navigation.scale_geometry SCENARIO TRUTHSET FRAMES METHOD TIER COUNT
+    .venv/bin/python investigations/descent_navigation_map_states/scale_geometry.py SCENARIO TRUTHSET FRAMES
+    .venv/bin/python investigations/descent_navigation_map_states/scale_geometry.py SCENARIO TRUTHSET FRAMES \
+        METHOD TIER COUNT
 
 (``TIER`` a tier name, or ``NAME@SPACINGxSIZE`` for fresh maplets in that tier's disc on another grid, e.g.
 ``regional@0.04x151``: the DEM's own cells over the regional footprint.)
@@ -41,11 +43,13 @@ A diagnostic, not a study:
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+from scale_probe import in_view, similarity_scale  # beside this file (the script's folder is on sys.path)
 
 
 def tile_heights(tiled, keys, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -108,7 +112,6 @@ def probe_geometry(scenario_path: Path, ts_dir: Path, frames: list[int]) -> list
     from renderlab.measurement.runner import _frame_record
     from renderlab.scenario import load_scenario
     from renderlab.studies.descent_navigation.run import section
-    from renderlab.studies.descent_navigation.scale_probe import in_view, similarity_scale
     from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5 import build_model
     from renderlab.worlds.ev5.catalog import read_catalog
@@ -183,9 +186,7 @@ def relief_offset(site, maplet, grad2: np.ndarray, camera, pose) -> float:
 
 
 def bootstrap_scale(truth: np.ndarray, err: np.ndarray, rng: np.random.Generator, n: int = 1000) -> tuple:
-    """(scale, 2.5 %, 97.5 % bootstrap quantiles over landmarks) of :func:`.scale_probe.similarity_scale`."""
-    from renderlab.studies.descent_navigation.scale_probe import similarity_scale
-
+    """(scale, 2.5 %, 97.5 % bootstrap quantiles over landmarks) of ``scale_probe.similarity_scale``."""
     idx = rng.integers(0, len(truth), (n, len(truth)))
     b = np.array([similarity_scale(truth[i], err[i]) for i in idx])
     return similarity_scale(truth, err), float(np.quantile(b, 0.025)), float(np.quantile(b, 0.975))
@@ -193,8 +194,6 @@ def bootstrap_scale(truth: np.ndarray, err: np.ndarray, rng: np.random.Generator
 
 def _relief_cell(site, maplets, dn, camera, pose, truth) -> str:
     """The mean :func:`relief_offset` of measured landmarks and the scale eq. G1 predicts from it (text)."""
-    from renderlab.studies.descent_navigation.scale_probe import similarity_scale
-
     gy, gx = np.gradient(np.asarray(dn, float))
     dz = np.array([relief_offset(site, m, gx**2 + gy**2, camera, pose) for m in maplets])
     cen = np.array([m.center_m for m in maplets])
@@ -254,16 +253,23 @@ def probe_fresh(scenario_path: Path, ts_dir: Path, frames: list[int], method: st
 
 
 def main(argv=None) -> int:
-    a = list(sys.argv[1:] if argv is None else argv)
-    if len(a) not in (3, 6):
-        print("\n".join(v.strip() for v in __doc__.splitlines() if "python -m" in v), file=sys.stderr)
-        return 2
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter,
+                                 epilog="FRAMES alone: the geometry probe; with METHOD TIER COUNT: the fresh-landmark "
+                                        "probe (TIER a tier name, or NAME@SPACINGxSIZE, e.g. regional@0.04x151)")
+    ap.add_argument("scenario", metavar="SCENARIO", type=Path, help="the campaign's scenario.toml")
+    ap.add_argument("truthset", metavar="TRUTHSET", type=Path, help="the campaign's truth set (its truth cache)")
+    ap.add_argument("frames", metavar="FRAMES", help="comma-separated image indices, e.g. 0,3,12")
+    ap.add_argument("fresh", nargs="*", metavar="METHOD TIER COUNT", help="the fresh-landmark probe")
+    a = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    if len(a.fresh) not in (0, 3):
+        ap.error("the fresh-landmark probe takes METHOD TIER COUNT")
     from renderlab.errors import UserError
 
     try:
-        frames = [int(v) for v in a[2].split(",")]
-        lines = (probe_geometry(Path(a[0]), Path(a[1]), frames) if len(a) == 3 else
-                 probe_fresh(Path(a[0]), Path(a[1]), frames, a[3], a[4], int(a[5])))
+        frames = [int(v) for v in a.frames.split(",")]
+        lines = (probe_geometry(a.scenario, a.truthset, frames) if not a.fresh else
+                 probe_fresh(a.scenario, a.truthset, frames, a.fresh[0], a.fresh[1], int(a.fresh[2])))
         for line in lines:
             print(line, flush=True)
     except (UserError, ValueError) as err:
