@@ -45,7 +45,7 @@ def test_report_from_tables(tmp_path, capsys):
     imgs = re.findall(r'src="([^"]+\.png)"', page)
     svgs = re.findall(r'href="([^"]+\.svg)"', page)
     assert len(svgs) == len(imgs) and all((rep / n).read_text().lstrip().startswith("<?xml") for n in svgs)
-    assert len(imgs) >= 4 and any("fig12" in n for n in imgs)
+    assert len(imgs) >= 3 and any("fig12" in n for n in imgs)  # the no-result figure only when a row has none
     for name in imgs:
         img = cv2.imread(str(rep / name))
         assert img is not None and img.shape[0] > 100 and img.std() > 0

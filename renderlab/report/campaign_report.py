@@ -18,6 +18,8 @@ from renderlab.report.html_table import table as html_table
 from renderlab.report.style import ci
 
 TEMPLATE_DIR = Path(__file__).parent / "templates"
+#: a study section with this title opens the page (before the generic sections): what the numbers below measure
+LEAD_TITLE = "What this campaign measures"
 
 
 def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) -> Path:
@@ -28,7 +30,9 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
     manifest, tables, statuses = store.finished_campaign(campaign_dir, "report")
     with store.staged_folder(out_dir, "the report") as stage:
         sections, summary, headline = _write_all(tables, stage, manifest, confidence)
-        sections += _study_sections(manifest["plan"]["study"], tables, stage)
+        extra = _study_sections(manifest["plan"]["study"], tables, stage)
+        sections = [x for x in extra if x["title"] == LEAD_TITLE] + sections \
+            + [x for x in extra if x["title"] != LEAD_TITLE]
         regen = _regenerate_command(campaign_dir, out_dir)
         page = _page(manifest, statuses, sections, headline, regen)
         (stage / "index.html").write_text(page, encoding="utf-8")

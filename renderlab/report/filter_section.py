@@ -74,4 +74,9 @@ def filter_section(name: str, t, stage: Path, *, confidence: float = 0.95) -> tu
             raw=("badge",))})
         blocks.append({"kind": "text", "html": "ANEES/ANIS: mean NEES/NIS over all runs and times; the band is the "
                                                "two-sided χ² interval for N runs × d dof, divided by N."})
+    from renderlab.report.conclusions import filter_sentence
+
+    sentence = filter_sentence(rows)
+    if sentence:
+        blocks.append({"kind": "text", "html": sentence})
     return {"title": f"Filter: {name}", "anchor": name, "blocks": blocks}, rows

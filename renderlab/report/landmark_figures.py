@@ -100,20 +100,36 @@ def pixel_locking(table, stem: Path, bins: int = 10) -> list[str]:
     return style.save(fig, stem)
 
 
+#: no-result reasons: greys with hatches, so no reason is ever drawn in a method's (Okabe–Ito) colour
+REASON_GREYS = ("#4d4d4d", "#8c8c8c", "#bdbdbd", "#e0e0e0")
+REASON_HATCHES = ("", "//", "..", "xx", "\\\\", "++")
+
+
+def reason_style(j: int) -> tuple[str, str]:
+    """(face colour, hatch) of the j-th reason: 4 greys × 6 hatches before one repeats."""
+    return REASON_GREYS[j % len(REASON_GREYS)], REASON_HATCHES[(j // len(REASON_GREYS)) % len(REASON_HATCHES)]
+
+
 def reasons(rows: list[dict], stem: Path) -> list[str]:
     """Stacked share of rows per reason (``ok`` left out), per method; rows from
-    :func:`renderlab.report.landmark_stats.reason_counts`."""
+    :func:`renderlab.report.landmark_stats.reason_counts`. Bars in greys with hatches (:func:`reason_style`); the
+    method names under the bars carry the methods' colours."""
     plt = style.plt()
     methods = sorted({r["method"] for r in rows})
+    colors = style.method_colors(methods)
     why = sorted({r["reason"] for r in rows if r["reason"] != "ok"})
     fig, ax = plt.subplots(figsize=(2.2 + 1.3 * len(methods), 3.4), constrained_layout=True)
     bottom = np.zeros(len(methods))
-    palette = style.OKABE_ITO[4:7] + style.OKABE_ITO[:4]  # no black: reasons are not methods
     for j, r in enumerate(why):
         share = np.array([sum(x["share"] for x in rows if x["method"] == m and x["reason"] == r) for m in methods])
-        ax.bar(methods, 100 * share, bottom=100 * bottom, color=palette[j % len(palette)], label=r.replace("_", " "))
+        face, hatch = reason_style(j)
+        ax.bar(methods, 100 * share, bottom=100 * bottom, color=face, hatch=hatch, edgecolor="k", lw=0.5,
+               label=r.replace("_", " "))
         bottom += share
-    ax.set(ylabel="rows without a result (%)")
+    for tick, m in zip(ax.get_xticklabels(), methods):
+        tick.set_color(colors[m])
+        tick.set_fontweight("bold")
+    ax.set(ylabel="rows without a result (%)", ylim=(0, max(1.0, 100 * float(bottom.max()) * 1.1)))
     if why:
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     return style.save(fig, stem)

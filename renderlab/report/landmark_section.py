@@ -7,6 +7,7 @@ from pathlib import Path
 
 from renderlab.report import landmark_figures as figs
 from renderlab.report import landmark_stats as st
+from renderlab.report.conclusions import CRLB_CAVEAT, landmark_conclusions
 from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import table as html_table
 from renderlab.report.style import ci
@@ -59,7 +60,8 @@ def subset_blocks(name: str, table, stage: Path, mask, subset: str, *, gross_px:
                           "median); points beyond the axes are drawn on the edge and counted in each panel."},
               {"kind": "table", "html": html_table(summary_cells(summary, gross_px), cols, left=("method",))},
               {"kind": "text", "html": f"Gross error: |err| > {gross_px:g} px on that axis, among results. "
-                                       f"Intervals: {why}."}]
+                                       f"Intervals: {why}." + (" " + CRLB_CAVEAT if "crlb" in dict(cols) else "")},
+              {"kind": "text", "html": landmark_conclusions(summary, gross_px)}]
     if paired:
         prow = [{"pair": f"{p['method_b']} − {p['method_a']}", "n": p["n_pairs"],
                  "d": ci(p["mean_abs_err_b_minus_a_px"], p["lo"], p["hi"]), "share": 100 * p["share_b_smaller"]}
@@ -85,10 +87,7 @@ def landmark_section(name: str, table, stage: Path, *, gross_px: float = 1.0, su
         csvs["summary"] += [{"table": name, **x} for x in s]
         csvs["reasons"] += [{"table": name, **x} for x in r]
         csvs["paired"] += [{"table": name, **x} for x in p]
-    rfig = figs.reasons([r for r in csvs["reasons"] if r["subset"] == "all"], stage / f"{name}_reasons")
-    blocks += [{"kind": "h3", "text": "Why there is no result"},
-               {"kind": "figure", "png": rfig[0], "svg": rfig[1], "alt": "no-result reasons",
-                "caption": "Share of rows without a result, by the method's reason (the contract's LandmarkReason)."}]
+    blocks += [{"kind": "h3", "text": "Why there is no result"}, *_reason_blocks(csvs["reasons"], stage, name)]
     pl = figs.pixel_locking(table, stage / f"{name}_pixel_locking")
     blocks += [{"kind": "h3", "text": "Pixel locking"},
                {"kind": "figure", "png": pl[0], "svg": pl[1], "alt": "pixel locking",
@@ -107,4 +106,20 @@ def landmark_section(name: str, table, stage: Path, *, gross_px: float = 1.0, su
     for key, rows in csvs.items():
         write_csv(stage / f"{name}_{key}.csv", rows)
     blocks.append({"kind": "links", "files": [f"{name}_{k}.csv" for k in csvs]})
-    return {"title": f"Landmark measurements: {name}", "anchor": name, "blocks": blocks}, csvs
+    return {"title": section_title(name), "anchor": name, "blocks": blocks}, csvs
+
+
+def section_title(name: str) -> str:
+    """"Landmark measurements" for the usual table name, else the table named after it."""
+    return "Landmark measurements" if name == "measurements" else f"Landmark measurements ({name.replace('_', ' ')})"
+
+
+def _reason_blocks(reason_rows: list[dict], stage: Path, name: str) -> list[dict]:
+    """The no-result figure, or one sentence when every row of every method has a result (no empty plot)."""
+    rows = [r for r in reason_rows if r["subset"] == "all"]
+    if not any(r["reason"] != "ok" for r in rows):
+        return [{"kind": "text", "html": "Every row of every method has a result: no reason to show."}]
+    rfig = figs.reasons(rows, stage / f"{name}_reasons")
+    return [{"kind": "figure", "png": rfig[0], "svg": rfig[1], "alt": "no-result reasons",
+             "caption": "Share of rows without a result, by the method's reason (the contract's LandmarkReason); "
+                        "reasons are drawn in greys with hatches, never in a method's colour."}]

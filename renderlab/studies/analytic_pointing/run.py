@@ -13,6 +13,9 @@ camera, a-priori pose = nominal + a-priori error):
 Truth is the true sphere centre projected through the true camera and pose of the manifest (the
 pinhole/distortion model of Wright et al. eqs. 1-4). Extra columns: ``phase_deg`` (Sun–target–camera
 angle, eq. 8), ``range_m``, ``gsd_ratio`` (true over assumed metres per pixel at the target),
+``centre_of_light_s``/``centre_of_light_l`` (px: the radiance-weighted centroid of the target's pixels in the
+noise-free truth render, where a perfect centre-of-brightness lands, offset from the centre toward the Sun),
+``target_radius_px`` (the true apparent radius, mean focal length × tan(asin(radius / range))),
 ``shadow_fraction`` (unlit share of the target's visible pixels, N·s ≤ 0, eq. 6), ``albedo_contrast``
 (Michelson contrast target vs. other surfaces in the window, truth radiance) and the registration
 Cramér–Rao bound ``crlb_s``/``crlb_l`` (px, :func:`renderlab.campaign.scoring.registration_crlb`).
@@ -159,6 +162,18 @@ def _frame_truth(fr, body_id: int, center, sun_dir, win_sl, half: int, opts):
     return shadow, contrast, crlb[0], crlb[1]
 
 
+def _centre_of_light(fr, body_id: int) -> tuple[float, float]:
+    """Radiance-weighted centroid (s, l) of the target's pixels in the noise-free truth render (NaN if unlit)."""
+    if fr.radiance is None:
+        return math.nan, math.nan
+    on = (fr.id == body_id) & np.isfinite(fr.radiance)
+    w = np.where(on, np.asarray(fr.radiance, np.float64), 0.0)
+    if not w.sum() > 0:
+        return math.nan, math.nan
+    ll, ss = np.indices(w.shape)
+    return float((w * ss).sum() / w.sum()), float((w * ll).sum() / w.sum())
+
+
 def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """One run of ``analytic_pointing`` → ``{"measurements": table, "perturbations": table}``."""
     import dataclasses
@@ -208,6 +223,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
         half = int(math.ceil(1.5 * r_px + 4))
         shadow, contrast, crlb_s, crlb_l = _frame_truth(fr, body_id, center, sun_t, truth_sl, half, opts)
         gsd_ratio = (rng_t / cam_t.fx) / (rng_nom / cam_nom.fx)
+        light = _centre_of_light(fr, body_id)
+        radius_px = 0.5 * (cam_t.fx + cam_t.fy) * math.tan(math.asin(min(radius / rng_t, 0.999)))
         for method in METHODS:
             ms, ml, score, reason, t_ms = res[method]
             rows.append({
@@ -219,6 +236,7 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
                 "diagnostics": "" if reason == R.OK.value else reason, "t_ms": float(t_ms),
                 "phase_deg": phase, "range_m": rng_t, "gsd_ratio": gsd_ratio, "shadow_fraction": shadow,
                 "albedo_contrast": float(contrast), "crlb_s": float(crlb_s), "crlb_l": float(crlb_l),
+                "centre_of_light_s": light[0], "centre_of_light_l": light[1], "target_radius_px": radius_px,
             })
     from renderlab.contracts.schemas import LANDMARK_CORE, table_from_rows
 
