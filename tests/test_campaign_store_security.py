@@ -59,9 +59,9 @@ def test_table_name_with_a_path_is_refused(camp, tmp_path, capsys):
 
 def test_huge_or_bad_run_count_is_refused(camp, tmp_path, capsys):
     _tamper(camp / "campaign.json", **{"plan.runs": 10**12})
-    _refused(capsys, ["report", str(camp), "--out", str(tmp_path / "rep")], "plan.runs must be an integer")
+    _refused(capsys, ["report", str(camp), "--out", str(tmp_path / "rep")], "plan.runs: must be less than or equal to 1000000")
     _tamper(camp / "campaign.json", **{"plan.runs": True})
-    _refused(capsys, ["report", str(camp), "--out", str(tmp_path / "rep")], "plan.runs must be an integer")
+    _refused(capsys, ["report", str(camp), "--out", str(tmp_path / "rep")], "plan.runs: must be a valid integer")
 
 
 def test_study_naming_a_module_is_never_imported(camp, tmp_path, capsys):

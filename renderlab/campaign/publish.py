@@ -18,6 +18,7 @@ import json
 import os
 from pathlib import Path
 
+from renderlab.contracts.files import shown
 from renderlab.errors import UserError
 
 TABLES = "tables"
@@ -31,48 +32,56 @@ def is_published(folder: Path) -> bool:
 
 
 def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
-    """Write ``campaign.json``, ``runs.json`` and ``tables/`` of ``campaign_dir`` into ``out_dir`` (atomically per
-    file; other files of ``out_dir`` — README, report — are kept). Returns ``out_dir``."""
+    """Write ``campaign.json``, ``runs.json`` and ``tables/`` of ``campaign_dir`` into ``out_dir`` through one stage
+    (:func:`write_published`; other files of ``out_dir`` — README, report — are kept). Returns ``out_dir``."""
+    from renderlab.campaign import store
+
+    with store.staged_folder(Path(out_dir), "the published study") as stage:
+        write_published(campaign_dir, stage, Path(out_dir))
+    return Path(out_dir)
+
+
+def write_published(campaign_dir: Path, stage: Path, out_dir: Path) -> None:
+    """Write the published files of ``campaign_dir`` into the folder ``stage``, which becomes ``out_dir``
+    (``scenario_dir`` is made relative to ``out_dir``: the published files hold no absolute path)."""
     import pyarrow.parquet as pq
 
     from renderlab.campaign import store
 
     src, out = Path(campaign_dir), Path(out_dir)
     manifest, tables, statuses = store.finished_campaign(src, "publish")
-    with store.staged_folder(out, "the published study") as stage:
-        (stage / TABLES).mkdir()
-        for name, t in sorted(tables.items()):
-            pq.write_table(t, str(stage / TABLES / f"{name}.parquet"), compression="zstd", compression_level=9)
-        if isinstance(manifest.get("scenario_dir"), str):  # relative to the published folder, no absolute path
-            scen = (src / manifest["scenario_dir"]).resolve()
-            manifest = {**manifest, "scenario_dir": Path(os.path.relpath(scen, out.resolve())).as_posix()}
-        (stage / "campaign.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
-        slim = [{k: s.get(k) for k in ("run", "status", "error", "seconds", "tables") if k in s} for s in statuses]
-        (stage / STATUSES).write_text(json.dumps(slim, indent=1) + "\n", encoding="utf-8")
-    return out
+    (stage / TABLES).mkdir()
+    for name, t in sorted(tables.items()):
+        pq.write_table(t, str(stage / TABLES / f"{name}.parquet"), compression="zstd", compression_level=9)
+    if isinstance(manifest.get("scenario_dir"), str):  # relative to the published folder, no absolute path
+        scen = (src / manifest["scenario_dir"]).resolve()
+        manifest = {**manifest, "scenario_dir": Path(os.path.relpath(scen, out.resolve())).as_posix()}
+    (stage / "campaign.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    slim = [{k: s.get(k) for k in ("run", "status", "error", "seconds", "tables") if k in s} for s in statuses]
+    (stage / STATUSES).write_text(json.dumps(slim, indent=1) + "\n", encoding="utf-8")
 
 
 def load_published_tables(folder: Path) -> dict:
-    """``{name: pyarrow.Table}`` of a published folder (names are plain identifiers inside ``tables/``)."""
-    import pyarrow.parquet as pq
+    """``{name: pyarrow.Table}`` of a published folder (names are plain identifiers inside ``tables/``; each table
+    checked as :func:`renderlab.campaign.store.read_run_table` checks a run's)."""
+    from renderlab.campaign.store import read_run_table
 
     out = {}
     for p in sorted((Path(folder) / TABLES).glob("*.parquet")):
         if not p.stem.isidentifier() or p.is_symlink():
-            raise UserError(f"{p}: published table names must be plain identifiers (no links)")
-        try:
-            out[p.stem] = pq.read_table(str(p))
-        except (OSError, ValueError) as exc:
-            raise UserError(f"cannot read {p}: {' '.join(str(exc).split())[:200]}") from None
+            raise UserError(f"{shown(p)}: published table names must be plain identifiers (no links)")
+        out[p.stem] = read_run_table(p, p.stem)
     return out
 
 
 def published_statuses(folder: Path) -> list[dict]:
+    """``runs.json``, validated (:data:`renderlab.contracts.file_models.RunStatuses`: each run once)."""
+    from renderlab.contracts.file_models import RunStatuses
+    from renderlab.contracts.files import read_checked
+
     p = Path(folder) / STATUSES
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise UserError(f"cannot read {p}: {exc}") from None
-    if not isinstance(data, list) or not all(isinstance(s, dict) and isinstance(s.get("run"), int) for s in data):
-        raise UserError(f"{p}: must be a list of run statuses")
+    data = read_checked(p, RunStatuses, "run statuses")
+    runs = [s["run"] for s in data]
+    if len(set(runs)) != len(runs):
+        raise UserError(f"run statuses {shown(p)}: a run is listed twice")
     return data

@@ -23,6 +23,7 @@ import secrets
 import shutil
 from pathlib import Path
 
+from renderlab.contracts.files import shown
 from renderlab.errors import UserError
 
 FORMAT = "renderlab.campaign/1"
@@ -53,31 +54,19 @@ def _write_json_atomic(path: Path, data: dict) -> None:
 
 
 def read_manifest(campaign_dir: Path) -> dict:
+    """``campaign.json``, validated (:class:`renderlab.contracts.file_models.CampaignManifest`)."""
+    from renderlab.contracts.file_models import CampaignManifest
+    from renderlab.contracts.files import read_checked
+
     p = Path(campaign_dir) / MANIFEST
     if not p.is_file():
-        raise UserError(f"{campaign_dir} is not a campaign folder (no {MANIFEST})")
-    try:
-        m = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise UserError(f"cannot read {p}: {exc}") from None
-    if not isinstance(m, dict) or m.get("format") != FORMAT:
-        raise UserError(f"{p}: format must be {FORMAT!r}")
-    from renderlab.campaign.plan import MAX_RUNS
-
-    runs = (m.get("plan") or {}).get("runs") if isinstance(m.get("plan"), dict) else None
-    if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
-        raise UserError(f"{p}: plan.runs must be an integer in 1..{MAX_RUNS}, got {runs!r}")
-    if not isinstance(m["plan"].get("study"), str):
-        raise UserError(f"{p}: plan.study must be a registered study name")
-    return m
+        raise UserError(f"{shown(campaign_dir)} is not a campaign folder (no {MANIFEST})")
+    return read_checked(p, CampaignManifest, "campaign manifest")
 
 
 def _table_names(st: dict, where: Path) -> list[str]:
-    """The run's table names: plain identifiers inside the run folder, never paths."""
-    names = st.get("tables", [])
-    if not isinstance(names, list) or not all(isinstance(n, str) and n.isidentifier() for n in names):
-        raise UserError(f"{where}: 'tables' must be a list of plain table names (identifiers), got {names!r}")
-    return names
+    """The run's table names: plain identifiers inside the run folder, never paths (checked by the status model)."""
+    return list(st.get("tables", []))
 
 
 def _first_difference(a, b, where="") -> str:
@@ -115,19 +104,28 @@ def open_campaign(campaign_dir: Path, plan, *, resume: bool) -> dict:
     return manifest
 
 
-def run_status(campaign_dir: Path, index: int) -> dict | None:
+def run_status(campaign_dir: Path, index: int, *, strict: bool = True) -> dict | None:
+    """A run's ``status.json``, validated (:class:`renderlab.contracts.file_models.RunStatus`), or None when the run
+    has none. An invalid one is a UserError (``strict``) or None (a run to redo on ``--resume``)."""
+    from renderlab.contracts.file_models import RunStatus
+    from renderlab.contracts.files import read_checked
+
     p = run_dir(campaign_dir, index) / "status.json"
-    if not p.is_file():
+    if not os.path.lexists(p):
         return None
     try:
-        st = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        st = read_checked(p, RunStatus, "run status")
+        if st["run"] != index:
+            raise UserError(f"run status {shown(p)}: 'run' is {st['run']}, but the folder is run {index}")
+    except UserError:
+        if strict:
+            raise
         return None
-    return st if isinstance(st, dict) else None
+    return st
 
 
 def is_finished(campaign_dir: Path, index: int) -> bool:
-    st = run_status(campaign_dir, index)
+    st = run_status(campaign_dir, index, strict=False)
     return bool(st) and st.get("status") == "ok"
 
 
@@ -164,9 +162,6 @@ def finished_runs(campaign_dir: Path, runs: int) -> list[int]:
 
 def load_tables(campaign_dir: Path) -> dict:
     """All finished runs' tables, concatenated per name in run order: ``{name: pyarrow.Table}``."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     from renderlab.campaign import publish
 
     m = read_manifest(campaign_dir)
@@ -179,11 +174,32 @@ def load_tables(campaign_dir: Path) -> dict:
             continue
         d = run_dir(campaign_dir, i)
         for name in _table_names(st, d / "status.json"):
-            try:
-                parts.setdefault(name, []).append(pq.read_table(str(d / f"{name}.parquet")))
-            except (OSError, ValueError) as exc:  # pyarrow raises ArrowInvalid (a ValueError) on a corrupt file
-                raise UserError(f"cannot read {d / (name + '.parquet')}: {' '.join(str(exc).split())[:200]}") from None
-    return {name: pa.concat_tables(ts, promote_options="permissive") for name, ts in parts.items()}
+            parts.setdefault(name, []).append(read_run_table(d / f"{name}.parquet", name))
+    return {name: concat_parts(name, ts) for name, ts in parts.items()}
+
+
+def read_run_table(path: Path, name: str):
+    """One campaign table file, read with its boundaries and the schema of its kind checked
+    (:func:`renderlab.contracts.schemas.read_parquet`, :func:`~renderlab.contracts.schemas.check_campaign_table`)."""
+    from renderlab.contracts.schemas import check_campaign_table, read_parquet
+
+    where = f"table {shown(path)}"
+    table = read_parquet(path, where)
+    try:
+        check_campaign_table(name, table, where)
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    return table
+
+
+def concat_parts(name: str, parts: list):
+    """The runs' tables of one name, concatenated (UserError when their columns cannot be joined)."""
+    import pyarrow as pa
+
+    try:
+        return pa.concat_tables(parts, promote_options="permissive")
+    except (pa.ArrowException, ValueError, TypeError) as exc:
+        raise UserError(f"the runs' {name} tables do not fit together: {' '.join(str(exc).split())[:160]}") from None
 
 
 def run_statuses(campaign_dir: Path) -> list[dict]:
@@ -192,7 +208,12 @@ def run_statuses(campaign_dir: Path) -> list[dict]:
 
     m = read_manifest(campaign_dir)
     if publish.is_published(campaign_dir):
-        return publish.published_statuses(campaign_dir)
+        out = publish.published_statuses(campaign_dir)
+        beyond = [s["run"] for s in out if s["run"] >= m["plan"]["runs"]]
+        if beyond:
+            raise UserError(f"{shown(campaign_dir)}: runs.json lists run {beyond[0]}, but the plan has "
+                            f"{m['plan']['runs']} runs")
+        return out
     return [run_status(campaign_dir, i) or {"run": i, "status": "missing"} for i in range(int(m["plan"]["runs"]))]
 
 

@@ -69,6 +69,19 @@ POSE_CORE = pa.schema([("campaign", STR), ("run", I64), ("has_result", BOOL), ("
 
 #: kind → the columns every table of that kind has
 CORE = {"landmark": LANDMARK_CORE, "filter": FILTER_CORE, "pose": POSE_CORE}
+#: kind → every column the lab's readers of that kind know (core and optional), with its type
+KNOWN = {"landmark": LANDMARK_RUNNER, "filter": FILTER_CORE, "pose": POSE_CORE}
+
+#: a truth set's landmark catalogue (``landmarks.parquet``, :mod:`renderlab.worlds.ev5.catalog`)
+LANDMARK_CATALOG = pa.schema([
+    ("landmark_id", I64), ("center_x_m", F64), ("center_y_m", F64), ("center_z_m", F64), ("spacing_m", F64),
+    ("size_px", I64), ("q_body_from_maplet_x", F64), ("q_body_from_maplet_y", F64), ("q_body_from_maplet_z", F64),
+    ("q_body_from_maplet_w", F64), ("maplet_file", STR),
+])
+#: the columns of a truth set's per-frame landmark truth (``landmark_truth.parquet``) its readers use
+LANDMARK_TRUTH = pa.schema([("frame", I64), ("landmark_id", I64), ("s", F64), ("l", F64)])
+#: truth-set table name → the schema its readers rely on (:meth:`renderlab.truthset.TruthSet.read_table`)
+TRUTH_TABLES = {"landmarks": LANDMARK_CATALOG, "landmark_truth": LANDMARK_TRUTH}
 
 #: columns holding wall-clock timings (excluded from bit-identity checks)
 TIMING_COLUMNS = ("t_ms",)
@@ -116,6 +129,99 @@ def check_table(table: pa.Table, kind: str, where: str = "table") -> None:
                 raise ValueError(f"{where}: column 'reason' must be a string/dictionary column, got {t}")
         elif t != f.type and not (pa.types.is_null(t)):
             raise ValueError(f"{where}: column {f.name!r} must be {f.type}, got {t}")
+
+
+def _type_fits(have: pa.DataType, want: pa.DataType) -> bool:
+    """Whether a column of type ``have`` reads as ``want`` (nulls fit anything; any integer or float column a float
+    one; a dictionary of strings a string one)."""
+    if have == want or pa.types.is_null(have):
+        return True
+    if pa.types.is_dictionary(have):
+        return _type_fits(have.value_type, want) or (pa.types.is_dictionary(want) and
+                                                     _type_fits(have.value_type, want.value_type))
+    if pa.types.is_dictionary(want):
+        return pa.types.is_string(have) or pa.types.is_large_string(have)
+    if pa.types.is_floating(want):
+        return pa.types.is_floating(have) or pa.types.is_integer(have)
+    if pa.types.is_integer(want):
+        return pa.types.is_integer(have)
+    if pa.types.is_string(want):
+        return pa.types.is_string(have) or pa.types.is_large_string(have)
+    return False
+
+
+def check_schema(table: pa.Table, schema: pa.Schema, where: str, *, required: tuple | None = None) -> None:
+    """Raise ``ValueError`` naming the first column of ``schema`` that ``table`` lacks (of ``required``, default all)
+    or holds with a type its readers cannot use (strings where numbers belong, ...)."""
+    names = set(table.column_names)
+    need = schema.names if required is None else required
+    for name in need:
+        if name not in names:
+            raise ValueError(f"{where}: lacks column {name!r}")
+    for f in schema:
+        if f.name in names and not _type_fits(table.schema.field(f.name).type, f.type):
+            raise ValueError(f"{where}: column {f.name!r} must be {f.type}, got {table.schema.field(f.name).type}")
+
+
+def expected_kind(name: str, table: pa.Table) -> str:
+    """The kind a campaign table is meant to be: ``measurements`` is a landmark table; any other table holding
+    more than half of a kind's core columns (beside ``campaign``/``run``) is of that kind; else ``"other"``."""
+    if name == "measurements":
+        return "landmark"
+    names = set(table.column_names)
+    for kind in ("landmark", "filter", "pose"):
+        core = [c for c in CORE[kind].names if c not in ("campaign", "run")]
+        if 2 * sum(c in names for c in core) > len(core):
+            return kind
+    return "other"
+
+
+def check_campaign_table(name: str, table: pa.Table, where: str) -> str:
+    """Check a campaign table against the schema of the kind it is meant to be (:func:`expected_kind`): every core
+    column there, every known column typed as the readers need. Returns the kind; ``ValueError`` otherwise."""
+    kind = expected_kind(name, table)
+    if kind != "other":
+        check_schema(table, KNOWN[kind], f"{where} ({kind} table)", required=tuple(CORE[kind].names))
+    return kind
+
+
+def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: int | None = None) -> pa.Table:
+    """A Parquet file read with its boundaries checked: a regular file of at most ``limit`` bytes
+    (:func:`renderlab.contracts.files.open_regular`), footer readable, rows and uncompressed size (as the footer
+    states them) within bounds before any column is decoded, and ``schema``'s columns present and typed
+    (:func:`check_schema`). Every failure is one :class:`~renderlab.errors.UserError` line naming ``where``."""
+    import os
+
+    import pyarrow.parquet as pq
+
+    from renderlab.contracts.files import LIMITS, open_regular
+    from renderlab.errors import UserError
+
+    limit = LIMITS["table"] if limit is None else limit
+    fd, _ = open_regular(path, where, limit)
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            pf = pq.ParquetFile(fh)
+            meta = pf.metadata
+            unpacked = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+            if meta.num_rows > MAX_TABLE_ROWS or unpacked > limit:
+                raise UserError(f"{where}: the table states {meta.num_rows} rows, {unpacked} bytes unpacked; more than "
+                                f"the lab reads ({MAX_TABLE_ROWS} rows, {limit} bytes)")
+            table = pf.read()
+        except UserError:
+            raise
+        except (OSError, ValueError, TypeError, IndexError, KeyError, pa.ArrowException) as exc:
+            raise UserError(f"cannot read {where}: not a readable Parquet table ({' '.join(str(exc).split())[:120]})") from None
+    if schema is not None:
+        try:
+            check_schema(table, schema, where)
+        except ValueError as exc:
+            raise UserError(str(exc)) from None
+    return table
+
+
+#: the most rows a table read by the lab may hold
+MAX_TABLE_ROWS = 200_000_000
 
 
 def empty_landmark_table() -> pa.Table:
