@@ -1,0 +1,193 @@
+"""The warm frame API (``renderlab.Renderer.frame``) against Mitsuba's own floor, side by side in one process.
+
+Three measurements, one run, the load average printed before and after:
+
+* **full EV5** (``scenes/ev5_descent.toml``: 1.30 M global facets, 64 m site at 2 cm in tiles with levels of detail),
+  ``--frames`` descent frames at ``--size``², ``--spp`` spp. Per frame: ``Renderer.frame(k)`` right after the
+  previous frame (the tile set changes), the same call again (no tile change), and the floor: ``mi.render`` with
+  Mitsuba's C++ ``direct`` integrator (one emitter sample, no BSDF sample, radiance only, perspective sensor) of the
+  *same geometry* — the static bodies and this frame's tiles merged into one loaded scene — timed after a warm-up
+  call. Also the one-scene design (``MitsubaBackend.tile_design = "merged"``: the tiles written
+  into the scene that holds the asteroid, so Mitsuba rebuilds the whole structure) on the same frames.
+  Then the frame as ``renderlab render`` makes it (the API frame + the EXR (ZIP) and PNG files written) against
+  ``mi.render`` (``direct``) of a 1.31 M-triangle sphere (trimesh icosphere, 8 subdivisions) filling the frame.
+* **descent-navigation world** (``results/descent_navigation/scenario.toml`` at 256², 16 spp): every frame of its
+  descent through ``Renderer.frame`` in memory, twice (planned poses, then poses moved 0.3 m as a flown trajectory
+  would), frames per second and the distribution of frame times.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_frame_api.py [--frames 4] [--size 1024] [--spp 16] [--skip-full] [--skip-descent]
+
+The world cache is ``$RENDERLAB_CACHE`` (default ``~/.cache/renderlab``): the first run builds and stores the worlds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(REPO / "benchmarks"))
+DIRECT = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0, "hide_emitters": True}
+
+
+def _sets(size: int, spp: int, frames: int) -> list[str]:
+    f = 4871.6 * size / 1024
+    return [f"trajectory.frames={frames}", f"camera.width={size}", f"camera.height={size}", f"camera.fx={f}",
+            f"camera.fy={f}", f"camera.cx={(size - 1) / 2}", f"camera.cy={(size - 1) / 2}", f"render.spp={spp}"]
+
+
+def _floor(mi, backend, spec, spp: int) -> float:
+    """Seconds of a warm ``mi.render`` (``direct``) of ``backend``'s loaded scene from ``spec``'s camera."""
+    import drjit as dr
+    from bench_ev5_descent import _sensor
+
+    sensor, integ = _sensor(mi, backend, spec, spp), mi.load_dict(DIRECT)
+    for k in range(2):
+        t0 = time.perf_counter()
+        dr.eval(mi.render(backend.scene, sensor=sensor, integrator=integ, spp=spp, seed=k))
+        dr.sync_thread()
+        dt = time.perf_counter() - t0
+    return dt
+
+
+def full_ev5(args) -> None:
+    from renderlab.pipeline.frame_api import Renderer
+
+    r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, args.frames) + args.set)
+    merged = _merged_backend(r)  # the floor's one-scene geometry
+    mi = merged.mi
+    rows = []
+    for k, spec in enumerate(r.plan.frames):
+        t0 = time.perf_counter()
+        r.frame(k)
+        t_change = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        r.frame(k)
+        t_same = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        merged._set_sun(spec)
+        merged.render(spec, seed=k)
+        t_merged = time.perf_counter() - t0  # one-scene design, tile set changed
+        floor = _floor(mi, merged, spec, args.spp)
+        alt = r.plan.frame_meta(spec, r.plan.static_scene)["ev5"]["altitude_m"]
+        rows.append((alt, t_change, t_same, t_merged, floor))
+        print(f"  frame {k} ({alt:6.0f} m): API {t_change:.2f} s (tiles changed), {t_same:.2f} s (same tiles); "
+              f"one-scene {t_merged:.2f} s; mi.render direct {floor:.2f} s; ratios {t_change / floor:.2f}x / "
+              f"{t_same / floor:.2f}x / one-scene {t_merged / floor:.2f}x", flush=True)
+    a = np.array(rows)
+    print(f"full EV5 {args.size}², {args.spp} spp {' '.join(args.set)}, {len(rows)} frames (frame 0 includes the first "
+          "kernel builds):")
+    for label, col in (("API, tiles changed", 1), ("API, same tiles", 2), ("one-scene design, tiles changed", 3)):
+        rat = a[1:, col] / a[1:, 4] if len(a) > 1 else a[:, col] / a[:, 4]
+        print(f"  {label:34s} / mi.render direct: median {np.median(rat):.2f}x, max {rat.max():.2f}x (frames 1..)")
+    bar_vs_sphere(args, r, mi)
+
+
+def bar_vs_sphere(args, r, mi) -> None:
+    """A frame as ``renderlab render`` makes it (API frame + files) vs mi.render of a 1.31 M-triangle sphere."""
+    import drjit as dr
+    import trimesh
+
+    from renderlab.truthset import TruthSetWriter
+
+    sph = trimesh.creation.icosphere(subdivisions=8, radius=1.0)
+    scene = mi.load_dict({"type": "scene", "sun": {"type": "directional", "direction": [0.3, 0.2, -1.0]},
+                          "body": {"type": "ply", "filename": _ply(sph)}})
+    f = args.size / 2 / np.tan(np.radians(8.0))
+    sensor = mi.load_dict({"type": "perspective", "fov_axis": "x", "fov": 16.0,
+                           "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 8.5], target=[0, 0, 0], up=[0, 1, 0]),
+                           "sampler": {"type": "independent", "sample_count": args.spp},
+                           "film": {"type": "hdrfilm", "width": args.size, "height": args.size,
+                                    "rfilter": {"type": "box"}, "pixel_format": "luminance"}})
+    integ = mi.load_dict(DIRECT)
+    with tempfile.TemporaryDirectory() as tmp:
+        w = TruthSetWriter(Path(tmp) / "ts", {"scenario": r.scenario.to_dict()}).__enter__()
+        ours, floor = [], []
+        for k in range(len(r.plan.frames)):
+            t0 = time.perf_counter()
+            fr = r.frame(k)
+            w.add_frame(k, fr.time_s, fr.aovs.exr_channels(), fr.dn, fr.meta, dn_bits=r.options.bits)
+            ours.append(time.perf_counter() - t0)
+            for s in range(2):
+                t0 = time.perf_counter()
+                dr.eval(mi.render(scene, sensor=sensor, integrator=integ, spp=args.spp, seed=s))
+                dr.sync_thread()
+            floor.append(time.perf_counter() - t0)
+        w.__exit__(None, None, None)
+    rat = np.array(ours[1:] or ours) / np.array(floor[1:] or floor)
+    print(f"  renderlab-render frame (API + EXR/PNG written) / mi.render of a {len(sph.faces) / 1e6:.2f} M-triangle "
+          f"sphere (f = {f:.0f} px): median {np.median(rat):.2f}x (frames {np.round(ours, 2).tolist()} s vs "
+          f"{np.round(floor, 2).tolist()} s)")
+
+
+def _ply(mesh) -> str:
+    path = Path(tempfile.mkdtemp()) / "sphere.ply"
+    mesh.export(path)
+    return str(path)
+
+
+def _merged_backend(r):
+    """A one-scene backend of ``r``'s world (tiles merged into the scene): the geometry the floor renders."""
+    from renderlab.pipeline import make_backend
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+
+    MitsubaBackend.tile_design = "merged"
+    try:
+        return make_backend(r.scenario, r.plan.static_scene, "mitsuba")
+    finally:
+        MitsubaBackend.tile_design = "auto"
+
+
+def descent_world(args) -> None:
+    from renderlab.pipeline.frame_api import Renderer
+
+    r = Renderer(REPO / "results" / "descent_navigation" / "scenario.toml", overrides=["render.spp=16", *args.set])
+    merged = _merged_backend(r)
+    times, floors, moved = [], [], np.array([0.3, -0.2, 0.1])
+    r.frame(0)  # kernels compiled, first tiles built
+    for shift in (np.zeros(3), moved):
+        for k in range(r.n_frames):
+            p = r.spec(k).pose
+            t0 = time.perf_counter()
+            r.frame(k, pose=(p.position_m + shift, p.rotation))
+            times.append(time.perf_counter() - t0)
+            if not shift.any():
+                merged._set_sun(r.spec(k))
+                floors.append(_floor(merged.mi, merged, r.spec(k), 16))
+    t, f = np.array(times), np.array(floors)
+    q = np.percentile(t, [50, 90, 100])
+    print(f"descent-navigation world 256², 16 spp {' '.join(args.set)}, {len(t)} frames in memory (2 passes over the "
+          f"descent): {len(t) / t.sum():.2f} frames/s; frame time median {q[0]:.3f} s, p90 {q[1]:.3f} s, worst "
+          f"{q[2]:.3f} s; histogram (s): {np.histogram(t, bins=[0, 0.1, 0.2, 0.3, 0.4, 0.5, 1.0, 10.0])[0].tolist()} "
+          f"for bins [0, .1, .2, .3, .4, .5, 1, 10]; mi.render direct of the same geometry: median {np.median(f):.3f} s, "
+          f"API / floor per frame (planned poses): median {np.median(t[:len(f)] / f):.2f}x", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=4)
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--spp", type=int, default=16)
+    ap.add_argument("--skip-full", action="store_true")
+    ap.add_argument("--skip-descent", action="store_true")
+    ap.add_argument("--set", action="append", default=[], help="KEY=VALUE override of the world(s) measured")
+    args = ap.parse_args()
+    print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}", flush=True)
+    if not args.skip_descent:
+        descent_world(args)
+    if not args.skip_full:
+        full_ev5(args)
+    print(f"load average at the end {os.getloadavg()[0]:.1f}")
+
+
+if __name__ == "__main__":
+    main()
