@@ -64,7 +64,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "cycles": "renderlab.render.cycles_backend:CyclesBackend",
     }),
     "result_folders": ("renderlab.result_folders", {  # renderlab.contracts.result_folder.ResultFolderKind objects
-        "crosscheck": "renderlab.crosscheck_figures:RESULT_FOLDER",
+        "crosscheck": "renderlab.crosscheck.figures:RESULT_FOLDER",
         "error_budget": "renderlab.studies.retina_vs_spc.budget_report:RESULT_FOLDER",
     }),
 }

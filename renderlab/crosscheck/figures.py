@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.contracts.result_folder import figures_wanted
+from renderlab.crosscheck.agreement import TARGETS, FrameAgreement, radiometric_agreement
 
 __all__ = ["figure", "markdown_table", "write_images", "read_images", "is_crosscheck_folder", "write_report"]
 
@@ -118,13 +119,13 @@ def figure(rows, images: list[dict], path: Path, targets: dict, max_frames: int 
     Parameters
     ----------
     rows : list of FrameAgreement
-        Per-frame agreement (:mod:`renderlab.crosscheck`).
+        Per-frame agreement (:mod:`renderlab.crosscheck.agreement`).
     images : list of dict
-        Per-frame images of :func:`renderlab.crosscheck.frame_agreement` (``Lm, Lc, rel, gap, shift``).
+        Per-frame images of :func:`renderlab.crosscheck.agreement.frame_agreement` (``Lm, Lc, rel, gap, shift``).
     path : Path
         ``<stem>.png``; ``<stem>.svg`` is written beside it.
     targets : dict
-        ``rad_median_rel``, ``geo_max_px``, ``shadow_p99_px`` (:data:`renderlab.crosscheck.TARGETS`).
+        ``rad_median_rel``, ``geo_max_px``, ``shadow_p99_px`` (:data:`renderlab.crosscheck.agreement.TARGETS`).
     max_frames : int
         Frames drawn at most.
 
@@ -239,10 +240,8 @@ def write_images(rows, images: list[dict], out_dir: Path, max_frames: int = 6) -
 
 def read_images(path: Path) -> tuple[list[int], list[dict]]:
     """(frames, images) of :func:`write_images`; the relative radiance difference is recomputed from the two
-    radiance images over the lit pixels (:func:`renderlab.crosscheck.radiometric_agreement`)."""
+    radiance images over the lit pixels (:func:`renderlab.crosscheck.agreement.radiometric_agreement`)."""
     import pyarrow.parquet as pq
-
-    from renderlab.crosscheck import radiometric_agreement
 
     t = pq.read_table(str(path)).to_pydict()
     frames, images = [], []
@@ -267,7 +266,6 @@ def _load(folder: Path):
     """(title, rows, frames, images) of a crosscheck folder; UserError for a missing or unreadable table."""
     import pyarrow.parquet as pq
 
-    from renderlab.crosscheck import FrameAgreement
     from renderlab.errors import UserError
 
     folder = Path(folder)
@@ -297,7 +295,6 @@ def write_report(folder: Path, out_dir: Path) -> list[Path]:
     import shutil
     import tempfile
 
-    from renderlab.crosscheck import TARGETS
     from renderlab.errors import UserError
 
     title, rows, drawn, images = _load(folder)
