@@ -26,7 +26,7 @@ def _corners(P, lo, hi, axes=(0, 1, 2)):
 
 def nagy_potential(P, lo, hi, g_rho):
     """U = Gρ∭dV/r of the prism [lo, hi] at P: D. Nagy, Geophysics 31, 362 (1966); Nagy, Papp & Benedek,
-    J. Geodesy 74, 552 (2000), doi:10.1007/s001900000116, eq. 4 (antiderivative evaluated at the 8 corners)."""
+    J. Geodesy 74, 552 (2000), doi:10.1007/s001900000116 (the antiderivative evaluated at the 8 corners)."""
     total = 0.0
     for s, x, y, z in _corners(P, lo, hi):
         r = math.sqrt(x * x + y * y + z * z)
@@ -37,7 +37,7 @@ def nagy_potential(P, lo, hi, g_rho):
 
 
 def nagy_attraction(P, lo, hi, g_rho):
-    """∇U of the prism (Nagy et al. 2000 eq. 5): a_z = −Gρ |||x ln(y + r) + y ln(x + r) − z atan(xy / zr)|||,
+    """∇U of the prism (Nagy et al. 2000): a_z = −Gρ |||x ln(y + r) + y ln(x + r) − z atan(xy / zr)|||,
     the other axes by permutation."""
     out = np.zeros(3)
     for ax in range(3):
