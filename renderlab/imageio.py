@@ -10,6 +10,7 @@ scale (2^N - 1) is 255. A missing, truncated or corrupt file raises :class:`User
 from __future__ import annotations
 
 import json
+import os
 import struct
 import zlib
 from pathlib import Path
@@ -18,6 +19,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
+from renderlab.contracts.files import shown
 from renderlab.errors import UserError
 
 _RESERVED_HEADER = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder", "name",
@@ -101,15 +103,19 @@ def write_exr(path, channels: dict, header_extra: dict | None = None, compressio
         raise UserError(f"cannot write EXR {path}: {exc}") from None
 
 
-def read_exr(path) -> dict:
+def read_exr(path, size: tuple[int, int] | None = None) -> dict:
     """Read every channel of an EXR (part 0): ``{name: (H, W) array}``.
 
-    UINT channels come back as uint32, FLOAT and HALF channels as float32. A missing, truncated or
-    corrupt file raises :class:`UserError` naming the file.
+    UINT channels come back as uint32, FLOAT and HALF channels as float32. The header is checked first (a regular
+    file, a sane size and, with ``size`` = (width, height), that size: :func:`renderlab.contracts.image_headers.
+    check_image`). A missing, truncated or corrupt file raises :class:`UserError` naming the file.
     """
+    from renderlab.contracts.image_headers import check_image
+
     p = Path(path)
-    if not p.is_file():
-        raise UserError(f"EXR file not found: {p}")
+    if not os.path.lexists(p):
+        raise UserError(f"EXR file not found: {shown(p)}")
+    check_image(p, "EXR", size=size)
     try:
         with OpenEXR.File(str(p), separate_channels=True) as exr:
             out = {}
@@ -117,9 +123,9 @@ def read_exr(path) -> dict:
                 uint = ch.type() == OpenEXR.UINT
                 out[name] = np.asarray(ch.pixels, dtype=np.uint32 if uint else np.float32)
     except (RuntimeError, OSError, ValueError) as exc:
-        raise UserError(f"corrupt or unreadable EXR {p}: {exc}") from None
+        raise UserError(f"corrupt or unreadable EXR {shown(p)}: {' '.join(str(exc).split())[:120]}") from None
     if not out or any(a.ndim != 2 for a in out.values()):
-        raise UserError(f"EXR {p} has no channels or non-2-D channels")
+        raise UserError(f"EXR {shown(p)} has no channels or non-2-D channels")
     return out
 
 
@@ -295,18 +301,22 @@ def write_dn_preview(path, dn: np.ndarray, bits: int) -> None:
     _write_bytes(path, _encode_png(((a * 255 + full // 2) // full).astype(np.uint8), path))
 
 
-def read_dn_png(path) -> np.ndarray:
-    """Read a 16-bit grayscale DN PNG as a uint16 (H, W) array (UserError if it is not one).
+def read_dn_png(path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """Read a 16-bit grayscale DN PNG as a uint16 (H, W) array (UserError if it is not one; with ``size`` =
+    (width, height), the header must say that size before anything is decoded).
 
     The values come back exactly as stored; an ``sBIT`` chunk does not shift them."""
+    from renderlab.contracts.files import LIMITS, read_bytes
+    from renderlab.contracts.image_headers import check_image
+
     p = Path(path)
-    try:
-        raw = np.frombuffer(p.read_bytes(), dtype=np.uint8)
-    except OSError as exc:
-        raise UserError(f"cannot read PNG {p}: {exc.strerror or exc}") from None
+    hdr = check_image(p, "PNG", size=size)
+    if hdr.kind != "png":
+        raise UserError(f"{shown(p)} is not a PNG")
+    raw = np.frombuffer(read_bytes(p, "PNG", LIMITS["image"]), dtype=np.uint8)
     img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
     if img is None:
-        raise UserError(f"corrupt or unreadable PNG {p}")
+        raise UserError(f"corrupt or unreadable PNG {shown(p)}")
     if img.dtype != np.uint16 or img.ndim != 2:
-        raise UserError(f"PNG {p} is not 16-bit grayscale ({img.dtype}, shape {img.shape})")
+        raise UserError(f"PNG {shown(p)} is not 16-bit grayscale ({img.dtype}, shape {img.shape})")
     return img

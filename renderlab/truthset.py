@@ -22,6 +22,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
+from renderlab.contracts.files import short, shown
 from renderlab.errors import UserError
 
 FORMAT = "renderlab.truthset/1"
@@ -62,7 +63,7 @@ def _safe_relpath(relpath: str, what: str) -> str:
     s = str(relpath).replace("\\", "/")
     parts = PurePosixPath(s).parts
     if not s or s.startswith("/") or not parts or any(p in ("..", ".", "") for p in parts):
-        raise UserError(f"{what} must be a relative path inside the truth set, got {relpath!r}")
+        raise UserError(f"{what} must be a relative path inside the truth set, got {short(relpath)}")
     return "/".join(parts)
 
 
@@ -298,34 +299,23 @@ class TruthSet:
     @classmethod
     def open(cls, path) -> "TruthSet":
         """Open and validate a truth set folder (manifest format, listed files exist)."""
+        from renderlab.contracts.file_models import TruthManifest
+        from renderlab.contracts.files import read_checked
+
         root = Path(path)
         mpath = root / MANIFEST
         if not root.is_dir():
-            raise UserError(f"truth set not found: {root} is not a directory")
-        if not mpath.is_file():
-            raise UserError(f"truth set {root} has no {MANIFEST}")
-        try:
-            manifest = json.loads(mpath.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise UserError(f"cannot read {mpath}: {exc}") from None
-        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
-            got = manifest.get("format") if isinstance(manifest, dict) else None
-            raise UserError(f"{mpath}: format must be {FORMAT!r}, got {got!r}")
-        frames = manifest.get("frames")
-        if not isinstance(frames, list):
-            raise UserError(f"{mpath}: 'frames' must be a list")
-        for k, rec in enumerate(frames):
-            if not isinstance(rec, dict):
-                raise UserError(f"{mpath}: frames[{k}] is not an object")
-            for key in ("index", "time_s", "exr", "dn"):
-                if key not in rec:
-                    raise UserError(f"{mpath}: frames[{k}] has no {key!r}")
+            raise UserError(f"truth set not found: {shown(root)} is not a directory")
+        if not os.path.lexists(mpath):
+            raise UserError(f"truth set {shown(root)} has no {MANIFEST}")
+        manifest = read_checked(mpath, TruthManifest, "truth-set manifest")
+        for k, rec in enumerate(manifest["frames"]):
             for key in ("exr", "dn", "dn_preview"):
                 if key not in rec:  # dn_preview: optional (sets written before it existed)
                     continue
-                rel = _safe_relpath(rec[key], f"{mpath}: frames[{k}].{key}")
+                rel = _safe_relpath(rec[key], f"{shown(mpath)}: frames[{k}].{key}")
                 if not (root / rel).is_file():
-                    raise UserError(f"truth set {root}: frames[{k}].{key} file {rel} is missing")
+                    raise UserError(f"truth set {shown(root)}: frames[{k}].{key} file {short(rel)} is missing")
         return cls(root, manifest)
 
     def __len__(self) -> int:
@@ -339,33 +329,32 @@ class TruthSet:
         return rec["camera"]
 
     def read_table(self, name: str):
-        """Read ``<name>.parquet`` as a ``pyarrow.Table``."""
-        import pyarrow.parquet as pq
+        """Read ``<name>.parquet`` as a ``pyarrow.Table`` (boundaries checked, and the schema its readers rely on for
+        the tables of :data:`renderlab.contracts.schemas.TRUTH_TABLES`)."""
+        from renderlab.contracts.schemas import TRUTH_TABLES, read_parquet
 
         p = self.path / _safe_relpath(f"{name}.parquet", "table name")
-        if not p.is_file():
-            raise UserError(f"truth set {self.path} has no table {name}.parquet")
-        return pq.read_table(str(p))
+        if not os.path.lexists(p):
+            raise UserError(f"truth set {shown(self.path)} has no table {short(name)}.parquet")
+        return read_parquet(p, f"truth-set table {shown(p)}", schema=TRUTH_TABLES.get(name))
 
     def load(self, i: int) -> TruthFrame:
         """Load frame ``i`` (position in :attr:`frames`): EXR channels, DN image and record."""
         rec = self.frames[i]
         exr_path, dn_path = self.path / rec["exr"], self.path / rec["dn"]
-        ch = read_exr(exr_path)
+        cam = rec.get("camera") or {}
+        size = (cam["width"], cam["height"]) if "width" in cam and "height" in cam else None
+        ch = read_exr(exr_path, size)  # headers checked against the camera before any pixel is decoded
         missing = [c for c in AOV_CHANNELS if c not in ch]
         has_rgb = all(c in ch for c in RGB_CHANNELS)
         if "Y" not in ch and not has_rgb:
             missing.insert(0, "Y (or R, G, B)")
         if missing:
-            raise UserError(f"EXR {exr_path} lacks channels {', '.join(missing)}")
-        dn = read_dn_png(dn_path)
+            raise UserError(f"EXR {shown(exr_path)} lacks channels {', '.join(missing)}")
         shape = ch["P.X"].shape
-        if dn.shape != shape:
-            raise UserError(f"{dn_path} is {dn.shape}, but {exr_path} is {shape}")
-        cam = rec.get("camera") or {}
-        if "width" in cam and "height" in cam and (cam["height"], cam["width"]) != shape:
-            raise UserError(f"{exr_path} is {shape[1]}x{shape[0]} but the camera says "
-                            f"{cam['width']}x{cam['height']}")
+        if any(a.shape != shape for a in ch.values()):
+            raise UserError(f"EXR {shown(exr_path)}: channels of different sizes")
+        dn = read_dn_png(dn_path, (shape[1], shape[0]))
         ids = decode_ids(ch["id"], str(exr_path))
         return TruthFrame(
             index=int(rec["index"]), time_s=float(rec["time_s"]),

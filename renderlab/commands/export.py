@@ -25,11 +25,37 @@ def add_parser(subparsers) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
 
 
+def _check_outputs(outs: list, overwrite: bool) -> None:
+    """The output files: distinct (``--oem x --aem x`` would overwrite one message with the other), in an existing
+    folder, not existing unless ``overwrite``, and never a folder, a FIFO or a device."""
+    import os
+    from pathlib import Path
+
+    from renderlab.contracts.files import shown
+    from renderlab.errors import UserError
+
+    seen = {}
+    for flag, out in outs:
+        real = os.path.realpath(out)
+        if real in seen:
+            raise UserError(f"{flag} and {seen[real]} name the same file {shown(out)}; give two files")
+        seen[real] = flag
+        p = Path(out)
+        if os.path.lexists(p):
+            if not p.is_file() or p.is_symlink():
+                raise UserError(f"{flag} {shown(p)} exists and is not a regular file")
+            if not overwrite:
+                raise UserError(f"output {shown(p)} exists (use --overwrite to replace it)")
+        if not p.parent.is_dir():
+            raise UserError(f"cannot write {shown(p)}: directory {shown(p.parent)} does not exist")
+
+
 def run(args) -> int:
     from pathlib import Path
 
+    from renderlab.cost import check_path
     from renderlab.errors import UserError
-    from renderlab.trajectory_io.export import export_truthset
+    from renderlab.trajectory_io.export import epoch_text, export_truthset, kvn_text
     from renderlab.truthset import TruthSet
 
     if not args.oem and not args.aem and not args.apriori:
@@ -46,15 +72,13 @@ def run(args) -> int:
         return 0
     if args.apriori:
         raise UserError("write --apriori FILE on its own (not with --oem/--aem)")
-    outs = [Path(p) for p in (args.oem, args.aem) if p]
-    for out in outs:
-        if out.exists() and not args.overwrite:
-            raise UserError(f"output {out} exists (use --overwrite to replace it)")
-        if not out.parent.is_dir():
-            raise UserError(f"cannot write {out}: directory {out.parent} does not exist")
+    outs = [(flag, check_path(p, flag)) for flag, p in (("--oem", args.oem), ("--aem", args.aem)) if p]
+    kvn_text(args.object_name, "--object-name")
+    if args.epoch_utc is not None:
+        epoch_text(args.epoch_utc, "--epoch-utc")
+    _check_outputs(outs, args.overwrite)
     ts = TruthSet.open(args.truthset)
     series = export_truthset(ts.path, oem=args.oem, aem=args.aem, epoch_utc=args.epoch_utc,
                              object_name=args.object_name)
-    print(f"renderlab: {len(series.times_s)} poses -> "
-          + ", ".join(str(o) for o in outs))
+    print(f"renderlab: {len(series.times_s)} poses -> " + ", ".join(str(o) for _, o in outs))
     return 0

@@ -7,9 +7,9 @@ model                    file                                                  r
 :class:`RunStatus`       ``runs/NNNNNN/status.json`` of a campaign             the same
 :class:`RunStatuses`     ``runs.json`` of a published study folder             the same
 :class:`TruthManifest`   ``manifest.json`` of a truth set                      ``measure``, ``export``, ``info``, studies
-:class:`AprioriFile`     the a-priori file of ``measure --images``             ``measure``
 =======================  ====================================================  ========================================
 
+(The a-priori file of ``measure --images`` has its own model, :class:`renderlab.measurement.apriori.AprioriFile`.)
 The models are strict: no string is read as a number (``"64"`` for a width), no float as an integer, no boolean
 as either; numbers are finite and inside physical ranges (:data:`FOCAL_MAX_PX` …); lists and strings have
 bounded lengths; epochs lie in :data:`EPOCH_YEARS`. Keys a writer of the file never wrote are refused where the
@@ -208,45 +208,3 @@ class TruthManifest(OpenRecord):
     seed: Annotated[int, Field(ge=0)] | None = None
     render_frame: dict[str, Any] | None = None
     renderer: dict[str, Any] | None = None
-
-
-# ----------------------------------------------------------------------------------------- measure --images
-class AprioriImageRecord(FileModel):
-    file: RelPath
-    epoch_utc: Epoch | None = None
-    position_m: Vec3
-    quat_body_from_cam_xyzw: Quat
-    sun_direction_body: Annotated[list[Finite], Field(min_length=3, max_length=3)]
-    covariance: Annotated[list[Annotated[list[Finite], Field(min_length=6, max_length=6)]],
-                          Field(min_length=6, max_length=6)] | None = None
-    position_sigma_m: Annotated[list[NonNeg], Field(min_length=3, max_length=3)] | None = None
-    attitude_sigma_deg: Annotated[list[Annotated[float, Field(ge=0, le=180, allow_inf_nan=False)]],
-                                  Field(min_length=3, max_length=3)] | None = None
-
-    @field_validator("epoch_utc")
-    @classmethod
-    def _epoch(cls, v):
-        return v if v is None else check_epoch_text(v)
-
-    @field_validator("quat_body_from_cam_xyzw")
-    @classmethod
-    def _q(cls, q):
-        return _unit_norm(q, "the quaternion")
-
-    @field_validator("sun_direction_body")
-    @classmethod
-    def _sun(cls, v):
-        return _unit_norm(v, "the sun direction")
-
-    @model_validator(mode="after")
-    def _covariance_given(self):
-        if self.covariance is None and (self.position_sigma_m is None or self.attitude_sigma_deg is None):
-            raise ValueError("give 'covariance' or both 'position_sigma_m' and 'attitude_sigma_deg'")
-        return self
-
-
-class AprioriFile(FileModel):
-    camera: CameraRecord
-    bits: Annotated[int, Field(ge=1, le=32)] | None = None
-    frame: Name = "BODY"
-    images: Annotated[list[AprioriImageRecord], Field(min_length=1, max_length=MAX_FRAMES)]

@@ -67,6 +67,22 @@ FILTER_CORE = pa.schema([("run", I64), ("t_s", F64), ("has_result", BOOL), ("rea
 POSE_CORE = pa.schema([("campaign", STR), ("run", I64), ("has_result", BOOL), ("reason", REASON),
                        ("diagnostics", STR)])
 
+#: ``centre_truth.parquet`` of the planet world: one row per body and frame (true pose and camera). ``centre_*`` is the
+#: projected body centre (camera model, distortion included); ``limb_*`` the true limb conic (the tangent cone of the
+#: ellipsoid through the distortion-free pinhole ``K``, :mod:`renderlab.geometry.conic`): centre, semi-axes a ≥ b,
+#: major-axis angle from +s toward +l; ``apparent_radius_px`` = √(ab); ``range_m`` camera to centre; ``los_cam_*`` the
+#: unit line of sight, camera frame; ``phase_deg`` Sun–centre–camera; ``cone_*`` the limb cone M (eq. 1 of
+#: :mod:`renderlab.geometry.conic`, unit Frobenius norm, xᵀMx > 0 on rays that hit the body) in the camera frame;
+#: ``limb_in_image`` the whole conic inside the image; ``limb_model`` ``ellipsoid`` (the rendered body) or
+#: ``equivalent_ellipsoid`` (a mesh body: the ellipsoid of its volume and second moments).
+CENTRE_TRUTH = pa.schema([
+    ("frame", I64), ("time_s", F64), ("body", STR), ("centre_s", F64), ("centre_l", F64),
+    ("limb_centre_s", F64), ("limb_centre_l", F64), ("limb_a_px", F64), ("limb_b_px", F64), ("limb_angle_rad", F64),
+    ("apparent_radius_px", F64), ("range_m", F64), ("los_cam_x", F64), ("los_cam_y", F64), ("los_cam_z", F64),
+    ("phase_deg", F64), *[(f"cone_{k}", F64) for k in ("xx", "xy", "xz", "yy", "yz", "zz")],
+    ("limb_in_image", BOOL), ("limb_model", STR),
+])
+
 #: kind → the columns every table of that kind has
 CORE = {"landmark": LANDMARK_CORE, "filter": FILTER_CORE, "pose": POSE_CORE}
 #: kind → every column the lab's readers of that kind know (core and optional), with its type
@@ -81,7 +97,7 @@ LANDMARK_CATALOG = pa.schema([
 #: the columns of a truth set's per-frame landmark truth (``landmark_truth.parquet``) its readers use
 LANDMARK_TRUTH = pa.schema([("frame", I64), ("landmark_id", I64), ("s", F64), ("l", F64)])
 #: truth-set table name → the schema its readers rely on (:meth:`renderlab.truthset.TruthSet.read_table`)
-TRUTH_TABLES = {"landmarks": LANDMARK_CATALOG, "landmark_truth": LANDMARK_TRUTH}
+TRUTH_TABLES = {"landmark_truth": LANDMARK_TRUTH}
 
 #: columns holding wall-clock timings (excluded from bit-identity checks)
 TIMING_COLUMNS = ("t_ms",)

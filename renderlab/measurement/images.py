@@ -23,29 +23,37 @@ from renderlab.measurement.apriori import AprioriImage, read_apriori  # noqa: F4
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".fits", ".fit", ".fts")
 
 
-def read_image(path: Path) -> np.ndarray:
-    """A grey image as float64 (PNG/TIFF through OpenCV unchanged, FITS through astropy)."""
+def read_image(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
+    """A grey image as float64 (PNG/TIFF through OpenCV unchanged, FITS through astropy). The header is checked
+    first (:func:`renderlab.contracts.image_headers.check_image`: a regular file, sane sizes and, with ``size`` =
+    (width, height), the camera's size), so nothing is decoded that the camera cannot have taken."""
+    from renderlab.contracts.files import shown
+    from renderlab.contracts.image_headers import check_image
+
     path = Path(path)
-    if not path.is_file():
-        raise UserError(f"image not found: {path}")
-    if path.suffix.lower() in (".fits", ".fit", ".fts"):
+    hdr = check_image(path, "image", size=size)
+    if hdr.kind == "fits":
         from astropy.io import fits
 
         try:
-            with fits.open(path) as hdul:
-                data = next((h.data for h in hdul if getattr(h, "data", None) is not None and h.data.ndim == 2), None)
-        except (OSError, ValueError) as exc:
-            raise UserError(f"cannot read FITS image {path.name}: {exc}") from None
-        if data is None:
-            raise UserError(f"{path.name}: no 2-D image HDU")
-        return np.asarray(data, np.float64)
+            with fits.open(path, memmap=False, lazy_load_hdus=True) as hdul:
+                data = np.array(hdul[hdr.hdu].data, np.float64)
+        except (OSError, ValueError, TypeError, IndexError) as exc:
+            raise UserError(f"cannot read FITS image {shown(path)}: {' '.join(str(exc).split())[:100]}") from None
+        if data.ndim != 2 or data.shape != (hdr.height, hdr.width):
+            raise UserError(f"{shown(path)}: no 2-D image HDU")
+        return data
+    if hdr.kind not in ("png", "tiff"):
+        raise UserError(f"image {shown(path)}: a {hdr.kind} file; PNG, TIFF or FITS are read")
+    if hdr.channels != 1:
+        raise UserError(f"{shown(path)}: a grey image is needed, got {hdr.channels} channels")
     import cv2
 
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
-        raise UserError(f"cannot read image {path.name} (PNG/TIFF 8- or 16-bit grey, or FITS)")
+        raise UserError(f"cannot read image {shown(path)} (PNG/TIFF 8- or 16-bit grey, or FITS)")
     if img.ndim == 3:
-        raise UserError(f"{path.name}: a grey image is needed, got {img.shape[2]} channels")
+        raise UserError(f"{shown(path)}: a grey image is needed, got {img.shape[2]} channels")
     return img.astype(np.float64)
 
 
@@ -60,7 +68,14 @@ def measure_images(apriori_path: Path, maplets: list, method, options, *, allow_
 
     from renderlab.measurement.apriori import check_image_sizes
 
+    from renderlab.contracts.image_headers import check_image
+
     camera, adc_max, _, images = read_apriori(apriori_path)
+    for im in images:  # headers against the limits and the camera, before any image is decoded
+        hdr = check_image(im.path, "image")
+        if (hdr.width, hdr.height) != (camera.width, camera.height):
+            raise UserError(f"{im.path.name} is {hdr.width}x{hdr.height} px but the a-priori camera is "
+                            f"{camera.width}x{camera.height} px (the camera must be the one the images were taken with)")
     check_image_sizes(camera, images, read_image)  # every file reads, at the camera's size, before anything is measured
     if not maplets:
         raise UserError("the landmark catalogue is empty")
@@ -70,7 +85,8 @@ def measure_images(apriori_path: Path, maplets: list, method, options, *, allow_
     rows = []
     for im in tqdm(images, desc=f"measure {impl.name}", unit="image", disable=not progress):
         pose = CameraPose(im.R_body_from_cam, im.position_m)
-        attempt, results = run_method_on_image(impl, read_image(im.path), adc_max, camera, pose, im.sun_body, maplets,
+        image = read_image(im.path, (camera.width, camera.height))
+        attempt, results = run_method_on_image(impl, image, adc_max, camera, pose, im.sun_body, maplets,
                                                centres, im.cov_pos_m2, im.cov_att_rad2, options, im.index)
         sig_p, sig_a = np.sqrt(np.diag(im.cov_pos_m2)), np.sqrt(np.diag(im.cov_att_rad2))
         for k, res in zip(attempt, results):

@@ -9,24 +9,50 @@ scenario's ``trajectory.epoch_utc``; later frames follow by their ``time_s`` (TD
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from renderlab.contracts.files import shown
 from renderlab.errors import UserError
 from renderlab.trajectory_io.series import PoseSeries
 from renderlab.trajectory_io.timescales import parse_epoch
 
 
 def _manifest(folder: Path) -> dict:
+    """The truth set's ``manifest.json``, validated (:class:`renderlab.contracts.file_models.TruthManifest`)."""
+    from renderlab.contracts.file_models import TruthManifest
+    from renderlab.contracts.files import read_checked, shown
+
     p = Path(folder) / "manifest.json"
     if not p.is_file():
-        raise UserError(f"not a truth set (no manifest.json): {folder}")
+        raise UserError(f"not a truth set (no manifest.json): {shown(folder)}")
+    return read_checked(p, TruthManifest, "truth-set manifest")
+
+
+def kvn_text(value, what: str, max_len: int = 80) -> str:
+    """A value for a CCSDS KVN line: 1..``max_len`` printable ASCII characters (KVN has no escapes: a newline or
+    control character would start a line of its own and break the message)."""
+    from renderlab.contracts.files import short
+
+    if not isinstance(value, str) or not value.strip() or len(value) > max_len \
+            or any(not (" " <= c <= "~") for c in value):
+        raise UserError(f"{what} must be 1..{max_len} printable ASCII characters (no newline or control "
+                        f"character), got {short(value)}")
+    return value
+
+
+def epoch_text(value, what: str) -> str:
+    """An epoch given as text, its year inside :data:`renderlab.contracts.file_models.EPOCH_YEARS`."""
+    from renderlab.contracts.file_models import check_epoch_text
+    from renderlab.contracts.files import short
+
+    if not isinstance(value, str) or len(value) > 64:
+        raise UserError(f"{what} must be an ISO epoch, got {short(value)}")
     try:
-        return json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise UserError(f"{p}: not valid JSON ({err})") from None
+        return check_epoch_text(value)
+    except ValueError as exc:
+        raise UserError(f"{what} {short(value)}: {exc}") from None
 
 
 def truthset_pose_series(folder, epoch_utc: str | None = None) -> PoseSeries:
@@ -42,19 +68,20 @@ def truthset_pose_series(folder, epoch_utc: str | None = None) -> PoseSeries:
     m = _manifest(Path(folder))
     frames = sorted(m.get("frames") or [], key=lambda f: float(f["time_s"]))
     if not frames:
-        raise UserError(f"{folder}: the truth set has no frames")
-    try:
-        times = np.array([float(f["time_s"]) for f in frames])
-        pos = np.array([f["pose"]["position_m"] for f in frames], float)
-        quat = np.array([f["pose"]["quat_render_from_cam_xyzw"] for f in frames], float)
-    except (KeyError, TypeError, ValueError) as err:
-        raise UserError(f"{folder}: a frame has no usable pose ({err})") from None
+        raise UserError(f"{shown(folder)}: the truth set has no frames")
+    no_pose = [f.get("index") for f in frames if not isinstance(f.get("pose"), dict)]
+    if no_pose:
+        raise UserError(f"{shown(folder)}: frame {no_pose[0]} has no pose")
+    times = np.array([float(f["time_s"]) for f in frames])
+    pos = np.array([f["pose"]["position_m"] for f in frames], float)
+    quat = np.array([f["pose"]["quat_render_from_cam_xyzw"] for f in frames], float)
     epoch0 = None
     if frames[0].get("epoch_utc"):  # the first frame's epoch; the others by their (exact) time_s
         epoch0 = parse_epoch(frames[0]["epoch_utc"], "UTC", "manifest epoch_utc")
     else:
         given = epoch_utc or ((m.get("scenario") or {}).get("trajectory") or {}).get("epoch_utc")
         if given:
+            given = epoch_text(given, "epoch_utc")
             epoch0 = parse_epoch(given, "UTC", "epoch_utc").plus(times[0])
     if epoch0 is not None:
         times = times - times[0]
@@ -73,6 +100,8 @@ def export_truthset(folder, *, oem=None, aem=None, epoch_utc: str | None = None,
     """
     from renderlab.trajectory_io.ccsds import write_aem, write_oem
 
+    object_name = kvn_text(object_name, "--object-name")
+    center_name = kvn_text(center_name, "center name")
     series = truthset_pose_series(folder, epoch_utc)
     if series.epoch0 is None and (oem or aem):
         raise UserError(f"{folder}: frames have relative times only; give epoch_utc to write CCSDS messages")
