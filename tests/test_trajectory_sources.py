@@ -312,7 +312,6 @@ def test_bad_tables_exit_2_with_one_line(tmp_path, capsys, case):
     ("unknown camera frame", (f'camera_frame = "{CK_FRAME}"', 'camera_frame = "NOPE"'), "unknown SPICE frame 'NOPE'"),
     ("unknown body", (f'observer = "{OBS}"', 'observer = "NOBODY"'), "unknown SPICE body 'NOBODY'"),
     ("missing kernel", ('"rl.bc"', '"gone.bc"'), "trajectory.kernels.4: file not found: gone.bc"),
-    ("no lsk", ('"rl.tls", ', ''), "leapseconds kernel"),
     ("ccsds frame", None, "is not traj.oem's REF_FRAME"),
 ])
 def test_bad_kernels_and_frames_exit_2_with_one_line(sources, tmp_path, capsys, case, edit, needle):

@@ -85,11 +85,22 @@ class AnalyticWorld(_Strict):
 
 
 class SunConfig(_Strict):
-    """The sun as a directional source. ``direction`` points from the scene *toward* the sun."""
+    """The sun as a directional source. ``direction`` points from the scene *toward* the sun.
 
+    ``source = "spice"`` (world ``analytic`` with ``trajectory.kind = "spice"``) takes the sun of every frame from the
+    trajectory's kernels instead (:func:`renderlab.trajectory_io.spice.read_spice_sun`, with
+    ``trajectory.aberration``): the direction from the trajectory's ``center`` toward the Sun in its ``frame``, and
+    the irradiance ``irradiance_w_m2 × (1 AU / distance)²`` (``irradiance_w_m2`` is then the value at 1 AU);
+    ``direction`` is not used.
+    """
+
+    source: Literal["direction", "spice"] = Field("direction", description="direction: the constant [sun] "
+                                                  "direction; spice: the Sun from the trajectory's SPICE kernels, "
+                                                  "per frame (analytic world, trajectory.kind = \"spice\")")
     direction: Vec3 = Field([0.3, -0.4, 0.8], description="Direction from the scene toward the sun, render "
-                            "frame (any non-zero length)")
-    irradiance_w_m2: Positive = Field(1361.0, description="Solar irradiance at the scene [W/m²]")
+                            "frame (any non-zero length); source = \"direction\" only")
+    irradiance_w_m2: Positive = Field(1361.0, description="Solar irradiance at the scene (source = \"spice\": at "
+                                      "1 AU, scaled by the inverse square of the kernels' sun distance) [W/m²]")
 
     @model_validator(mode="after")
     def _nonzero(self):
@@ -243,6 +254,9 @@ class Scenario(_Strict):
                 and self.world.kind not in DEFAULT_POINTING):
             raise ValueError(f"trajectory: {traj.missing_attitude()}; world.kind '{self.world.kind}' has no default "
                              "pointing")
+        if self.sun.source == "spice" and (self.world.kind != "analytic" or traj.kind != "spice"):
+            raise ValueError(f"sun.source = \"spice\" needs world.kind 'analytic' and trajectory.kind 'spice' (got "
+                             f"'{self.world.kind}' / '{traj.kind}'; the other worlds have their own sun)")
         return self
 
     def to_dict(self) -> dict[str, Any]:

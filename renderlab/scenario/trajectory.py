@@ -45,7 +45,7 @@ _COMMON = {"kind", "frames", "dt_s", "start_s", "times_s", "epoch_utc", "frame",
            "camera_mount_quat_xyzw", "interpolation"}
 _OWN = {"table": {"file", "quaternion_order", "quaternion_direction"},
         "ccsds": {"oem", "aem", "observer", "center", "camera_frame"},
-        "spice": {"kernels", "observer", "center", "camera_frame"}}
+        "spice": {"kernels", "observer", "center", "camera_frame", "aberration"}}
 _NEEDS = {"table": ("file",), "ccsds": ("oem",), "spice": ("kernels", "observer", "center", "frame", "epoch_utc")}
 _NEEDS_ATTITUDE = {"table": ("quaternion_order", "quaternion_direction"), "ccsds": ("aem",), "spice": ("camera_frame",)}
 
@@ -62,7 +62,9 @@ class SourceTrajectoryConfig(_Strict):
     ``table``: ``file`` (CSV or Parquet: ``time_s`` or ``epoch``, ``x_m y_m z_m``, ``qx qy qz qw``) with the
     declared ``quaternion_order`` (``xyzw``/``wxyz``) and ``quaternion_direction``
     (``cam_to_frame``/``frame_to_cam``); ``ccsds``: ``oem`` (positions) and ``aem`` (attitude), KVN;
-    ``spice``: ``kernels`` with ``observer``, ``center``, ``frame`` and ``camera_frame`` as SPICE spells them.
+    ``spice``: ``kernels`` with ``observer``, ``center``, ``frame`` and ``camera_frame`` as SPICE spells them, and
+    ``aberration`` (``NONE``, ``LT``, ``LT+S``); without a leapseconds kernel among the kernels one is written from
+    astropy's leap-second table.
 
     Without the attitude keys (``aem``, ``camera_frame``, the table's quaternion keys) the files give positions
     only and the world's default pointing applies (Earth: nadir); worlds without one refuse the scenario.
@@ -112,6 +114,10 @@ class SourceTrajectoryConfig(_Strict):
         None, description="Unit quaternion R_att_from_cam mounting the camera in the attitude file's frame")
     interpolation: Literal["cubic", "linear"] = Field("cubic", description="Interpolation of the positions "
                                                       "(attitude: SLERP); not for spice")
+    aberration: Literal["NONE", "LT", "LT+S"] = Field(
+        "NONE", description="spice: SPICE aberration correction of the positions (and of sun.source = \"spice\"): "
+        "NONE geometric; LT the centre where the camera sees it, one light time earlier; LT+S also stellar "
+        "aberration (renderlab.trajectory_io.spice)")
 
     @field_validator("epoch_utc", mode="before")
     @classmethod
@@ -123,7 +129,8 @@ class SourceTrajectoryConfig(_Strict):
 
     @model_validator(mode="after")
     def _kind_fields(self):
-        k, given = self.kind, self.model_fields_set
+        k = self.kind  # keys given with a value other than the default (a dumped scenario reloads as it was)
+        given = {n for n in self.model_fields_set if getattr(self, n) != type(self).model_fields[n].default}
         extra = sorted(given - _COMMON - _OWN[k])
         if extra:
             raise ValueError(f"kind '{k}' does not use '{extra[0]}'")

@@ -127,7 +127,7 @@ def _spice(traj, base_dir, t: np.ndarray, velocities: bool):
     kernels = [resolve(base_dir, k, f"kernels.{i}") for i, k in enumerate(traj.kernels)]
     s = read_spice(kernels, observer=traj.observer, center=traj.center, frame=traj.frame,
                    camera_frame=traj.camera_frame if traj.reads_attitude() else None,
-                   epoch_utc=traj.epoch_utc, times_s=t, velocities=velocities)
+                   epoch_utc=traj.epoch_utc, times_s=t, velocities=velocities, aberration=traj.aberration)
     rots = Rotation.from_quat(s.quat_xyzw) if s.quat_xyzw is not None else None
     return s.positions_m, rots, s.epoch0, s.velocities_m_s
 
@@ -180,3 +180,22 @@ def frame_poses(traj, base_dir=None, velocities: bool = False) -> FramePoses:
     epochs = None if start is None else [start.plus(float(v)).iso("UTC", 6) for v in t]
     return FramePoses(times_s=t, positions_m=positions, rotations=rots, epochs_utc=epochs, frame=frame,
                       velocities_m_s=vel, center=center)
+
+
+def spice_sun(traj, base_dir=None) -> np.ndarray:
+    """The sun relative to the scene's centre at every frame of a ``spice`` trajectory, in its frame (m)
+    (:func:`renderlab.trajectory_io.spice.read_spice_sun`: ``sun.source = "spice"``, with ``trajectory.aberration``).
+
+    Raises
+    ------
+    UserError
+        Not a ``spice`` trajectory, no SPK with the Sun, and what :func:`frame_poses` refuses.
+    """
+    from renderlab.trajectory_io.spice import read_spice_sun
+
+    if traj.kind != "spice":
+        raise UserError(f"sun.source = \"spice\" needs trajectory.kind = \"spice\", got {traj.kind!r}")
+    kernels = [resolve(base_dir, k, f"kernels.{i}") for i, k in enumerate(traj.kernels)]
+    return read_spice_sun(kernels, observer=traj.observer, center=traj.center, frame=traj.frame,
+                          epoch_utc=traj.epoch_utc, times_s=np.asarray(traj.frame_times(), float),
+                          aberration=traj.aberration)

@@ -162,3 +162,29 @@ def utc_text(value):
     except UserError as err:
         raise ValueError(str(err).removeprefix("epoch_utc: ")) from None
     return value
+
+
+def naif_lsk_text() -> str:
+    """A NAIF leapseconds kernel (LSK) built from astropy's leap-second table, for SPICE runs given none.
+
+    The text has NAIF's layout (``naif0012.tls``): the ``DELTET`` constants of this module (``DELTA_T_A``, ``K``,
+    ``EB``, ``M``) and ``DELTET/DELTA_AT`` with one ``TAI − UTC, @YYYY-MON-D`` pair per leap second of the IERS
+    table astropy ships (``astropy.utils.iers.IERS_LEAP_SECOND_FILE``, from ``astropy-iers-data``: no download).
+    SPICE's ``str2et`` with it agrees with astropy's UTC → TT to the nanosecond; its TDB − TT is SPICE's
+    two-term model, within 30 µs of astropy's full series (``tests/test_spice_truth.py``).
+
+    Returns
+    -------
+    str
+        The kernel text (``KPL/LSK`` … ``\\begintext``).
+    """
+    from astropy.utils import iers
+
+    table = iers.LeapSeconds.open(iers.IERS_LEAP_SECOND_FILE)
+    months = "JAN FEB MAR APR MAY JUN JUL AUG SEP OCT NOV DEC".split()
+    pairs = [f"{int(r['tai_utc'])}, @{int(r['year'])}-{months[int(r['month']) - 1]}-{int(r['day'])}" for r in table]
+    return ("KPL/LSK\n\nLeapseconds kernel written by renderlab from astropy's IERS leap-second table "
+            f"(expires {table.expires.isot[:10]}).\n\n\\begindata\n\n"
+            f"DELTET/DELTA_T_A = {DELTA_T_A}\nDELTET/K = {K:.3E}\nDELTET/EB = {EB:.3E}\n"
+            f"DELTET/M = ( {M0!r} {M1!r} )\n\nDELTET/DELTA_AT = ( " + "\n                     ".join(pairs)
+            + " )\n\n\\begintext\n")

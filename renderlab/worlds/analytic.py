@@ -92,9 +92,30 @@ def build_scene(world, base_dir: Path) -> SceneDescription:
     return SceneDescription(bodies=bodies, render_frame={"name": "SCENE"})
 
 
+def spice_suns(scenario, base_dir, frames: list) -> list:
+    """``frames`` with the sun of each taken from the trajectory's SPICE kernels (``sun.source = "spice"``): the
+    direction from the trajectory's centre toward the Sun, the irradiance ``sun.irradiance_w_m2`` (at 1 AU) over
+    the squared distance in AU (:func:`renderlab.trajectory_io.sources.spice_sun`)."""
+    from dataclasses import replace
+
+    from renderlab.render.scene import SunSpec
+    from renderlab.trajectory_io.sources import spice_sun
+
+    au = 149597870700.0
+    out = []
+    for spec, v in zip(frames, spice_sun(scenario.trajectory, base_dir)):
+        d = float(np.linalg.norm(v))
+        out.append(replace(spec, sun=SunSpec(direction_render=v / d,
+                                             irradiance_w_m2=scenario.sun.irradiance_w_m2 * (au / d) ** 2)))
+    return out
+
+
 def make_plan(scenario, base_dir: Path):
-    """World plan of an analytic scenario: one static scene, frames from ``trajectory`` (line/orbit/files)."""
+    """World plan of an analytic scenario: one static scene, frames from ``trajectory`` (line/orbit/files); the sun
+    of ``[sun]``, or of the SPICE kernels per frame with ``sun.source = "spice"`` (:func:`spice_suns`)."""
     from renderlab.worlds.base import WorldPlan, frame_specs
 
-    return WorldPlan(frames=frame_specs(scenario, base_dir), render_frame={"name": "SCENE"},
-                     static_scene=build_scene(scenario.world, base_dir))
+    frames = frame_specs(scenario, base_dir)
+    if getattr(scenario.sun, "source", "direction") == "spice":
+        frames = spice_suns(scenario, base_dir, frames)
+    return WorldPlan(frames=frames, render_frame={"name": "SCENE"}, static_scene=build_scene(scenario.world, base_dir))
