@@ -214,20 +214,20 @@ def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: in
     from renderlab.errors import UserError
 
     limit = LIMITS["table"] if limit is None else limit
-    fd, _ = open_regular(path, where, limit)
-    with os.fdopen(fd, "rb") as fh:
-        try:
-            pf = pq.ParquetFile(fh)
-            meta = pf.metadata
-            unpacked = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
-            if meta.num_rows > MAX_TABLE_ROWS or unpacked > limit:
-                raise UserError(f"{where}: the table states {meta.num_rows} rows, {unpacked} bytes unpacked; more than "
-                                f"the lab reads ({MAX_TABLE_ROWS} rows, {limit} bytes)")
-            table = pf.read()
-        except UserError:
-            raise
-        except (OSError, ValueError, TypeError, IndexError, KeyError, pa.ArrowException) as exc:
-            raise UserError(f"cannot read {where}: not a readable Parquet table ({' '.join(str(exc).split())[:120]})") from None
+    fd, _ = open_regular(path, where, limit)  # a regular file of bounded size (then read by name: pyarrow's own I/O)
+    os.close(fd)
+    try:
+        pf = pq.ParquetFile(os.fspath(path))
+        meta = pf.metadata
+        unpacked = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+        if meta.num_rows > MAX_TABLE_ROWS or unpacked > limit:
+            raise UserError(f"{where}: the table states {meta.num_rows} rows, {unpacked} bytes unpacked; more than "
+                            f"the lab reads ({MAX_TABLE_ROWS} rows, {limit} bytes)")
+        table = pf.read()
+    except UserError:
+        raise
+    except (OSError, ValueError, TypeError, IndexError, KeyError, pa.ArrowException) as exc:
+        raise UserError(f"cannot read {where}: not a readable Parquet table ({' '.join(str(exc).split())[:120]})") from None
     if schema is not None:
         try:
             check_schema(table, schema, where)
