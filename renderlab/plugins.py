@@ -52,6 +52,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "ev5": "renderlab.scenario.kinds:EV5",
         "earth": "renderlab.scenario.kinds:EARTH",
         "microsat": "renderlab.scenario.kinds:MICROSAT",
+        "planet": "renderlab.scenario.kinds:PLANET",
     }),
     "scenario_sections": ("renderlab.scenario_sections", {
         "coastline": "renderlab.studies.coastline_ekf.config:CoastlineStudyConfig",

@@ -1,5 +1,5 @@
 """World and trajectory kinds of a scenario, built from the world registry (:data:`renderlab.plugins.worlds`):
-the lab's four worlds are registered here like any plug-in world (:class:`renderlab.contracts.world.WorldKind`)."""
+the lab's worlds are registered here like any plug-in world (:class:`renderlab.contracts.world.WorldKind`)."""
 
 from __future__ import annotations
 
@@ -30,6 +30,9 @@ EARTH = WorldKind("earth", "renderlab.worlds.earth.config:EarthWorld",
 MICROSAT = WorldKind("microsat", "renderlab.worlds.microsat.config:MicrosatWorld",
                      {"separation": "renderlab.worlds.microsat.config:SeparationTrajectory", **FILE_TRAJECTORIES},
                      "renderlab.worlds.microsat:make_plan")
+PLANET = WorldKind("planet", "renderlab.worlds.planet.config:PlanetWorld",
+                   {"planet_approach": "renderlab.worlds.planet.config:PlanetApproachTrajectory", **CAMERA_PATHS,
+                    **FILE_TRAJECTORIES}, "renderlab.worlds.planet:make_plan")
 
 
 def _kind_of(default: str):
