@@ -219,3 +219,39 @@ def test_first_frame_exposure_mode_keeps_the_first_frames_exposure(tmp_path):
         f0 = r.frame(0)
         t0 = exposure_for_peak(f0.radiance, r.options, fraction=r.scenario.sensor.auto_exposure_fraction)
     assert [fr["sensor"]["exposure_s"] for fr in ts.frames] == [t0] * 3
+
+
+def test_frame_at_a_time_turns_the_ev5_sun_with_the_spin_and_is_seeded_by_time(tmp_path, monkeypatch):
+    """Between planned frames, EV5's sun (body frame) is the planned sun turned about the spin pole by ω·Δt (checked
+    against scipy's rotation of the planned frame-0 sun, independently of the world code); a planned frame's own time
+    gives its sun; the same time and pose give the same bytes whatever was rendered in between."""
+    from renderlab import Renderer
+
+    monkeypatch.setenv("RENDERLAB_CACHE", str(tmp_path / "cache"))
+    scen = tmp_path / "ev5.toml"
+    scen.write_text(EV5)
+    with Renderer(scen) as r:
+        p0 = r.spec(0).pose
+        omega = r.plan.model.spin.omega_rad_s
+        s0 = np.asarray(r.spec(0).sun.direction_render)
+        dt = 600.0
+        a = r.frame(time_s=p0.time_s + dt, pose=p0, outputs=("dn", "truth"))
+        r.frame(1)
+        b = r.frame(time_s=p0.time_s + dt, pose=p0, outputs=("dn", "truth"))
+        same = r.spec_at(r.spec(1).pose.time_s, r.spec(1).pose)
+    want = Rotation.from_rotvec([0.0, 0.0, -omega * dt]).apply(s0)
+    np.testing.assert_allclose(a.spec.sun.direction_render, want, atol=1e-12)
+    np.testing.assert_allclose(same.sun.direction_render, r.spec(1).sun.direction_render, atol=1e-12)
+    assert a.dn.tobytes() == b.dn.tobytes() and a.meta["ev5"]["altitude_m"] == pytest.approx(
+        float(np.dot(p0.position_m - r.plan.model.site.origin_m, r.plan.model.site.R_body_from_site[:, 2])))
+    assert a.truth["landmark_truth"] and a.time_s == p0.time_s + dt
+
+
+def test_a_world_without_state_between_frames_refuses_a_time():
+    """The Earth world (tiles per planned footprint) says so in one line instead of guessing."""
+    from renderlab import Renderer
+
+    r = Renderer(REPO / "scenes" / "earth_leo.toml", overrides=["camera.width=32", "camera.height=32",
+                                                                "trajectory.frames=2"])
+    with pytest.raises(UserError, match="no state between its planned"):
+        r.frame(time_s=r.spec(0).pose.time_s + 1.0, pose=r.spec(0).pose)

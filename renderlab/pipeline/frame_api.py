@@ -13,7 +13,8 @@ frame asked for here equals, byte for byte, the frame a truth set holds for the 
             f.dn, f.radiance, f.aovs.range_m, f.truth["landmark_truth"], f.meta
 
 **World state and camera.** ``frame(index)`` renders the world as planned at frame ``index`` (its time, sun,
-bodies) from the planned camera; ``pose=`` puts the camera elsewhere (any convention of
+bodies) from the planned camera; ``frame(time_s=t, pose=p)`` the world at any time t of the trajectory's clock (EV5:
+the sun turned with the spin from the nearest planned frame; a world that cannot say refuses with one line); ``pose=`` puts the camera elsewhere (any convention of
 :func:`renderlab.pipeline.poses.camera_pose`, in the world's render frame: ``r.render_frame``), ``sun=``,
 ``camera=`` and ``spp=`` override the sun (a :class:`SunSpec` or a unit vector toward the sun), the camera model
 and the samples per pixel for that frame. A world whose scene is built around each planned pose (Earth: a local
@@ -45,6 +46,8 @@ from renderlab.render.scene import FrameSpec, RenderedFrame, SunSpec
 
 #: what :meth:`Renderer.frame` can return
 OUTPUTS = ("dn", "radiance", "truth")
+#: first spawn-key word of frames asked for at a time (planned frame k uses spawn key (k,))
+TIME_SPAWN_KEY = 2**32 - 1
 
 
 @dataclass
@@ -187,31 +190,42 @@ class Renderer:
             if p.epoch_utc is None and planned.pose.epoch_utc is not None:
                 p = dataclasses.replace(p, epoch_utc=planned.pose.epoch_utc)
             spec = dataclasses.replace(spec, pose=p)
-        if sun is not None:
-            spec = dataclasses.replace(spec, sun=_sun(sun, planned.sun))
-        if camera is not None:
-            from renderlab.geometry.camera import CameraModel
+        return _override(spec, sun, camera)
 
-            if not isinstance(camera, CameraModel):
-                raise UserError(f"camera must be a renderlab CameraModel, got {type(camera).__name__}")
-            spec = dataclasses.replace(spec, camera=camera)
-        return spec
+    def spec_at(self, time_s: float, pose, *, sun=None, camera=None) -> FrameSpec:
+        """The frame spec of the world at time ``time_s`` (s, the trajectory's clock) from ``pose``
+        (:meth:`WorldPlan.spec_at <renderlab.worlds.base.WorldPlan.spec_at>`: EV5 turns the sun with the spin)."""
+        from renderlab.pipeline.poses import camera_pose
+
+        t = _finite(time_s, "time_s")
+        p = dataclasses.replace(camera_pose(pose, time_s=t), time_s=t)
+        return _override(self.plan.spec_at(t, p), sun, camera)
 
     # ------------------------------------------------------------------ frames
     def reset_exposure(self) -> None:
         """With ``sensor.auto_exposure = "first_frame"``: the next frame with DN chooses the exposure again."""
         self._locked_exposure = None
 
-    def frame(self, index: int = 0, *, pose=None, sun=None, camera=None, spp: int | None = None,
-              outputs=OUTPUTS, seed: int | None = None, exposure_s: float | None = None) -> Frame:
-        """Render world state ``index`` from ``pose`` (default: the planned camera) into memory.
+    def frame(self, index: int | None = None, *, time_s: float | None = None, pose=None, sun=None, camera=None,
+              spp: int | None = None, outputs=OUTPUTS, seed: int | None = None,
+              exposure_s: float | None = None) -> Frame:
+        """Render world state ``index`` (default 0) from ``pose`` (default: the planned camera), or the world at
+        ``time_s`` from ``pose``, into memory.
 
-        ``outputs`` is any subset of ``("dn", "radiance", "truth")``; nothing is written to disk.
+        ``outputs`` is any subset of ``("dn", "radiance", "truth")``; nothing is written to disk. A frame at
+        ``time_s`` is seeded by its time (microseconds), so the same time and pose give the same bytes in any order.
         """
         outputs = _outputs(outputs)
-        spec = self.spec(index, pose=pose, sun=sun, camera=camera)
-        return self.render_spec(spec, self.seed_for(spec.index, seed), outputs=outputs, spp=spp,
-                                exposure_s=exposure_s)
+        if time_s is None:
+            spec = self.spec(0 if index is None else index, pose=pose, sun=sun, camera=camera)
+            ss = self.seed_for(spec.index, seed)
+        else:
+            if index is not None or pose is None:
+                raise UserError("a frame at time_s needs a pose and no index")
+            spec = self.spec_at(time_s, pose, sun=sun, camera=camera)
+            root = int(self.scenario.render.seed if seed is None else seed)
+            ss = np.random.SeedSequence(root, spawn_key=(TIME_SPAWN_KEY, int(round(spec.pose.time_s * 1e6)) % 2**63))
+        return self.render_spec(spec, ss, outputs=outputs, spp=spp, exposure_s=exposure_s)
 
     def render_spec(self, spec: FrameSpec, seed: np.random.SeedSequence, *, outputs=OUTPUTS,
                     spp: int | None = None, exposure_s: float | None = None) -> Frame:
@@ -259,6 +273,26 @@ class Renderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _override(spec: FrameSpec, sun, camera) -> FrameSpec:
+    """``spec`` with the sun and the camera model replaced where given."""
+    if sun is not None:
+        spec = dataclasses.replace(spec, sun=_sun(sun, spec.sun))
+    if camera is not None:
+        from renderlab.geometry.camera import CameraModel
+
+        if not isinstance(camera, CameraModel):
+            raise UserError(f"camera must be a renderlab CameraModel, got {type(camera).__name__}")
+        spec = dataclasses.replace(spec, camera=camera)
+    return spec
+
+
+def _finite(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or \
+            not np.isfinite(value) or abs(value) > 1e12:
+        raise UserError(f"{name} must be a finite number of seconds (|t| <= 1e12), got {str(value)[:40]}")
+    return float(value)
 
 
 def _exposure(value) -> float:

@@ -63,6 +63,29 @@ class WorldPlan:
     def write_static(self, writer) -> None:
         """Write files every truth set of this world carries (catalogs, maplets, databases)."""
 
+    def spec_at(self, time_s: float, pose) -> FrameSpec:
+        """The world at time ``time_s`` (s, the trajectory's clock) seen from camera ``pose`` (render frame), for the
+        frame API between planned frames (``Renderer.frame(time_s=...)``); its index follows the planned ones.
+
+        This default serves worlds whose scene, camera model and sun are the same in every planned frame (the
+        analytic world); others override it (EV5: the sun turned with the spin) or refuse, as here, with one line."""
+        from renderlab.errors import UserError
+
+        f0 = self.frames[0]
+        same = all(np.array_equal(f.sun.direction_render, f0.sun.direction_render)
+                   and f.sun.irradiance_w_m2 == f0.sun.irradiance_w_m2 and self.scene_key(f) == self.scene_key(f0)
+                   for f in self.frames)
+        if not same or getattr(self, "scene_follows_pose", False):
+            raise UserError(f"this world ({self.render_frame.get('name', '?')}) has no state between its planned "
+                            "frames; render a planned frame (index=) instead of a time")
+        return FrameSpec(index=len(self.frames) + self._next_extra(), pose=pose, camera=f0.camera, sun=f0.sun)
+
+    def _next_extra(self) -> int:
+        """A new index for a frame between the planned ones (counted per plan)."""
+        n = getattr(self, "_extra_frames", 0)
+        self._extra_frames = n + 1
+        return n
+
     def frame_rows(self, spec: FrameSpec, rendered: RenderedFrame) -> dict[str, list[dict]]:
         """Truth-table rows for this frame: ``{table_name: [row, ...]}``; the pipeline writes
         ``<table_name>.parquet`` with all frames' rows at the end."""

@@ -165,6 +165,17 @@ def make_plan(scenario, base_dir: Path):
         epoch0 = parse_epoch(traj.epoch_utc, "UTC", "trajectory.epoch_utc")
 
     class EV5Plan(WorldPlan):
+        def spec_at(self, time_s, pose):
+            """The world at any time: the sun of the nearest planned frame turned with the spin to ``time_s``."""
+            from renderlab.worlds.ev5.descent import DescentState
+
+            near = min(states[:len(frames)], key=lambda st: abs(st.time_s - time_s))
+            sun = model.spin.inertial_to_body_turn(time_s - near.time_s)[0].apply(near.sun_dir_body)
+            alt = float(np.dot(np.asarray(pose.position_m, float) - model.site.origin_m, model.site.R_body_from_site[:, 2]))
+            states.append(DescentState(float(time_s), alt, pose, sun, None))
+            return FrameSpec(index=len(states) - 1, pose=pose, camera=camera, sun=SunSpec(direction_render=sun,
+                                                                                           irradiance_w_m2=irr))
+
         def frame_meta(self, spec, scene):
             st = states[spec.index]
             T = model.spin.T_eclip_from_body(st.time_s)
