@@ -130,6 +130,21 @@ def _rounded(value, digits: int = 10):
     return value
 
 
+def _spec_at(model, states: list, n_planned: int, camera, irradiance: float, time_s: float, pose):
+    """The EV5 world at any time (the frame API between planned frames): the sun of the nearest planned frame turned
+    about the spin pole to ``time_s``; the new state is appended to ``states`` (its index is the frame's)."""
+    from renderlab.render.scene import FrameSpec, SunSpec
+    from renderlab.worlds.ev5.descent import DescentState
+
+    near = min(states[:n_planned], key=lambda st: abs(st.time_s - time_s))
+    sun = model.spin.inertial_to_body_turn(time_s - near.time_s)[0].apply(near.sun_dir_body)
+    site = model.site
+    alt = float(np.dot(np.asarray(pose.position_m, float) - site.origin_m, site.R_body_from_site[:, 2]))
+    states.append(DescentState(float(time_s), alt, pose, sun, None))
+    return FrameSpec(index=len(states) - 1, pose=pose, camera=camera,
+                     sun=SunSpec(direction_render=sun, irradiance_w_m2=irradiance))
+
+
 def make_plan(scenario, base_dir: Path):
     """World plan of an EV5 scenario (module docstring): the descent, or a file trajectory in ``EV5_FIXED``
     (:mod:`.file_trajectory`)."""
@@ -166,15 +181,7 @@ def make_plan(scenario, base_dir: Path):
 
     class EV5Plan(WorldPlan):
         def spec_at(self, time_s, pose):
-            """The world at any time: the sun of the nearest planned frame turned with the spin to ``time_s``."""
-            from renderlab.worlds.ev5.descent import DescentState
-
-            near = min(states[:len(frames)], key=lambda st: abs(st.time_s - time_s))
-            sun = model.spin.inertial_to_body_turn(time_s - near.time_s)[0].apply(near.sun_dir_body)
-            alt = float(np.dot(np.asarray(pose.position_m, float) - model.site.origin_m, model.site.R_body_from_site[:, 2]))
-            states.append(DescentState(float(time_s), alt, pose, sun, None))
-            return FrameSpec(index=len(states) - 1, pose=pose, camera=camera, sun=SunSpec(direction_render=sun,
-                                                                                           irradiance_w_m2=irr))
+            return _spec_at(model, states, len(frames), camera, irr, time_s, pose)
 
         def frame_meta(self, spec, scene):
             st = states[spec.index]
