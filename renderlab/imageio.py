@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from renderlab.contracts.files import shown
+from renderlab.inputs import shown
 from renderlab.errors import UserError
 
 _RESERVED_HEADER = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder", "name",
@@ -306,7 +306,7 @@ def read_dn_png(path, size: tuple[int, int] | None = None) -> np.ndarray:
     (width, height), the header must say that size before anything is decoded).
 
     The values come back exactly as stored; an ``sBIT`` chunk does not shift them."""
-    from renderlab.contracts.files import LIMITS, read_bytes
+    from renderlab.inputs import LIMITS, read_bytes
     from renderlab.contracts.image_headers import check_image
 
     p = Path(path)

@@ -22,7 +22,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from renderlab.contracts.files import short, shown
+from renderlab.inputs import short, shown
 from renderlab.errors import UserError
 
 FORMAT = "renderlab.truthset/1"
@@ -300,7 +300,7 @@ class TruthSet:
     def open(cls, path) -> "TruthSet":
         """Open and validate a truth set folder (manifest format, listed files exist)."""
         from renderlab.contracts.file_models import TruthManifest
-        from renderlab.contracts.files import read_checked
+        from renderlab.inputs import read_checked
 
         root = Path(path)
         mpath = root / MANIFEST

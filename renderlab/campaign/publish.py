@@ -18,7 +18,7 @@ import json
 import os
 from pathlib import Path
 
-from renderlab.contracts.files import shown
+from renderlab.inputs import shown
 from renderlab.errors import UserError
 
 TABLES = "tables"
@@ -77,7 +77,7 @@ def load_published_tables(folder: Path) -> dict:
 def published_statuses(folder: Path) -> list[dict]:
     """``runs.json``, validated (:data:`renderlab.contracts.file_models.RunStatuses`: each run once)."""
     from renderlab.contracts.file_models import RunStatuses
-    from renderlab.contracts.files import read_checked
+    from renderlab.inputs import read_checked
 
     p = Path(folder) / STATUSES
     data = read_checked(p, RunStatuses, "run statuses")

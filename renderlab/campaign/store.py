@@ -23,7 +23,7 @@ import secrets
 import shutil
 from pathlib import Path
 
-from renderlab.contracts.files import shown
+from renderlab.inputs import shown
 from renderlab.errors import UserError
 
 FORMAT = "renderlab.campaign/1"
@@ -56,7 +56,7 @@ def _write_json_atomic(path: Path, data: dict) -> None:
 def read_manifest(campaign_dir: Path) -> dict:
     """``campaign.json``, validated (:class:`renderlab.contracts.file_models.CampaignManifest`)."""
     from renderlab.contracts.file_models import CampaignManifest
-    from renderlab.contracts.files import read_checked
+    from renderlab.inputs import read_checked
 
     p = Path(campaign_dir) / MANIFEST
     if not p.is_file():
@@ -108,7 +108,7 @@ def run_status(campaign_dir: Path, index: int, *, strict: bool = True) -> dict |
     """A run's ``status.json``, validated (:class:`renderlab.contracts.file_models.RunStatus`), or None when the run
     has none. An invalid one is a UserError (``strict``) or None (a run to redo on ``--resume``)."""
     from renderlab.contracts.file_models import RunStatus
-    from renderlab.contracts.files import read_checked
+    from renderlab.inputs import read_checked
 
     p = run_dir(campaign_dir, index) / "status.json"
     if not os.path.lexists(p):

@@ -31,7 +31,7 @@ def _check_outputs(outs: list, overwrite: bool) -> None:
     import os
     from pathlib import Path
 
-    from renderlab.contracts.files import shown
+    from renderlab.inputs import shown
     from renderlab.errors import UserError
 
     seen = {}
@@ -55,7 +55,8 @@ def run(args) -> int:
 
     from renderlab.cost import check_path
     from renderlab.errors import UserError
-    from renderlab.trajectory_io.export import epoch_text, export_truthset, kvn_text
+    from renderlab.inputs import epoch_text
+    from renderlab.trajectory_io.export import export_truthset, kvn_text
     from renderlab.truthset import TruthSet
 
     if not args.oem and not args.aem and not args.apriori:

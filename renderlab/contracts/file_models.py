@@ -1,4 +1,4 @@
-"""One validated model per metadata file the lab reads (read with :func:`renderlab.contracts.files.read_model`).
+"""One validated model per metadata file the lab reads (read with :func:`renderlab.inputs.read_model`).
 
 =======================  ====================================================  ========================================
 model                    file                                                  read by
@@ -12,18 +12,20 @@ model                    file                                                  r
 (The a-priori file of ``measure --images`` has its own model, :class:`renderlab.measurement.apriori.AprioriFile`.)
 The models are strict: no string is read as a number (``"64"`` for a width), no float as an integer, no boolean
 as either; numbers are finite and inside physical ranges (:data:`FOCAL_MAX_PX` …); lists and strings have
-bounded lengths; epochs lie in :data:`EPOCH_YEARS`. Keys a writer of the file never wrote are refused where the
-lab writes the whole file (``campaign.json``, ``status.json``, ``runs.json``); records that worlds and studies
+bounded lengths; epochs lie in :data:`renderlab.inputs.EPOCH_YEARS`. Keys a writer of the file never wrote are
+refused where the lab writes the whole file (``campaign.json``, ``status.json``, ``runs.json``); records that worlds and studies
 extend (a truth set's frame records) keep their other keys, unchecked here, for their own readers.
 """
 
 from __future__ import annotations
 
 import math
-import re
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, field_validator, model_validator
+from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, field_validator,
+                      model_validator)
+
+from renderlab.inputs import EPOCH_YEARS, check_epoch_text  # noqa: F401  (EPOCH_YEARS re-exported)
 
 #: the most runs a campaign plan may have
 MAX_RUNS = 1_000_000
@@ -41,8 +43,6 @@ COEFF_MAX = 1e6
 POSITION_MAX_M = 1.5e13
 #: largest |time| in s from a truth set's start (about 3000 years)
 TIME_MAX_S = 1e11
-#: calendar years of the epochs the lab's time scales support (leap seconds, Earth orientation, ephemerides)
-EPOCH_YEARS = (1900, 2199)
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Coeff = Annotated[float, Field(ge=-COEFF_MAX, le=COEFF_MAX, allow_inf_nan=False)]
@@ -65,7 +65,6 @@ def _identifier(v: str) -> str:
     return v
 
 
-_EPOCH = re.compile(r"^\s*([+-]?\d{1,9})-")
 
 
 class FileModel(BaseModel):
@@ -79,17 +78,6 @@ class OpenRecord(FileModel):
     """A record other readers extend: unknown keys are kept (and left to them)."""
 
     model_config = ConfigDict(strict=True, extra="allow", allow_inf_nan=False)
-
-
-def check_epoch_text(text: str) -> str:
-    """An ISO epoch's year must lie in :data:`EPOCH_YEARS` (the lab's time scales are undefined outside)."""
-    m = _EPOCH.match(text)
-    if m is None:
-        raise ValueError("an ISO epoch YYYY-MM-DDThh:mm:ss is needed")
-    year = int(m[1])
-    if not EPOCH_YEARS[0] <= year <= EPOCH_YEARS[1]:
-        raise ValueError(f"year {year} is outside the supported {EPOCH_YEARS[0]}..{EPOCH_YEARS[1]}")
-    return text
 
 
 Epoch = Annotated[str, StringConstraints(max_length=64)]
@@ -155,7 +143,7 @@ class RunStatus(FileModel):
         return self
 
 
-#: ``runs.json``: the runs' statuses (:func:`renderlab.contracts.files.validate` takes it like a model)
+#: ``runs.json``: the runs' statuses (:func:`renderlab.inputs.validate` takes it like a model)
 RunStatuses = TypeAdapter(Annotated[list[RunStatus], Field(max_length=MAX_RUNS)], config=ConfigDict(strict=True))
 
 

@@ -3,7 +3,7 @@ and, where the image belongs to a camera, against the camera.
 
 A decoder allocates what the header claims (a 200-byte PNG can claim 65535 × 65535 pixels, a FITS header any
 NAXIS), so every image the lab reads — albedo maps, ``measure --images`` images, a truth set's EXR and DN PNG — is
-first opened as a regular file of bounded size (:func:`renderlab.contracts.files.open_regular`), its header parsed
+first opened as a regular file of bounded size (:func:`renderlab.inputs.open_regular`), its header parsed
 here (PNG's IHDR and FITS cards by hand; TIFF and other formats through Pillow's lazy open, which reads the header
 only; EXR through OpenEXR's ``header_only``), and its size compared with :data:`MAX_SIDE_PX` /
 :data:`MAX_PIXELS`, with the file's own size (a FITS data unit longer than the file) and with the expected size.
@@ -16,7 +16,7 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
-from renderlab.contracts.files import LIMITS, open_regular, shown
+from renderlab.inputs import LIMITS, open_regular, shown
 from renderlab.errors import UserError
 
 #: the longest image side the lab decodes, px

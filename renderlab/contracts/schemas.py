@@ -203,14 +203,14 @@ def check_campaign_table(name: str, table: pa.Table, where: str) -> str:
 
 def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: int | None = None) -> pa.Table:
     """A Parquet file read with its boundaries checked: a regular file of at most ``limit`` bytes
-    (:func:`renderlab.contracts.files.open_regular`), footer readable, rows and uncompressed size (as the footer
+    (:func:`renderlab.inputs.open_regular`), footer readable, rows and uncompressed size (as the footer
     states them) within bounds before any column is decoded, and ``schema``'s columns present and typed
     (:func:`check_schema`). Every failure is one :class:`~renderlab.errors.UserError` line naming ``where``."""
     import os
 
     import pyarrow.parquet as pq
 
-    from renderlab.contracts.files import LIMITS, open_regular
+    from renderlab.inputs import LIMITS, open_regular
     from renderlab.errors import UserError
 
     limit = LIMITS["table"] if limit is None else limit

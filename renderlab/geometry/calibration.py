@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from renderlab.inputs import LIMITS, load_yaml, read_text, short
 from renderlab.errors import UserError
 
 from .camera import CameraModel
@@ -45,6 +46,8 @@ from .fisheye import KEYS as FISHEYE_KEYS
 
 __all__ = ["MODEL_NAMES", "read_calibration", "camera_from_opencv", "opencv_intrinsics"]
 
+#: the largest |number| a calibration file may hold (intrinsics in px, distortion coefficients)
+VALUE_MAX = 1e7
 _K_KEYS = ("camera_matrix", "K", "k", "cameraMatrix")
 _D_KEYS = ("distortion_coefficients", "D", "d", "distCoeffs", "dist_coeffs")
 _W_KEYS, _H_KEYS = ("image_width", "width"), ("image_height", "height")
@@ -68,11 +71,13 @@ def _number(value: Any, name: str) -> float:
         try:
             value = float(text)
         except ValueError:
-            raise UserError(f"{name} must hold numbers, got {value!r}") from None
+            raise UserError(f"{name} must hold numbers, got {short(value)}") from None
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise UserError(f"{name} must hold numbers, got {value!r}")
+        raise UserError(f"{name} must hold numbers, got {short(value)}")
     if not math.isfinite(float(value)):
         raise UserError(f"{name} must be finite, got {float(value)!r}")
+    if abs(float(value)) > VALUE_MAX:
+        raise UserError(f"{name}: {float(value):g} is outside the physical range (|value| <= {VALUE_MAX:g})")
     return float(value)
 
 
@@ -88,7 +93,7 @@ def _matrix(node: Any, name: str) -> np.ndarray:
     else:
         data, rows, cols = node, None, None
     if not isinstance(data, Sequence) or isinstance(data, str):
-        raise UserError(f"{name} must be a matrix (rows, cols, data) or a list of numbers, got {data!r}")
+        raise UserError(f"{name} must be a matrix (rows, cols, data) or a list of numbers, got {short(data)}")
     if data and all(isinstance(r, Sequence) and not isinstance(r, str) for r in data):  # nested list
         if len({len(r) for r in data}) != 1:
             raise UserError(f"{name} has rows of different lengths")
@@ -97,7 +102,7 @@ def _matrix(node: Any, name: str) -> np.ndarray:
     if rows is None or cols is None:
         rows, cols = 1, len(values)
     if not all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in (rows, cols)):
-        raise UserError(f"{name} rows and cols must be non-negative integers, got {rows!r} and {cols!r}")
+        raise UserError(f"{name} rows and cols must be non-negative integers, got {short(rows)} and {short(cols)}")
     if rows * cols != len(values):
         raise UserError(f"{name} says {rows}x{cols} but holds {len(values)} numbers")
     return np.array(values, dtype=np.float64).reshape(rows, cols)
@@ -176,7 +181,7 @@ def camera_from_opencv(K: Any, D: Any = None, width: int | None = None, height: 
     if distortion_model is not None:
         key = str(distortion_model).strip().lower()
         if key not in _MODEL_NAMES:
-            raise UserError(f"{where}: distortion_model {distortion_model!r} is not one of "
+            raise UserError(f"{where}: distortion_model {short(distortion_model)} is not one of "
                             "plumb_bob, rational_polynomial, equidistant (or fisheye, radtan, none)")
         named = _MODEL_NAMES[key]
     if fisheye is not None and distortion_model is not None and bool(fisheye) != (named == "kannala_brandt"):
@@ -212,12 +217,7 @@ def opencv_intrinsics(camera: CameraModel) -> tuple[np.ndarray, np.ndarray, bool
 
 def _load_text(path: Path) -> Mapping[str, Any]:
     name = path.name
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"calibration file not found: {path}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise UserError(f"{name}: cannot read the calibration file ({type(err).__name__})") from None
+    text = read_text(path, "calibration file", LIMITS["calibration"])  # a regular file of bounded size
     stripped = text.lstrip()
     if stripped.startswith("<"):
         raise UserError(f"{name}: XML calibration files are not read; write YAML or JSON with cv2.FileStorage")
@@ -244,12 +244,7 @@ def _load_yaml(text: str, name: str) -> Any:
     _Loader.add_multi_constructor("tag:yaml.org,2002:opencv-",
                                   lambda loader, suffix, node: loader.construct_mapping(node, deep=True))
     text = re.sub(r"\A\s*%YAML:\S*[^\n]*\n", "", text)  # OpenCV's non-standard '%YAML:1.0' directive
-    try:
-        return yaml.load(text, Loader=_Loader)  # noqa: S506 (SafeLoader subclass)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise UserError(f"{name}: not valid YAML ({getattr(err, 'problem', None) or 'parse error'}{where})") from None
+    return load_yaml(text, _Loader, name)  # aliases expanded past a bound (an alias bomb) are refused
 
 
 def _first(data: Mapping[str, Any], keys: Sequence[str]) -> tuple[str | None, Any]:

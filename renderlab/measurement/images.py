@@ -27,7 +27,7 @@ def read_image(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
     """A grey image as float64 (PNG/TIFF through OpenCV unchanged, FITS through astropy). The header is checked
     first (:func:`renderlab.contracts.image_headers.check_image`: a regular file, sane sizes and, with ``size`` =
     (width, height), the camera's size), so nothing is decoded that the camera cannot have taken."""
-    from renderlab.contracts.files import shown
+    from renderlab.inputs import shown
     from renderlab.contracts.image_headers import check_image
 
     path = Path(path)

@@ -13,46 +13,32 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.contracts.files import shown
 from renderlab.errors import UserError
+from renderlab.inputs import epoch_text, read_json, short, shown
 from renderlab.trajectory_io.series import PoseSeries
 from renderlab.trajectory_io.timescales import parse_epoch
 
 
 def _manifest(folder: Path) -> dict:
-    """The truth set's ``manifest.json``, validated (:class:`renderlab.contracts.file_models.TruthManifest`)."""
-    from renderlab.contracts.file_models import TruthManifest
-    from renderlab.contracts.files import read_checked, shown
-
+    """The truth set's ``manifest.json`` (a regular JSON file of bounded size; ``renderlab export`` has validated it
+    with :class:`renderlab.contracts.file_models.TruthManifest` through :meth:`renderlab.truthset.TruthSet.open`)."""
     p = Path(folder) / "manifest.json"
     if not p.is_file():
         raise UserError(f"not a truth set (no manifest.json): {shown(folder)}")
-    return read_checked(p, TruthManifest, "truth-set manifest")
+    m = read_json(p, "truth-set manifest")
+    if not isinstance(m, dict):
+        raise UserError(f"truth-set manifest {shown(p)} must be a JSON object")
+    return m
 
 
 def kvn_text(value, what: str, max_len: int = 80) -> str:
     """A value for a CCSDS KVN line: 1..``max_len`` printable ASCII characters (KVN has no escapes: a newline or
     control character would start a line of its own and break the message)."""
-    from renderlab.contracts.files import short
-
     if not isinstance(value, str) or not value.strip() or len(value) > max_len \
             or any(not (" " <= c <= "~") for c in value):
         raise UserError(f"{what} must be 1..{max_len} printable ASCII characters (no newline or control "
                         f"character), got {short(value)}")
     return value
-
-
-def epoch_text(value, what: str) -> str:
-    """An epoch given as text, its year inside :data:`renderlab.contracts.file_models.EPOCH_YEARS`."""
-    from renderlab.contracts.file_models import check_epoch_text
-    from renderlab.contracts.files import short
-
-    if not isinstance(value, str) or len(value) > 64:
-        raise UserError(f"{what} must be an ISO epoch, got {short(value)}")
-    try:
-        return check_epoch_text(value)
-    except ValueError as exc:
-        raise UserError(f"{what} {short(value)}: {exc}") from None
 
 
 def truthset_pose_series(folder, epoch_utc: str | None = None) -> PoseSeries:
@@ -66,15 +52,15 @@ def truthset_pose_series(folder, epoch_utc: str | None = None) -> PoseSeries:
         UTC epoch of ``time_s = 0`` when the frames carry no ``epoch_utc``.
     """
     m = _manifest(Path(folder))
-    frames = sorted(m.get("frames") or [], key=lambda f: float(f["time_s"]))
-    if not frames:
-        raise UserError(f"{shown(folder)}: the truth set has no frames")
-    no_pose = [f.get("index") for f in frames if not isinstance(f.get("pose"), dict)]
-    if no_pose:
-        raise UserError(f"{shown(folder)}: frame {no_pose[0]} has no pose")
-    times = np.array([float(f["time_s"]) for f in frames])
-    pos = np.array([f["pose"]["position_m"] for f in frames], float)
-    quat = np.array([f["pose"]["quat_render_from_cam_xyzw"] for f in frames], float)
+    try:
+        frames = sorted(m.get("frames") or [], key=lambda f: float(f["time_s"]))
+        if not frames:
+            raise UserError(f"{shown(folder)}: the truth set has no frames")
+        times = np.array([float(f["time_s"]) for f in frames])
+        pos = np.array([f["pose"]["position_m"] for f in frames], float).reshape(len(frames), 3)
+        quat = np.array([f["pose"]["quat_render_from_cam_xyzw"] for f in frames], float).reshape(len(frames), 4)
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        raise UserError(f"{shown(folder)}: a frame has no usable time and pose ({short(str(err))})") from None
     epoch0 = None
     if frames[0].get("epoch_utc"):  # the first frame's epoch; the others by their (exact) time_s
         epoch0 = parse_epoch(frames[0]["epoch_utc"], "UTC", "manifest epoch_utc")

@@ -1,5 +1,8 @@
-"""Reading what the lab is given, bounded: regular files of a sane size, JSON and YAML parsed with limits, values
-validated by a pydantic model and quoted in error messages by a short prefix only.
+"""What the lab is given, read with bounds: regular files of a sane size, JSON and YAML parsed with limits, values
+validated by a pydantic model and quoted in error messages by a short prefix only; the epoch range every reader
+shares.
+
+The lowest layer but :mod:`renderlab.errors` (every reader, down to :mod:`renderlab.geometry`, uses it).
 
 Every file the lab reads (metadata JSON, calibration YAML, albedo maps, images, meshes, tables) goes through
 :func:`open_regular` or one of the readers built on it:
@@ -15,13 +18,16 @@ Every file the lab reads (metadata JSON, calibration YAML, albedo maps, images, 
 :func:`short` is how an error message quotes a user's value: a bounded ``repr`` (``reprlib``: a few items per
 level, a few levels, a short prefix of each string) cut to :data:`QUOTE_CHARS` characters, cheap however large or
 self-referencing the value is. :func:`validate` checks data against a model (:mod:`renderlab.contracts.file_models`)
-and reports the first problem as ``<where>: <key path>: <what> (got <short value>)``.
+and reports the first problem as ``<where>: <key path>: <what> (got <short value>)``. :func:`check_epoch_text`
+keeps epochs inside :data:`EPOCH_YEARS`, where the lab's time scales (leap seconds, Earth orientation, ephemerides)
+are defined.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import reprlib
 import stat
 from pathlib import Path
@@ -38,6 +44,9 @@ MAX_YAML_NODES = 100_000
 #: characters of a user value an error message quotes at most
 QUOTE_CHARS = 60
 _READ_BLOCK = 1 << 20
+#: calendar years of the epochs the lab's time scales support (leap seconds, Earth orientation, ephemerides)
+EPOCH_YEARS = (1900, 2199)
+_EPOCH = re.compile(r"^\s*([+-]?\d{1,9})-")
 
 _repr = reprlib.Repr()
 _repr.maxlevel, _repr.maxtuple, _repr.maxlist, _repr.maxarray, _repr.maxdict = 3, 4, 4, 4, 4
@@ -293,3 +302,24 @@ def ensure_path_text(value: Any, what: str) -> Path:
     if not isinstance(value, str) or not value or "\x00" in value:
         raise UserError(f"{what} must be a file name, got {short(value)}")
     return Path(value)
+
+
+def check_epoch_text(text: str) -> str:
+    """An ISO epoch's year must lie in :data:`EPOCH_YEARS` (ValueError otherwise)."""
+    m = _EPOCH.match(text)
+    if m is None:
+        raise ValueError("an ISO epoch YYYY-MM-DDThh:mm:ss is needed")
+    year = int(m[1])
+    if not EPOCH_YEARS[0] <= year <= EPOCH_YEARS[1]:
+        raise ValueError(f"year {year} is outside the supported {EPOCH_YEARS[0]}..{EPOCH_YEARS[1]}")
+    return text
+
+
+def epoch_text(value: Any, what: str) -> str:
+    """An epoch given as text (at most 64 characters, year inside :data:`EPOCH_YEARS`), else one UserError line."""
+    if not isinstance(value, str) or len(value) > 64:
+        raise UserError(f"{what} must be an ISO epoch, got {short(value)}")
+    try:
+        return check_epoch_text(value)
+    except ValueError as exc:
+        raise UserError(f"{what} {short(value)}: {exc}") from None
