@@ -157,7 +157,8 @@ def _spice_ref(d, fn):
     for n in names:
         sp.furnsh(str(n))
     try:
-        return fn(sp.str2et(EPOCH) + np.array(TIMES))
+        tt0 = sp.unitim(sp.str2et(EPOCH), "TDB", "TDT")  # frame times: SI seconds on the TT scale
+        return fn(np.array([sp.unitim(tt0 + t, "TDT", "TDB") for t in TIMES]))
     finally:
         for n in names:
             sp.unload(str(n))

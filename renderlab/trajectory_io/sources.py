@@ -3,10 +3,10 @@
 The scenario section is :class:`renderlab.scenario.trajectory.SourceTrajectoryConfig`; this module reads it by
 attribute only (no scenario import: the dynamics layer calls it). Files resolve against the scenario folder.
 
-Frame times: on a ``time_s`` table's own axis, or seconds after the start epoch (``epoch_utc``, default the
-source's first epoch) counted in TDB, as SPICE's ``str2et(epoch) + t``: a frame's UTC label can differ from
-naive UTC arithmetic by the leap seconds in between and by the periodic TDB − TT term (≤ 1.7 ms, about 1 µs per
-hour of span).
+Frame times: on a ``time_s`` table's own axis, or SI seconds after the start epoch (``epoch_utc``, default the
+source's first epoch) on the TT scale, as TAI and UTC count them: a frame's UTC label is plain UTC arithmetic
+(``12:00:00Z`` + 3600 s = ``13:00:00Z``, exact), a leap second in between aside; SPICE gets the TDB of each instant
+(:mod:`renderlab.trajectory_io.timescales`).
 """
 
 from __future__ import annotations

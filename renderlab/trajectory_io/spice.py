@@ -1,7 +1,8 @@
 """Camera poses from SPICE kernels (``spiceypy``): SPK positions, CK/FK attitude, at the frame epochs.
 
 The kernels (SPK, CK, FK, PCK, LSK, SCLK, or a meta-kernel) are loaded for the call and unloaded after it. The frame
-epochs are ``str2et(epoch_utc) + times_s``; when no leapseconds kernel is among them, one is written from astropy's
+epochs are ``times_s`` SI seconds (TT scale) after ``str2et(epoch_utc)``, each as its TDB for SPICE (within
+1.2 µs per hour of ``str2et(epoch_utc) + times_s``: :mod:`renderlab.trajectory_io.timescales`); when no leapseconds kernel is among them, one is written from astropy's
 leap-second table (:func:`renderlab.trajectory_io.timescales.naif_lsk_text`) and loaded for the call.
 
 Positions (``aberration``, SPICE's ``abcorr``):
@@ -209,6 +210,12 @@ def _et0(sp, epoch_utc) -> float:
         raise UserError(f"trajectory.epoch_utc: SPICE cannot read {epoch_utc!r}: {_one_line(err)}") from None
 
 
+def _ets(et0: float, times_s) -> np.ndarray:
+    """TDB of the instants ``times_s`` SI seconds (TT scale) after ``et0`` (:meth:`Epoch.plus`)."""
+    e0 = Epoch.from_et(et0)
+    return np.array([e0.plus(float(t)).et for t in np.asarray(times_s, float)])
+
+
 def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame: str | None, epoch_utc: str,
                times_s, velocities: bool = False, aberration: str = "NONE") -> PoseSeries:
     """Camera positions (and attitude) from SPICE at ``epoch_utc + times_s``.
@@ -227,7 +234,7 @@ def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame:
     epoch_utc : str
         UTC epoch of time 0 (SPICE ``str2et`` syntax; ISO recommended).
     times_s : array_like
-        Frame times, seconds after ``epoch_utc``.
+        Frame times, SI seconds (TT scale) after ``epoch_utc``.
     velocities : bool
         Also the observer's velocities (``spkezr`` states instead of ``spkpos`` positions).
     aberration : {"NONE", "LT", "LT+S"}
@@ -249,7 +256,8 @@ def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame:
         _check_names(observer, center, {"frame": frame, **({"camera_frame": camera_frame} if camera_frame else {})})
         times = np.asarray(times_s, float)
         labels = [f"frame {k}" for k in range(len(times))]
-        pos, quat, vel = _sample(observer, center, frame, camera_frame, et0 + times, labels, velocities, aberration)
+        pos, quat, vel = _sample(observer, center, frame, camera_frame, _ets(et0, times), labels, velocities,
+                                 aberration)
     return PoseSeries(times_s=times, positions_m=pos, quat_xyzw=quat, frame=frame, epoch0=Epoch.from_et(et0),
                       velocities_m_s=vel, source="SPICE kernels", attitude_frame=camera_frame, object_name=observer,
                       center_name=center, labels=tuple(labels))
@@ -280,7 +288,7 @@ def read_spice_sun(kernels, *, observer: str, center: str, frame: str, epoch_utc
     if aberration not in ABERRATIONS:
         raise UserError(f"trajectory.aberration must be one of {', '.join(ABERRATIONS)}, got {aberration!r}")
     with _furnished(kernels) as sp:
-        ets = _et0(sp, epoch_utc) + np.asarray(times_s, float)
+        ets = _ets(_et0(sp, epoch_utc), times_s)
         _check_names(observer, center, {"frame": frame})
         out = np.empty((len(ets), 3))
         for k, et in enumerate(ets):

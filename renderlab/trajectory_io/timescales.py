@@ -7,6 +7,11 @@ SPICE kernel that name the same UTC epoch land on the same instant::
 
 with ΔAT from :data:`LEAP_SECONDS` (the last leap second is the one of 2017-01-01). An :class:`Epoch` keeps whole
 days and seconds apart, so differences of epochs (the frame times) keep nanoseconds even decades from J2000.
+
+Durations (:meth:`Epoch.minus`, :meth:`Epoch.plus`: the frame times, a file's sample times) are SI seconds on the
+TT scale — the seconds TAI and UTC count, a leap second aside — so ``12:00:00Z`` plus 3600 s is ``13:00:00Z``
+exactly; the instant itself stays TDB seconds past J2000 (:attr:`Epoch.et`, what SPICE takes). TT ↔ TDB is SPICE's
+``unitim``: TDB = TT + K·sin E evaluated at TT, inverted by one fixed-point step (≪ 1 ns).
 Pure Python (light: the scenario validator imports it).
 """
 
@@ -50,6 +55,12 @@ def _periodic(et: float) -> float:
     return K * math.sin(m + EB * math.sin(m))
 
 
+def _tdb_minus_tt(et: float) -> float:
+    """TDB − TT (s) at the instant of TDB ``et``: :func:`_periodic` at its TT, ``et − K·sin E(et)`` (one step of the
+    fixed point TT = TDB − K·sin E(TT); the next step moves it by < 1e-12 s)."""
+    return _periodic(et - _periodic(et))
+
+
 @dataclass(frozen=True)
 class Epoch:
     """An instant: TDB seconds past J2000 as ``days·86400 + seconds`` (0 ≤ seconds < 86400 after :meth:`plus`)."""
@@ -69,17 +80,26 @@ class Epoch:
         return cls(int(days), float(et - days * 86400.0))
 
     def minus(self, other: "Epoch") -> float:
-        """``self − other`` in seconds, without losing the fraction to the magnitude of either."""
-        return (self.days - other.days) * 86400.0 + (self.seconds - other.seconds)
+        """``self − other`` in SI seconds on the TT scale (module docstring), without losing the fraction to the
+        magnitude of either."""
+        return ((self.days - other.days) * 86400.0 + (self.seconds - other.seconds)
+                - (_tdb_minus_tt(self.et) - _tdb_minus_tt(other.et)))
 
     def plus(self, seconds: float) -> "Epoch":
-        """The epoch ``seconds`` later."""
+        """The epoch ``seconds`` (SI, on the TT scale) later."""
+        q, tt = divmod(self.seconds - _tdb_minus_tt(self.et) + float(seconds), 86400.0)
+        days = self.days + int(q)
+        q, r = divmod(tt + _periodic(days * 86400.0 + tt), 86400.0)
+        return Epoch(days + int(q), float(r))
+
+    def tdb_plus(self, seconds: float) -> "Epoch":
+        """The epoch ``seconds`` of TDB later (SPICE's ``et + seconds``)."""
         q, r = divmod(self.seconds + float(seconds), 86400.0)
         return Epoch(self.days + int(q), float(r))
 
     def iso(self, system: str = "UTC", decimals: int = 3) -> str:
         """ISO text of the epoch in ``system`` (``UTC`` gets a ``Z``); a leap second prints as the next 00:00:00."""
-        corr = -_periodic(self.et) if system != "TDB" else 0.0
+        corr = -_tdb_minus_tt(self.et) if system != "TDB" else 0.0
         if system in ("TAI", "UTC"):
             corr -= DELTA_T_A
         if system == "UTC":
@@ -139,7 +159,7 @@ def parse_epoch(text, system: str = "UTC", what: str = "epoch") -> Epoch:
         sec += DELTA_T_A + (_delta_at(ordinal) if system == "UTC" else 0.0)
     if system != "TDB":
         sec += _periodic(days * 86400.0 + sec)
-    return Epoch(days, 0.0).plus(sec)
+    return Epoch(days, 0.0).tdb_plus(sec)
 
 
 def utc_text(value):
