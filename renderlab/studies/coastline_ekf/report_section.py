@@ -112,6 +112,19 @@ def _explanations(v: dict, frames) -> list[str]:
     return out
 
 
+def _conclusion(ss: dict, v: dict) -> str:
+    """One sentence from the steady-state ratios and the two verdicts (the numbers of the tables above it)."""
+    ratios = [ss[f"mc_3sig_{a}_{u}"] / ss[f"filter_3sig_{a}_{u}"] for a, u, *_ in _ROWS
+              if ss.get(f"filter_3sig_{a}_{u}")]
+    where = lambda ok: "inside" if ok else "outside"  # noqa: E731
+    both = v["anees_ok"] and v["nis_ok"]
+    text = (f"Conclusion: in the steady state the Monte Carlo 3σ is {min(ratios):.3g}–{max(ratios):.3g}× the "
+            f"filter's own 3σ over the six RIC axes; ANEES at the final time ({v['anees']:.3g}) is "
+            f"{where(v['anees_ok'])} its band and the total NIS / dof ({v['nis']:.4g}) {where(v['nis_ok'])} its band")
+    return text + (": the filter's covariance describes its errors here." if both else
+                   ": the filter's covariance does not describe its errors here (the reason follows).")
+
+
 def _frames_note(frames) -> str:
     fr = {c: frames[c].to_numpy() for c in ("n_matched", "los_err_px_median") if c in frames.column_names}
     if len(fr) < 2:
@@ -218,6 +231,7 @@ def summary_blocks(name: str, summary, sample, nis: dict, stage: Path, figure_ti
         {"kind": "text", "html": f"ANEES inside its 99 % χ²(6N)/N band at {100 * ss['anees_inside_99_fraction']:.0f} % "
                                  "of the times. The NIS of an image has 2m degrees of freedom (m matched LOS), so it is "
                                  "scored against its own band, never against a 2-dof one."},
+        {"kind": "text", "html": _conclusion(ss, verdict)},
         *({"kind": "text", "html": s} for s in _explanations(verdict, frames)),
         *([{"kind": "text", "html": _frames_note(frames)}] if frames is not None and _frames_note(frames) else []),
         {"kind": "figure", "png": err[0], "svg": err[1], "alt": f"{name} coastline errors",
