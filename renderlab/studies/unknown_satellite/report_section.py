@@ -76,6 +76,27 @@ def attitude_note(scores) -> str:
     return text + "The gauge-free scores (points and ω in LVLH, velocity) do not depend on it."
 
 
+def conclusion(rows: list[dict]) -> str:
+    """One sentence from the score medians, against the paper's figures and the Cramér–Rao σ of the same runs."""
+    med = {r["score"]: r.get("median") for r in rows}
+    parts = []
+    if med.get("point_lvlh_err_rms_cm") is not None:
+        p, c = med["point_lvlh_err_rms_cm"], med.get("point_lvlh_crlb_rms_cm")
+        parts.append(f"reference points {p:.3g} cm RMS in LVLH (paper: 3 cm"
+                     + (f"; their CRLB σ here {c:.3g} cm)" if c is not None else ")"))
+    if med.get("v0_err_cm_s") is not None:
+        parts.append(f"initial velocity {med['v0_err_cm_s']:.3g} cm/s (paper ≈ 1 cm/s)")
+    if med.get("w0_norm_err_deg_s") is not None:
+        crlb = med.get("w0_norm_crlb_deg_s")
+        parts.append(f"‖ω0‖ error {med['w0_norm_err_deg_s']:+.3g} deg/s"
+                     + (f" (CRLB σ {crlb:.2g} deg/s)" if crlb is not None else ""))
+    s1, s2 = med.get("ratio_sigma_1"), med.get("ratio_sigma_2")
+    if s1 is not None and s2 is not None:
+        parts.append(f"inertia ratios {'not ' if max(s1, s2) > 0.1 else ''}determined on this arc (CRLB σ of I1/I3 "
+                     f"and I2/I3 {s1:.2g} and {s2:.2g})")
+    return ("Conclusion (medians over runs): " + "; ".join(parts) + ".") if parts else ""
+
+
 def _score_tables(rows: list[dict], same: set[str], n_runs: int) -> list[dict]:
     """h3 + table per group of :data:`SCORES`; a raw score equal to its relabelled twin in every run is left out."""
     by_id = {v[0]: (col, v[4]) for col, v in SCORES.items()}
@@ -127,6 +148,8 @@ def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     blocks = [{"kind": "text", "html": f"{n} runs. Paper (Ivanov et al. 2018): reference points 3 cm, velocity ≈1 cm/s, "
                                        "‖ω‖ 4.24 deg/s estimated against a gyro's 4.5 deg/s. Body-frame scores depend on "
                                        "the estimated principal axes; gauge-free ones do not."}]
+    if conclusion(rows):
+        blocks.append({"kind": "text", "html": conclusion(rows)})
     note = attitude_note(scores)
     if note:
         blocks.append({"kind": "text", "html": note})
