@@ -94,3 +94,26 @@ def test_preview_antialiases_a_checkerboard(tmp_path):
     h, w = img.shape
     panel = img[int(0.15 * h):int(0.40 * h), int(0.04 * w):int(0.20 * w)]  # inside the first DN panel
     assert abs(float(panel.mean()) - 127.5) < 20 and float(panel.std()) < 12, (panel.mean(), panel.std())
+
+
+US_30S = REPO / "results" / "unknown_satellite" / "campaign_30s" / "tables"
+
+
+@pytest.mark.skipif(not (US_30S / "scores.parquet").is_file(), reason="published unknown-satellite tables not present")
+def test_inertia_panel_has_no_crlb_bar_across_it(captured, tmp_path):
+    """On the 30 s arc the inertia ratios are not observable (CRLB σ ≈ 1.4 on a panel 1.4 wide): such bars would
+    cross the whole panel; they are left out and counted instead."""
+    import pyarrow.parquet as pq
+
+    from matplotlib.collections import LineCollection
+
+    from renderlab.studies.unknown_satellite.figures import fig6_inertia
+
+    fig6_inertia(pq.read_table(US_30S / "stage1_history.parquet"), pq.read_table(US_30S / "scores.parquet"), tmp_path)
+    panel = captured[0].axes[1]
+    span = np.diff(panel.get_xlim())[0]
+    for coll in panel.collections:
+        if isinstance(coll, LineCollection):
+            for seg in coll.get_segments():
+                assert np.ptp(seg[:, 0]) <= 0.5 * span + 1e-9 and np.ptp(seg[:, 1]) <= 0.5 * span + 1e-9
+    assert any("not drawn" in t.get_text() for t in panel.texts)

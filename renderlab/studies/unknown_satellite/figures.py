@@ -195,18 +195,25 @@ def fig6_inertia(hist, scores, stem: Path) -> list[str]:
     e2 = _np(scores, "ratio_I2_I3_aligned" if al else "ratio_I2_I3_est")
     s1, s2 = _np(scores, "ratio_sigma_1"), _np(scores, "ratio_sigma_2")
     fb = run_flags(scores).get("inertia_boundary", np.zeros(scores.num_rows, bool))
+    t1, t2 = _np(scores, "ratio_I1_I3_true"), _np(scores, "ratio_I2_I3_true")
+    lo, hi = np.nanmin(np.r_[e1, e2, t1, t2]) - 0.2, np.nanmax(np.r_[e1, e2, t1, t2]) + 0.2
+    lo = max(lo, 0)
+    wide = ~((s1 <= 0.25 * (hi - lo)) & (s2 <= 0.25 * (hi - lo)))  # a bar across the panel says nothing: not drawn
     for m, mk, col, lab in ((~fb, "o", c1, "free solve"), (fb, "s", c2, "physical re-solve (boundary)")):
         if m.any():
-            ax[1].errorbar(e1[m], e2[m], xerr=s1[m], yerr=s2[m], fmt=mk, color=col, ms=4, lw=0.6, alpha=0.7,
-                           label=f"{lab}: {int(m.sum())} runs")
-    t1, t2 = _np(scores, "ratio_I1_I3_true"), _np(scores, "ratio_I2_I3_true")
+            ax[1].errorbar(e1[m & ~wide], e2[m & ~wide], xerr=s1[m & ~wide], yerr=s2[m & ~wide], fmt=mk, color=col,
+                           ms=4, lw=0.6, alpha=0.7, label=f"{lab}: {int(m.sum())} runs")
+            ax[1].plot(e1[m & wide], e2[m & wide], mk, color=col, ms=4, mfc="none", alpha=0.8)
     ax[1].plot(t1, t2, "k*", ms=12, label="truth")
     x = np.linspace(0, 2, 50)
     ax[1].plot(x, 1 - x, "k:", lw=0.8, label="I1 + I2 = I3 (flat body)")
-    lo, hi = np.nanmin(np.r_[e1, e2, t1, t2]) - 0.2, np.nanmax(np.r_[e1, e2, t1, t2]) + 0.2
-    ax[1].set(xlim=(max(lo, 0), hi), ylim=(max(lo, 0), hi), xlabel="I1/I3 (dimensionless)",
-              ylabel="I2/I3 (dimensionless)", title="(b) final ratios" + (", axes relabelled" if al else "")
-              + "; bars: CRLB 1σ")
+    bars = "bars: CRLB 1σ" if not wide.any() else (
+        f"bars: CRLB 1σ; {int(wide.sum())} of {len(wide)} runs (open) have σ > ¼ of the panel "
+        f"(median {np.nanmedian(np.r_[s1[wide], s2[wide]]):.2g}), not drawn")
+    ax[1].set(xlim=(lo, hi), ylim=(lo, hi), xlabel="I1/I3 (dimensionless)", ylabel="I2/I3 (dimensionless)",
+              title="(b) final ratios" + (", axes relabelled" if al else ""))
+    ax[1].text(0.98, 0.02, bars, transform=ax[1].transAxes, fontsize=7, ha="right", va="bottom",
+               bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.7", "alpha": 0.85})
     for a in ax:
         a.legend(fontsize=8)
         a.grid(alpha=0.3)
