@@ -188,7 +188,10 @@ def cmd_render(args) -> int:
 
     if args.renderer is not None:
         plugins.renderers.get(args.renderer, where="--renderer: ")  # a registered name, checked before anything
+    from renderlab.commands.inputs import check_scenario_inputs
+
     scenario, base = load_checked(args.scenario, args.overrides)
+    check_scenario_inputs(scenario, base)
     if args.overwrite:
         _check_overwrite_target(Path(args.out), Path(args.scenario))
     if getattr(args, "dry_run", False):

@@ -38,14 +38,16 @@ from renderlab.errors import UserError
 MiB = 1 << 20
 #: file kind → the largest file the lab reads of that kind, bytes
 LIMITS = {"json": 256 * MiB, "calibration": 4 * MiB, "image": 1024 * MiB, "mesh": 1024 * MiB, "table": 2048 * MiB,
-          "text": 16 * MiB, "trajectory": 1024 * MiB}
+          "text": 16 * MiB, "trajectory": 1024 * MiB,
+          "hashed": 64 * 1024 * MiB}  # streamed through a hash (SPICE kernels can be GB)
 #: the most nodes a YAML document may hold with its aliases expanded
 MAX_YAML_NODES = 100_000
 #: characters of a user value an error message quotes at most
 QUOTE_CHARS = 60
 _READ_BLOCK = 1 << 20
-#: calendar years of the epochs the lab's time scales support (leap seconds, Earth orientation, ephemerides)
-EPOCH_YEARS = (1900, 2199)
+#: calendar years of the epochs the lab's time scales support: UTC exists from 1960 (ERFA's leap-second table starts
+#: there), and ERFA's Earth ephemeris ``epv00`` and precession-nutation are stated for 1900-2100
+EPOCH_YEARS = (1960, 2100)
 _EPOCH = re.compile(r"^\s*([+-]?\d{1,9})-")
 
 _repr = reprlib.Repr()

@@ -25,6 +25,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 from importlib import metadata
 from pathlib import Path
 
@@ -87,16 +88,11 @@ def referenced_files(data, where: str = "") -> list[tuple[str, str]]:
 
 def file_sha256(path: Path) -> str:
     """``sha256:<hex>`` of a file's content (read in 1 MiB blocks), or ``missing``/``unreadable``."""
-    h = hashlib.sha256()
-    try:
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
-    except FileNotFoundError:
+    from renderlab.inputs import LIMITS, sha256
+
+    if not os.path.lexists(path):
         return "missing"
-    except OSError:
-        return "unreadable"
-    return "sha256:" + h.hexdigest()
+    return sha256(path, "scenario file", LIMITS["hashed"])  # a regular file (no FIFO, no device), else UserError
 
 
 def file_hashes(scenario_dict: dict, base_dir) -> dict[str, str]:

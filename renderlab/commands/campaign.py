@@ -9,26 +9,35 @@ def _int(lo: int):
     import argparse
 
     def parse(text: str) -> int:
+        from renderlab.inputs import short
+
         try:
             v = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, got {short(text)}") from None
         if v < lo:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, got {text!r}")
+            raise argparse.ArgumentTypeError(f"expected an integer >= {lo}, got {short(text)}")
         return v
     return parse
+
+
+#: the longest ``--connect-timeout`` (an hour: a scheduler that takes longer to answer is not there)
+MAX_CONNECT_TIMEOUT_S = 3600.0
 
 
 def _positive_float(text: str) -> float:
     import argparse
     import math
 
+    from renderlab.inputs import short
+
     try:
         v = float(text)
     except ValueError:
         v = math.nan
-    if not (v > 0 and math.isfinite(v)):
-        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text!r}")
+    if not (0 < v <= MAX_CONNECT_TIMEOUT_S):
+        raise argparse.ArgumentTypeError(f"expected a number of seconds in (0, {MAX_CONNECT_TIMEOUT_S:g}], got "
+                                         f"{short(text)}")
     return v
 
 
@@ -75,9 +84,12 @@ def run(args) -> int:
     from renderlab.cost import load_checked
     from renderlab.plugins import register_cli_plugins
 
+    from renderlab.commands.inputs import check_scenario_inputs
+
     check_workers(args.workers)
     security = check_scheduler_options(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)
     scenario, base = load_checked(args.scenario, args.overrides)
+    check_scenario_inputs(scenario, base)
     refs = register_cli_plugins(args.plugin)
     plan = make_plan(scenario, base, args.runs, seed=args.seed, plugins=refs)
     if args.dry_run:

@@ -34,7 +34,10 @@ def run(args) -> int:
     from renderlab import cost
     from renderlab.cost import load_checked
 
+    from renderlab.commands.inputs import check_scenario_inputs
+
     scenario, base = load_checked(args.scenario, args.overrides)
+    check_scenario_inputs(scenario, base)
     cost.check_scenario(scenario, frames=args.frames, renders=2, out=args.out, allow_large=args.allow_large,
                         what=f"crosscheck of {Path(args.scenario).name}")
     from renderlab.crosscheck import TARGETS, run_crosscheck

@@ -36,11 +36,15 @@ from typing import Any, Literal
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.inputs import short
 
 from .distortion import MODELS, distort, distortion_jacobian, max_valid_radius, normalize_distortion, undistort
 
 __all__ = ["CameraModel"]
 
+#: the largest |focal length|, |principal point| or |skew| the lab takes, px (a 2 m focal length on 1 µm pixels is
+#: 2e6 px; beyond this a camera model is a typo, and products of intrinsics overflow)
+PIXEL_MAX = 1e7
 _DICT_KEYS = ("width", "height", "fx", "fy", "cx", "cy", "skew", "skew_yx", "model", "distortion")
 _REQUIRED_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
 
@@ -99,20 +103,23 @@ class CameraModel:
         for name in ("width", "height"):
             v = getattr(self, name)
             if not _is_int(v) or int(v) <= 0:
-                raise UserError(f"camera.{name} must be a positive integer, got {v!r}")
+                raise UserError(f"camera.{name} must be a positive integer, got {short(v)}")
             set_(name, int(v))
         for name in ("fx", "fy"):
             v = getattr(self, name)
             if not _is_real(v) or not math.isfinite(float(v)) or float(v) <= 0.0:
-                raise UserError(f"camera.{name} must be a positive finite number, got {v!r}")
+                raise UserError(f"camera.{name} must be a positive finite number, got {short(v)}")
+            if float(v) > PIXEL_MAX:
+                raise UserError(f"camera.{name} must be at most {PIXEL_MAX:g} px, got {short(v)}")
             set_(name, float(v))
         for name in ("cx", "cy", "skew", "skew_yx"):
             v = getattr(self, name)
-            if not _is_real(v) or not math.isfinite(float(v)):
-                raise UserError(f"camera.{name} must be a finite number, got {v!r}")
+            if not _is_real(v) or not math.isfinite(float(v)) or abs(float(v)) > PIXEL_MAX:
+                raise UserError(f"camera.{name} must be a finite number of at most {PIXEL_MAX:g} px in size, got "
+                                f"{short(v)}")
             set_(name, float(v))
         if not isinstance(self.model, str) or self.model not in MODELS:
-            raise UserError(f"camera.model must be one of {', '.join(repr(m) for m in MODELS)}, got {self.model!r}")
+            raise UserError(f"camera.model must be one of {', '.join(repr(m) for m in MODELS)}, got {short(self.model)}")
         coeffs = normalize_distortion(self.model, self.distortion, where="camera")
         set_("distortion", types.MappingProxyType(coeffs))
         det = self.fx * self.fy - self.skew * self.skew_yx
@@ -172,13 +179,13 @@ class CameraModel:
         """
         def focal(n, fov, name):
             if not _is_real(fov) or not (0.0 < float(fov) < 180.0):
-                raise UserError(f"camera.{name} must be in (0, 180) degrees, got {fov!r}")
+                raise UserError(f"camera.{name} must be in (0, 180) degrees, got {short(fov)}")
             return (n / 2.0) / math.tan(math.radians(float(fov)) / 2.0)
 
         if not _is_int(width) or width <= 0:
-            raise UserError(f"camera.width must be a positive integer, got {width!r}")
+            raise UserError(f"camera.width must be a positive integer, got {short(width)}")
         if not _is_int(height) or height <= 0:
-            raise UserError(f"camera.height must be a positive integer, got {height!r}")
+            raise UserError(f"camera.height must be a positive integer, got {short(height)}")
         fx = focal(width, fov_x_deg, "fov_x_deg")
         fy = fx if fov_y_deg is None else focal(height, fov_y_deg, "fov_y_deg")
         return cls(width, height, fx, fy,
@@ -204,12 +211,12 @@ class CameraModel:
         """
         f = focal_length_mm
         if not _is_real(f) or not math.isfinite(float(f)) or float(f) <= 0.0:
-            raise UserError(f"camera.focal_length_mm must be a positive finite number, got {f!r}")
+            raise UserError(f"camera.focal_length_mm must be a positive finite number, got {short(f)}")
         f = float(f)
         vals = {"Kx": Kx, "Kxy": Kxy, "Kyx": Kyx, "Ky": Ky}
         for name, v in vals.items():
             if not _is_real(v) or not math.isfinite(float(v)):
-                raise UserError(f"camera.{name} must be a finite number, got {v!r}")
+                raise UserError(f"camera.{name} must be a finite number, got {short(v)}")
         return cls(width, height, f * float(Kx), f * float(Ky), s0, l0,
                    skew=f * float(Kxy), skew_yx=f * float(Kyx), model=model, distortion=distortion or {})
 

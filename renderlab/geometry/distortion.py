@@ -35,6 +35,10 @@ from collections.abc import Mapping
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.inputs import short
+
+#: the largest |distortion coefficient| the lab takes
+COEFF_MAX = 1e6
 
 from . import distortion_opencv, fisheye
 
@@ -79,7 +83,7 @@ def normalize_distortion(model: str, distortion: Mapping[str, float] | None, whe
         Unknown model, non-mapping distortion, unknown key, or a non-finite / non-numeric value.
     """
     if model not in DISTORTION_KEYS:
-        raise UserError(f"{where}.model must be one of {', '.join(repr(m) for m in MODELS)}, got {model!r}")
+        raise UserError(f"{where}.model must be one of {', '.join(repr(m) for m in MODELS)}, got {short(model)}")
     if distortion is None:
         distortion = {}
     if not isinstance(distortion, Mapping):
@@ -87,9 +91,9 @@ def normalize_distortion(model: str, distortion: Mapping[str, float] | None, whe
     keys = DISTORTION_KEYS[model]
     out = {k: 0.0 for k in keys}
     for key, value in distortion.items():
-        name = f"{where}.distortion.{key}"
-        if not _is_real(value) or not np.isfinite(float(value)):
-            raise UserError(f"{name} must be a finite number, got {value!r}")
+        name = f"{where}.distortion.{short(str(key), 24).strip(chr(39))}"
+        if not _is_real(value) or not np.isfinite(float(value)) or abs(float(value)) > COEFF_MAX:
+            raise UserError(f"{name} must be a finite number of at most {COEFF_MAX:g} in size, got {short(value)}")
         if key in keys:
             out[key] = float(value)
         elif model == "pinhole" and any(key in ks for ks in DISTORTION_KEYS.values()):
@@ -97,7 +101,7 @@ def normalize_distortion(model: str, distortion: Mapping[str, float] | None, whe
                 raise UserError(f"{name} is {float(value)!r} but {where}.model is 'pinhole' (no distortion)")
         else:
             allowed = ", ".join(keys) if keys else "none"
-            raise UserError(f"{name}: unknown coefficient for model {model!r} (allowed: {allowed})")
+            raise UserError(f"{name}: unknown coefficient for model {short(model)} (allowed: {allowed})")
     return out
 
 

@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.inputs import LIMITS, check_regular, shown
 
 #: metres per file unit
 UNITS_M = {"m": 1.0, "km": 1000.0, "cm": 0.01}
@@ -86,8 +88,9 @@ def _read(path: Path, where: str):
     kind = FORMATS.get(path.suffix.lower())
     if kind is None:
         raise UserError(f"{where}: {path.name} is not a supported mesh file (OBJ, PLY, STL or GLB by extension)")
-    if not path.is_file():
-        raise UserError(f"{where}: mesh not found: {path}")
+    if not os.path.lexists(path):
+        raise UserError(f"{where}: mesh not found: {shown(path)}")
+    check_regular(path, f"{where}: mesh", LIMITS["mesh"])  # a regular file of bounded size: no FIFO, no device
     try:
         mesh = trimesh.load(str(path), file_type=kind, force="mesh", process=False)
     except Exception as exc:  # noqa: BLE001 - any parser failure is the file's fault

@@ -15,6 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from renderlab.errors import UserError
+from renderlab.inputs import shown
 from renderlab.photometry import make_law
 from renderlab.render.scene import BodySpec, SceneDescription
 
@@ -23,18 +24,19 @@ def load_albedo_map(path: Path) -> np.ndarray:
     """Read an 8/16-bit grey image (PNG, TIFF, ...) or a float EXR/NPY-free image as values in [0, 1]."""
     import cv2
 
-    if not path.is_file():
-        raise UserError(f"albedo map not found: {path}")
+    from renderlab.contracts.image_headers import image_header
+
+    image_header(path, "albedo map")  # a regular file whose header says a sane size, before anything is decoded
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED | cv2.IMREAD_ANYDEPTH)
     if img is None:
-        raise UserError(f"albedo map {path.name} could not be read as an image")
+        raise UserError(f"albedo map {shown(path.name)} could not be read as an image")
     if img.ndim == 3:
         img = img.mean(axis=2)
     if np.issubdtype(img.dtype, np.integer):
         img = img.astype(np.float64) / np.iinfo(img.dtype).max
     img = np.asarray(img, np.float64)
     if not np.all(np.isfinite(img)) or img.min() < 0:
-        raise UserError(f"albedo map {path.name} has negative or non-finite values")
+        raise UserError(f"albedo map {shown(path.name)} has negative or non-finite values")
     return img
 
 
