@@ -328,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
         import pyarrow.parquet as pq
 
         from renderlab.scenario import load_scenario
-        from renderlab.studies.retina_vs_spc.budget import budget_configs
+        from renderlab.studies.retina_vs_spc.budget_plan import budget_configs
         from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
 
         read_tables(args.folder)  # a budget folder, before anything renders

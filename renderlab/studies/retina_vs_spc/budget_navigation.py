@@ -157,3 +157,10 @@ def error_models(meas, configs, fx: float, gsd_range: tuple, mapping: str, gross
                                   np.sqrt(np.clip(brms ** 2 - mu ** 2, 0, None)), noise, brms,
                                   int(np.unique(cols["cluster"][sel]).size)))
     return out
+
+
+def term_order(rows: list[dict]) -> list[str]:
+    """The terms of ``rows`` in the budget's order: floor, all off, sources, the all-off terms, sum, all on."""
+    late = ("peak_step", "shadow_approximation", "quadrature_sum", "all_on", "sum_over_all_on")
+    terms = list(dict.fromkeys(r["term"] for r in rows))
+    return [t for t in terms if t not in late] + [t for t in late if t in terms]

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.studies.retina_vs_spc.budget_navigation import term_order
+
 PRIMARY = "altitude"
 MARKERS = {"ground": "v", "pixel": "^"}
 
@@ -80,8 +82,6 @@ def navigation_figure(terms: list[dict], val: list[dict], stem: Path) -> list[st
     from renderlab.report import style
 
     rows = [r for r in terms if r["statistic"] == "rms_3d"]
-    from renderlab.studies.retina_vs_spc.budget_navigation_report import term_order
-
     methods = list(dict.fromkeys(r["method"] for r in rows))
     labels = [t for t in term_order(rows) if t != "sum_over_all_on"]
     colors = style.method_colors(methods)

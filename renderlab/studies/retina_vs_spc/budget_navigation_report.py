@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.studies.retina_vs_spc.budget_navigation import NONE_CONFIG, NONE_METHOD, RENDERED, TABLE, term_order
+
 N_BOOT, SEED, TOL = 1000, 21, 0.2
 SHADOW_CONFIG = "no_shadows"  # .budget_shadows.CONFIG: its term is at all off, like the peak step
 STATS = ("rms_3d", "rms_e", "rms_n", "rms_u")
@@ -56,8 +58,6 @@ def _signed_root(d):
 
 def terms(table, sources: list[str]) -> list[dict]:
     """Per mapping, method and statistic: floor, all off, each source, peak step, quadrature sum, all on, ratio."""
-    from renderlab.studies.retina_vs_spc.budget_navigation import NONE_CONFIG, NONE_METHOD
-
     cols = _columns(table)
     floor_rows = _by(cols, "", NONE_CONFIG, NONE_METHOD)
     out = []
@@ -94,13 +94,6 @@ def terms(table, sources: list[str]) -> list[dict]:
 
 def _method_order(names) -> list:
     return sorted(set(names), key=lambda m: (m != "retina", m != "retina_refined", m))
-
-
-def term_order(rows: list[dict]) -> list[str]:
-    """The terms of ``rows`` in the budget's order: floor, all off, sources, the all-off terms, sum, all on."""
-    late = ("peak_step", "shadow_approximation", "quadrature_sum", "all_on", "sum_over_all_on")
-    terms = list(dict.fromkeys(r["term"] for r in rows))
-    return [t for t in terms if t not in late] + [t for t in late if t in terms]
 
 
 def _term_values(sq: dict, have: list, mean) -> dict:
@@ -201,7 +194,6 @@ def write(folder: Path, stage: Path, sources: list[str], csv_writer) -> str:
     ``folder/tables``; returns the markdown section ("" when the folder has no navigation table)."""
     import pyarrow.parquet as pq
 
-    from renderlab.studies.retina_vs_spc.budget_navigation import RENDERED, TABLE
     from renderlab.studies.retina_vs_spc.budget_navigation_figure import navigation_figure
     from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 

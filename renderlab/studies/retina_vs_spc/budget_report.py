@@ -29,10 +29,9 @@ import numpy as np
 
 from renderlab.errors import UserError
 
+from renderlab.studies.retina_vs_spc.budget_stats import TERMS_ORDER
+
 N_BOOT_SUMMARY, N_BOOT_JOINT, SEED = 1000, 500, 20
-TERMS_ORDER = ("all_off", "sensor_noise", "mapping_error", "albedo_error", "photometric_law", "apriori_pose",
-               "camera_knowledge", "sun_knowledge", "maplet_spacing", "peak_step", "shadow_approximation",
-               "quadrature_sum", "all_on")
 SHADOW_CONFIG = "no_shadows"  # renderlab.studies.retina_vs_spc.budget_shadows.CONFIG
 BANDS = (("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf))
 

@@ -35,6 +35,11 @@ import numpy as np
 
 from renderlab.stats.bootstrap import MAD_TO_SIGMA, cluster_bootstrap
 
+#: the budget's terms in the order of its tables and figure
+TERMS_ORDER = ("all_off", "sensor_noise", "mapping_error", "albedo_error", "photometric_law", "apriori_pose",
+               "camera_knowledge", "sun_knowledge", "maplet_spacing", "peak_step", "shadow_approximation",
+               "quadrature_sum", "all_on")
+
 CONFIDENCE = 0.95
 AXES = ("s", "l", "both")
 STATS = ("robust_sigma", "std", "bias_rms", "noise_sd")

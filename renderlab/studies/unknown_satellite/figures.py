@@ -336,9 +336,3 @@ def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satelli
             done.append({"name": name, "png": png, "svg": svg, "caption": CAPTIONS[name]})
     return done
 
-
-def campaign_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
-    """HTML section of the report (:mod:`renderlab.studies.unknown_satellite.report_section`)."""
-    from renderlab.studies.unknown_satellite.report_section import study_section
-
-    return study_section(tables, Path(out_dir))
