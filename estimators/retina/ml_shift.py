@@ -42,13 +42,18 @@ spread is 1.00× the bound of the model the step uses (ML-3 with the spline's de
 1.14× the Fisher bound of the rendered scene (:func:`~.peak_step.rendered_crlb`; 1.18× even for a 9 × 9-ray
 template). The spline of a sampled template under-states how a sharp scene's pixels change with a sub-pixel
 shift; only derivatives from the renderer itself (templates re-rendered at shifted poses) would close that gap.
+The same limit sets the bias: ≤ 0.010 px on those templates, but ≈ 0.02 px on aliased texture (sub-pixel
+detail that the sampled template, and so its spline, cannot represent); do not quote 0.01 px beyond
+well-sampled scenes.
 
 Tuning
 ------
 :class:`MlShiftOptions`: ``iterations`` (Gauss–Newton steps, 10; it converges in 2–3 from a ``gaussian_2d``
 start), ``tol_px`` (stop when the step is smaller, 1e-4 px), ``erode_px`` (footprint erosion, 0 px; 1–2 px keep
 the spline's support on predicted pixels at the price of their information: measured on the benchmark's 15 EV5
-templates, 25 draws, σ/CRLB at SNR 20 1.06 / 1.12 / 1.23 for 0 / 1 / 2 px, max |bias| 0.010 / 0.008 / 0.007 px),
+templates, 25 draws, σ/CRLB at SNR 20 1.06 / 1.12 / 1.23 for 0 / 1 / 2 px, max |bias| 0.010 / 0.008 / 0.007 px
+on those smooth, well-sampled templates; on aliased texture, detail finer than the pixels, the bias is ≈ 0.02 px
+at 0 px erosion, because the spline of a sampled template mis-states such a scene between pixels),
 ``fill`` (``nearest``; ``mean`` fills with the footprint mean as :mod:`.recentre` does: 0.032 px bias at 0 px
 erosion), ``max_move_px`` (farther than this from the start = no convergence, the start is kept, 1.5 px),
 ``min_pixels`` (fewer usable pixels = the start is kept).
