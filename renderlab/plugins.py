@@ -64,6 +64,9 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",
         "cycles": "renderlab.render.cycles_backend:CyclesBackend",
     }),
+    "guidance": ("renderlab.guidance", {  # factories (GuidanceOptions) -> renderlab.contracts.guidance.GuidanceLaw
+        "zem_zev": "renderlab.studies.descent_gnc.guidance:ZemZevLaw",
+    }),
     "result_folders": ("renderlab.result_folders", {  # renderlab.contracts.result_folder.ResultFolderKind objects
         "crosscheck": "renderlab.crosscheck.figures:RESULT_FOLDER",
         "error_budget": "renderlab.studies.retina_vs_spc.budget_report:RESULT_FOLDER",
@@ -72,7 +75,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
 
 _LABELS = {"landmark_methods": "landmark method", "filters": "filter", "studies": "study", "worlds": "world kind",
            "renderers": "renderer", "scenario_sections": "scenario section",
-           "measurement_sources": "measurement source",
+           "measurement_sources": "measurement source", "guidance": "guidance law",
            "result_folders": "result-folder kind"}
 
 
@@ -171,6 +174,7 @@ worlds = REGISTRIES["worlds"]
 renderers = REGISTRIES["renderers"]
 scenario_sections = REGISTRIES["scenario_sections"]
 result_folders = REGISTRIES["result_folders"]
+guidance = REGISTRIES["guidance"]
 
 #: world kind → the study a campaign runs when ``campaign.study`` is empty
 DEFAULT_STUDY: dict[str, str] = {"analytic": "analytic_pointing", "ev5": "retina_vs_spc", "earth": "coastline_ekf",

@@ -19,7 +19,7 @@ The truth gravity U is either
   for its gradient).
 
 With zero thrust the Jacobi integral :math:`J = \tfrac12|\dot{\mathbf r}|^2 - \tfrac12|\boldsymbol\omega\times
-\mathbf r|^2 - U(\mathbf r)` is conserved (R3; Scheeres 2012 eq. 3.4): the Coriolis term does no work and the
+\mathbf r|^2 - U(\mathbf r)` is conserved (R3; Scheeres 2012, ch. 3): the Coriolis term does no work and the
 centrifugal term is the gradient of ½|ω×r|².
 
 :meth:`DescentTruth.step` integrates R1 with scipy's DOP853 (Hairer, Nørsett & Wanner 1993) from one control update
@@ -193,7 +193,7 @@ class DescentTruth:
         u, _ = self.gravity.at(x[:3])
         return 0.5 * float(x[3:] @ x[3:]) - 0.5 * self.omega**2 * float(x[0]**2 + x[1]**2) - u
 
-    def _solve(self, t0: float, x0, t1: float, a_thrust, t_eval=None, contact: bool = True):
+    def _solve(self, t0: float, x0, t1: float, a_thrust, t_eval=None, contact: bool = True, first_step=None):
         from scipy.integrate import solve_ivp
 
         a = np.asarray(a_thrust, float).reshape(3)
@@ -207,7 +207,8 @@ class DescentTruth:
             touch.terminal, touch.direction = True, -1.0
             events = touch
         sol = solve_ivp(self.derivative, (float(t0), float(t1)), np.asarray(x0, float), method="DOP853",
-                        args=(a,), rtol=self.rtol, atol=self.atol, events=events, t_eval=t_eval)
+                        args=(a,), rtol=self.rtol, atol=self.atol, events=events, t_eval=t_eval,
+                        first_step=first_step)
         if sol.status < 0:
             raise UserError(f"truth dynamics: integration failed at t = {sol.t[-1]:.3f} s ({sol.message})")
         return sol
@@ -217,7 +218,7 @@ class DescentTruth:
         stops early at contact (``contact`` True, the state at the touchdown instant)."""
         if not t1 > t0:
             raise UserError(f"truth dynamics: step from {t0} s to {t1} s does not go forward")
-        sol = self._solve(t0, x0, t1, a_thrust)
+        sol = self._solve(t0, x0, t1, a_thrust, first_step=t1 - t0)   # one step when the error allows
         if sol.status == 1:
             return TruthStep(float(sol.t_events[0][0]), np.array(sol.y_events[0][0], float), True, int(sol.nfev))
         return TruthStep(float(sol.t[-1]), np.array(sol.y[:, -1], float), False, int(sol.nfev))

@@ -1,0 +1,105 @@
+"""The closed GN&C loop without images: navigation → guidance → thrusters → truth dynamics, until contact.
+
+Every control period Δ (times t_k = t_0 + kΔ): the navigation gives its estimate of the true state
+(``navigation.estimate(t_k, x_true)``; default: the truth itself), the guidance law its command
+(``guidance.command(t_k, x_est)``, :mod:`renderlab.contracts.guidance`), the thrusters the delivered acceleration
+(``thrusters.realise(a_cmd, Δ)``, :mod:`estimators.gnc.thrusters`; default: the command), and the truth dynamics
+(:class:`renderlab.dynamics.descent_truth.DescentTruth`) carry the true state to t_{k+1} with it held, or to contact.
+A navigation with an ``after_step(t0, t1, a_delivered)`` method is told what was applied (an accelerometer, a
+filter's propagation). :class:`TruthPlusNoise` is the navigation of the smoke example: the truth plus seeded white
+noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from renderlab.errors import UserError
+
+
+@dataclass
+class Flight:
+    """One flown descent.
+
+    Attributes
+    ----------
+    t_s : ndarray (K + 1,)
+        Control times, then the end time (touchdown or ``t_max``).
+    x_true : ndarray (K + 1, 6)
+        True state at those times (the last at touchdown), asteroid-fixed frame.
+    x_est : ndarray (K, 6)
+        The navigation's estimate each command was made from.
+    a_cmd, a_delivered : ndarray (K, 3)
+        Commanded and delivered acceleration, m/s².
+    touchdown : bool
+        Ended in contact with the surface.
+    """
+
+    t_s: np.ndarray
+    x_true: np.ndarray
+    x_est: np.ndarray
+    a_cmd: np.ndarray
+    a_delivered: np.ndarray
+    touchdown: bool
+
+    @property
+    def x_touchdown(self) -> np.ndarray:
+        return self.x_true[-1]
+
+    def trajectory_bytes(self) -> bytes:
+        """The whole record as bytes (reproducibility checks)."""
+        return b"".join(np.ascontiguousarray(a, np.float64).tobytes() for a in
+                        (self.t_s, self.x_true, self.x_est, self.a_cmd, self.a_delivered))
+
+
+class TruthPlusNoise:
+    """Navigation = truth + N(0, σ_r²) per position axis and N(0, σ_v²) per velocity axis, drawn per call from
+    ``rng`` (6 normals each), plus a constant ``bias`` (6,) (an initial navigation error kept for the flight)."""
+
+    def __init__(self, sigma_r_m: float, sigma_v_mps: float, rng: np.random.Generator, bias=None):
+        self.sigma = np.r_[np.full(3, float(sigma_r_m)), np.full(3, float(sigma_v_mps))]
+        self.rng = rng
+        self.bias = np.zeros(6) if bias is None else np.asarray(bias, float).reshape(6)
+
+    def estimate(self, t_s: float, x_true: np.ndarray) -> np.ndarray:
+        return x_true + self.bias + self.sigma * self.rng.standard_normal(6)
+
+
+class _Perfect:
+    def estimate(self, t_s, x_true):
+        return np.array(x_true, float)
+
+
+def fly(truth, guidance, t0_s: float, x0, *, control_period_s: float, t_max_s: float, navigation=None,
+        thrusters=None) -> Flight:
+    """Fly the loop of the module docstring from (t0, x0) until contact or ``t_max_s``."""
+    if not control_period_s > 0 or not t_max_s > t0_s:
+        raise UserError("closed loop: control_period_s must be positive and t_max_s after t0_s")
+    nav = navigation if navigation is not None else _Perfect()
+    after = getattr(nav, "after_step", None)
+    x = np.array(x0, float)
+    ts, xs, xe, ac, ad = [float(t0_s)], [x.copy()], [], [], []
+    t, touchdown = float(t0_s), False
+    n_steps = int(math.ceil((t_max_s - t0_s) / control_period_s - 1e-9))
+    for k in range(n_steps):
+        t1 = min(float(t0_s) + (k + 1) * control_period_s, float(t_max_s))
+        est = np.asarray(nav.estimate(t, x), float)
+        a_c = np.asarray(guidance.command(t, est), float)
+        a_d = thrusters.realise(a_c, t1 - t) if thrusters is not None else a_c
+        st = truth.step(t, x, t1, a_d)
+        if after is not None:
+            after(t, st.t_s, a_d)
+        xe.append(est)
+        ac.append(a_c)
+        ad.append(np.asarray(a_d, float))
+        t, x = st.t_s, st.x
+        ts.append(t)
+        xs.append(x.copy())
+        if st.contact:
+            touchdown = True
+            break
+    return Flight(np.array(ts), np.array(xs), np.array(xe).reshape(-1, 6), np.array(ac).reshape(-1, 3),
+                  np.array(ad).reshape(-1, 3), touchdown)
