@@ -90,6 +90,10 @@ def run(args) -> int:
     security = check_scheduler_options(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)
     scenario, base = load_checked(args.scenario, args.overrides)
     check_scenario_inputs(scenario, base)
+    from renderlab.commands.references import check_plugin
+
+    for text in args.plugin:
+        check_plugin(text)  # imported and checked against the protocols before it is registered or called
     refs = register_cli_plugins(args.plugin)
     plan = make_plan(scenario, base, args.runs, seed=args.seed, plugins=refs)
     if args.dry_run:

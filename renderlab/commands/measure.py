@@ -69,6 +69,11 @@ def run(args) -> int:
                           n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
                           min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
                           photometry=args.photometry, campaign=args.campaign)
+    from renderlab import plugins
+    from renderlab.commands.references import check_landmark_method
+
+    if args.method not in plugins.landmark_methods and ":" in str(args.method):
+        check_landmark_method(args.method)  # imported and checked against the protocol before anything calls it
     method = make_method(args.method, opts, allow_reference=True)  # an unknown name fails before anything is read
     if args.images is not None or args.truthset is None:
         return _run_images(args, opts)

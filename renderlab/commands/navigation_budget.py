@@ -25,7 +25,7 @@ def add_parser(sub) -> None:
                    help="the descent-navigation scenario (its folder holds the rendered campaign's tables)")
     n.add_argument("--runs", type=int, default=200, help="runs (the descent campaign's run indices 0..N-1)")
     n.add_argument("--seed", type=int, default=2027, help="seed of the injected landmark errors")
-    n.add_argument("--workers", type=int, default=2, help="worker processes")
+    n.add_argument("--workers", type=int, default=2, help="worker processes (1 to 4 per core)")
     n.add_argument("--mappings", nargs="+", default=None, help="mappings of the budget's statistics onto the "
                    "descent's altitudes (default: altitude ground pixel; see budget_navigation)")
     n.add_argument("--only", nargs="+", metavar="CONFIG", help="fly only these configurations and replace their "
@@ -102,7 +102,24 @@ def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, work
     return write_report(folder)
 
 
+def check_args(args) -> None:
+    """``--workers`` capped as ``campaign``'s (each is a process), ``--runs`` and ``--seed`` in range, the folder a
+    folder — before anything is read or started."""
+    from renderlab.campaign.plan import MAX_RUNS
+    from renderlab.commands.inputs import check_workers, existing_input
+
+    check_workers(args.workers)
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
+    if not 2 <= args.runs <= MAX_RUNS:
+        raise UserError(f"--runs must be in 2..{MAX_RUNS}, got {args.runs}")
+    if not 0 <= args.seed < 2 ** 63:
+        raise UserError(f"--seed must be in 0..2**63-1, got {args.seed}")
+    existing_input(args.folder, "FOLDER")
+
+
 def run(args) -> int:
+    check_args(args)
     out = run_navigation(Path(args.folder), Path(args.scenario), args.runs, args.seed, args.workers, args.only,
                          args.mappings, args.methods)
     print(f"renderlab: wrote {Path(args.folder) / 'tables'} (budget_navigation, budget_navigation_rendered) and "
