@@ -6,8 +6,8 @@ Every control period Δ (times t_k = t_0 + kΔ): the navigation gives its estima
 (``thrusters.realise(a_cmd, Δ)``, :mod:`estimators.gnc.thrusters`; default: the command), and the truth dynamics
 (:class:`renderlab.dynamics.descent_truth.DescentTruth`) carry the true state to t_{k+1} with it held, or to contact.
 A navigation with an ``after_step(t0, t1, a_delivered)`` method is told what was applied (an accelerometer, a
-filter's propagation). :class:`TruthPlusNoise` is the navigation of the smoke example: the truth plus seeded white
-noise.
+filter's propagation). :class:`TruthPlusNoise` is the navigation of the smoke example: the truth plus a decaying
+initial error and seeded white noise.
 """
 
 from __future__ import annotations
@@ -56,16 +56,33 @@ class Flight:
 
 
 class TruthPlusNoise:
-    """Navigation = truth + N(0, σ_r²) per position axis and N(0, σ_v²) per velocity axis, drawn per call from
-    ``rng`` (6 normals each), plus a constant ``bias`` (6,) (an initial navigation error kept for the flight)."""
+    """Navigation = truth + an initial error that decays + white noise: x̂(t) = x(t) + e₀ exp(−(t − t₀)/τ) + w,
+    w ~ N(0, diag(σ_r² I, σ_v² I)) drawn per call from ``rng`` (6 normals each); t₀ is the first call's time.
 
-    def __init__(self, sigma_r_m: float, sigma_v_mps: float, rng: np.random.Generator, bias=None):
+    Parameters
+    ----------
+    sigma_r_m, sigma_v_mps : float
+        White noise per position / velocity axis.
+    rng : numpy.random.Generator
+        Seeded generator of the noise.
+    initial_error : array (6,), optional
+        e₀, the navigation error at the first call.
+    decay_s : float
+        τ (inf: the initial error stays).
+    """
+
+    def __init__(self, sigma_r_m: float, sigma_v_mps: float, rng: np.random.Generator, initial_error=None,
+                 decay_s: float = math.inf):
         self.sigma = np.r_[np.full(3, float(sigma_r_m)), np.full(3, float(sigma_v_mps))]
-        self.rng = rng
-        self.bias = np.zeros(6) if bias is None else np.asarray(bias, float).reshape(6)
+        self.rng, self.decay_s = rng, float(decay_s)
+        self.e0 = np.zeros(6) if initial_error is None else np.asarray(initial_error, float).reshape(6)
+        self.t0 = None
 
     def estimate(self, t_s: float, x_true: np.ndarray) -> np.ndarray:
-        return x_true + self.bias + self.sigma * self.rng.standard_normal(6)
+        if self.t0 is None:
+            self.t0 = float(t_s)
+        fade = math.exp(-(float(t_s) - self.t0) / self.decay_s)
+        return x_true + fade * self.e0 + self.sigma * self.rng.standard_normal(6)
 
 
 class _Perfect:
