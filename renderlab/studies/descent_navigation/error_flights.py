@@ -21,7 +21,7 @@ noise sd, all at R_ik, the landmark's depth in the camera. Everything else is th
 the filter's initial estimate, the star tracker's attitude error per image and the accelerometer's noise come
 from ``SeedSequence(campaign seed, spawn_key=(i,))`` spawned as :func:`renderlab.studies.descent_navigation.run.run`
 does, so run i pairs with run i of the rendered campaign — and the landmarks are selected as there
-(:func:`renderlab.studies.descent_navigation.loop.select_landmarks`, at the filter's a-priori pose), with the
+(:func:`renderlab.studies.descent_navigation.sources.select_landmarks`, at the filter's a-priori pose), with the
 filter's declared σ_px and the star tracker's σ in R (eq. M3). The draws β, ε come from ``SeedSequence(flight seed,
 spawn_key=(i,))``, the same for every model (common random numbers: differences between models are paired).
 Not modelled: the search window (a measurement is never lost because the truth lies outside it), no-result rates,
@@ -139,7 +139,7 @@ def fly(geom: Geometry, draws: dict, model: LandmarkErrorModel | None, beta: np.
     from renderlab import plugins
     from renderlab.contracts.landmark import CameraPose
     from renderlab.contracts.navigation import FilterMeasurement
-    from renderlab.studies.descent_navigation.loop import select_landmarks
+    from renderlab.studies.descent_navigation.sources import select_landmarks
     from renderlab.studies.descent_navigation.run import filter_options
 
     cfg, cam = geom.cfg, geom.camera

@@ -7,8 +7,9 @@ projected covariance (the filter's position block and the star tracker's σ; Wri
 the landmarks it measures ((s, l) = pred + (Δs, Δl); or a measurement source's, :mod:`.sources`) update the filter (kind ``"pixel"``, R of eq. M3 with
 σ_i² = σ_px² + (σ_ground/GSD_i)² per landmark, the
 method's outlier flags in ``context["flagged"]``), whose χ² gate rejects what does not fit.
-Landmarks attempted: those the a-priori pose predicts inside the image whose GSD ratio (predicted range / fx /
-maplet spacing) lies in ``gsd_ratio_range``, at most ``max_landmarks`` per image, GSD ratio closest to 1 first.
+Landmarks attempted (:func:`.sources.select_landmarks`): those the a-priori pose predicts inside the image whose
+GSD ratio (predicted range / fx / maplet spacing) lies in ``gsd_ratio_range``, at most ``max_landmarks`` per image,
+GSD ratio closest to 1 first.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from renderlab.contracts.landmark import CameraPose
 from renderlab.errors import UserError
+from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
 
 
 @dataclass
@@ -49,18 +52,6 @@ class RunInputs:
         if k not in self._images:
             self._images[k] = self.ts.load(k).dn
         return self._images[k]
-
-
-def select_landmarks(cam, pose, centres, spacing, cfg) -> np.ndarray:
-    """Indices of the landmarks to attempt (module docstring), deterministic."""
-    xc = pose.to_camera(centres)
-    sl = cam.project(xc)
-    ok = cam.in_image(sl) & (xc[:, 2] > 0)
-    ratio = np.where(ok, xc[:, 2] / cam.fx / spacing, np.nan)
-    lo, hi = cfg.gsd_ratio_range
-    cand = np.flatnonzero(ok & (ratio >= lo) & (ratio <= hi))
-    order = np.lexsort((cand, np.abs(np.log(ratio[cand]))))
-    return cand[order][: cfg.max_landmarks]
 
 
 def _error_cols(x, P, x_true, R_site) -> dict:
@@ -102,15 +93,6 @@ def _landmark_rows(inp, method, k, sel, results, upd, cam, true_pose) -> list[di
     return rows
 
 
-def map_context(maplets, sigma_h_m, sigma_v_m) -> dict:
-    """Landmark ids and the declared map covariance of each (body frame, m²): R_bm diag(σ_h², σ_h², σ_v²) R_bmᵀ
-    (σ per landmark, (k,))."""
-    h, v = np.broadcast_to(sigma_h_m, (len(maplets),)), np.broadcast_to(sigma_v_m, (len(maplets),))
-    return {"landmark_ids": np.array([int(m.landmark_id) for m in maplets], int),
-            "landmark_cov_m2": np.stack([m.R_body_from_maplet @ np.diag([a**2, a**2, b**2]) @ m.R_body_from_maplet.T
-                                         for m, a, b in zip(maplets, h, v)])}
-
-
 def _prior_cols(filt, R_star) -> dict:
     """The a-priori pose the method gets (body frame) and the filter's largest position σ at that time."""
     from scipy.spatial.transform import Rotation
@@ -133,9 +115,6 @@ def run_method(source, inp: RunInputs, filt, cfg, mopts) -> tuple[list[dict], li
     """(filter rows, landmark rows) of one measurement source (:mod:`.sources`; a bare landmark method is wrapped
     in :class:`~renderlab.studies.descent_navigation.sources.LandmarkMethodSource`) over the run's images (module
     docstring); the source's constant ``columns()`` are added to its filter rows."""
-    from renderlab.contracts.landmark import CameraPose
-    from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
-
     if not hasattr(source, "measure"):
         source = LandmarkMethodSource(source, cfg, mopts)
     filt.initialize(float(inp.times[0]), inp.x0, inp.P0)

@@ -16,7 +16,7 @@ image: ``source.measure(inp, k, filt)`` → (selected landmark indices, one
   ``columns()`` (constant columns of its filter rows).
 
 The geometric source needs no image. Landmark i of image k (selected as for a method,
-:func:`~renderlab.studies.descent_navigation.loop.select_landmarks`, at the filter's a-priori pose) is measured at
+:func:`select_landmarks`, at the filter's a-priori pose) is measured at
 
 .. math::
 
@@ -52,6 +52,29 @@ from renderlab.contracts.landmark import CameraPose, LandmarkResult
 from renderlab.contracts.navigation import FilterMeasurement
 
 
+def select_landmarks(cam, pose, centres, spacing, cfg) -> np.ndarray:
+    """Indices of the landmarks to attempt, deterministic: those the a-priori ``pose`` predicts inside the image
+    whose GSD ratio (predicted range / fx / maplet spacing) lies in ``cfg.gsd_ratio_range``, at most
+    ``cfg.max_landmarks``, GSD ratio closest to 1 first."""
+    xc = pose.to_camera(centres)
+    sl = cam.project(xc)
+    ok = cam.in_image(sl) & (xc[:, 2] > 0)
+    ratio = np.where(ok, xc[:, 2] / cam.fx / spacing, np.nan)
+    lo, hi = cfg.gsd_ratio_range
+    cand = np.flatnonzero(ok & (ratio >= lo) & (ratio <= hi))
+    order = np.lexsort((cand, np.abs(np.log(ratio[cand]))))
+    return cand[order][: cfg.max_landmarks]
+
+
+def map_context(maplets, sigma_h_m, sigma_v_m) -> dict:
+    """Landmark ids and the declared map covariance of each (body frame, m²): R_bm diag(σ_h², σ_h², σ_v²) R_bmᵀ
+    (σ per landmark, (k,))."""
+    h, v = np.broadcast_to(sigma_h_m, (len(maplets),)), np.broadcast_to(sigma_v_m, (len(maplets),))
+    return {"landmark_ids": np.array([int(m.landmark_id) for m in maplets], int),
+            "landmark_cov_m2": np.stack([m.R_body_from_maplet @ np.diag([a**2, a**2, b**2]) @ m.R_body_from_maplet.T
+                                         for m, a, b in zip(maplets, h, v)])}
+
+
 def declared_sigma(cfg, name: str, spacing, gsd) -> np.ndarray:
     """Each landmark's declared pixel σ of the filter (k,): σ_px (per tier) and the ground term (eq. M3's input)."""
     s_px = cfg.landmark_sigmas(name, spacing)[0]
@@ -62,7 +85,6 @@ def declared_sigma(cfg, name: str, spacing, gsd) -> np.ndarray:
 def _filter_measurement(inp, k, cfg, name, sel_ok, z, x, cam, flagged) -> FilterMeasurement:
     """The FilterMeasurement of the landmarks ``sel_ok`` measured at ``z`` (k, 2): R of eq. M3 with the declared σ."""
     from estimators.descent_nav import pixel_covariance
-    from renderlab.studies.descent_navigation.loop import map_context
 
     pts = inp.centres[sel_ok]
     gsd = ((pts - x[:3]) @ inp.R_star[k])[:, 2] / cam.fx
@@ -92,7 +114,6 @@ class LandmarkMethodSource:
     def measure(self, inp, k, filt):
         """(selected, results, FilterMeasurement or None) of image k at the filter's a-priori pose."""
         from renderlab.measurement.runner import _frame_record, run_method_on_image
-        from renderlab.studies.descent_navigation.loop import select_landmarks
 
         fr = _frame_record(inp.ts, k)
         x, P = filt.x, filt.P
@@ -145,7 +166,6 @@ class GeometricSource:
 
     def measure(self, inp, k, filt):
         """(selected, results, FilterMeasurement or None) of image k: eq. G1 at the selected landmarks."""
-        from renderlab.studies.descent_navigation.loop import select_landmarks
 
         s, cam, x = self.spec, inp.cameras[k], filt.x
         pose = CameraPose(inp.R_star[k], x[:3])
