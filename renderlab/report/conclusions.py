@@ -25,7 +25,7 @@ CRLB_CAVEAT = ("The registration CRLB bounds only the noise-driven spread of a s
                "here (finite differences of the sampled pixels, over the full search window) it is good to about "
                "±30 %: the sampled-pixel gradients make it 35–43 % too large on sub-pixel texture (the ratio reads "
                "too small), the window larger than the estimator's makes it ≈ 1.28× too small (the ratio reads too "
-               "large); a ratio of 2 means about 1.6–2.8.")
+               "large); a ratio of 2 means between about 1.6 and 2.9.")
 
 
 def times(x: float) -> str:
