@@ -159,7 +159,7 @@ class Renderer:
 
     def backend_for(self, spec: FrameSpec):
         """(backend, scene) for ``spec``; the scene is loaded only when the plan's scene key changes."""
-        from renderlab.pipeline import make_backend
+        from renderlab.pipeline.backend import make_backend
 
         key = self.plan.scene_key(spec)
         if self.backend is None or key != self._key:
