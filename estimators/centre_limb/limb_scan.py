@@ -167,7 +167,9 @@ def limb_points(frame, opts: LimbScanOptions, min_radius_px: float, min_points: 
     bg, sigma = common.background(np.asarray(frame.image, float), pred, margin)
     pts = scan_limb(frame, pred, opts, bg, sigma)
     diag = f"rays {pts.n_rays}, lit {pts.n_lit}, edges {len(pts.ideal)}"
-    if pts.n_lit == 0:
+    image = np.asarray(frame.image, float)
+    signal = float(np.nanmax(image)) - bg if np.any(np.isfinite(image)) else 0.0
+    if pts.n_lit == 0 or (len(pts.ideal) == 0 and not signal > opts.min_contrast_sigma * sigma):
         return pred, None, common.Estimate(reason=common.UNLIT, diagnostics=diag)
     if len(pts.ideal) < min_points:
         return pred, None, common.Estimate(reason=common.TOO_FEW_POINTS, diagnostics=diag,
