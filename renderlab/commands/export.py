@@ -12,7 +12,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--oem", metavar="FILE", help="CCSDS OEM (KVN) of the camera positions")
     p.add_argument("--aem", metavar="FILE", help="CCSDS AEM (KVN) of the camera attitude")
     p.add_argument("--epoch-utc", metavar="ISO", help="epoch of frame time 0 when the frames carry relative times only")
-    p.add_argument("--object-name", default="CAMERA", help="OBJECT_NAME of the messages")
+    p.add_argument("--object-name", help="OBJECT_NAME of the messages (default: the body the set was made for, "
+                   "e.g. the SPICE observer or the OEM's OBJECT_NAME, else CAMERA)")
     p.add_argument("--apriori", metavar="FILE", help="the a-priori JSON of the set's own DN images for "
                    "'renderlab measure --images' (format: docs/apriori_file.md)")
     p.add_argument("--apriori-sigma-pos-m", type=float, default=0.5, metavar="M",
@@ -74,7 +75,8 @@ def run(args) -> int:
     if args.apriori:
         raise UserError("write --apriori FILE on its own (not with --oem/--aem)")
     outs = [(flag, check_path(p, flag)) for flag, p in (("--oem", args.oem), ("--aem", args.aem)) if p]
-    kvn_text(args.object_name, "--object-name")
+    if args.object_name is not None:
+        kvn_text(args.object_name, "--object-name")
     if args.epoch_utc is not None:
         epoch_text(args.epoch_utc, "--epoch-utc")
     _check_outputs(outs, args.overwrite)

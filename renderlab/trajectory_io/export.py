@@ -1,7 +1,8 @@
 """A truth set's camera poses back to the user's tools: a :class:`PoseSeries`, an OEM and an AEM.
 
 Reads ``manifest.json`` directly (frame ``time_s``, ``pose.position_m``, ``pose.quat_render_from_cam_xyzw``,
-``render_frame.name``), so it needs neither the renderer nor the truth-set reader. Epochs: the first frame's
+``render_frame``: its ``name`` and the ``source_frame``/``source_center``/``source_object`` a file trajectory's set
+records; the Earth world's per-frame ``spacecraft`` GCRF states instead of its per-frame ENU tiles), so it needs neither the renderer nor the truth-set reader. Epochs: the first frame's
 ``epoch_utc`` when the manifest has one, else ``epoch_utc`` given here (the epoch of ``time_s = 0``), else the
 scenario's ``trajectory.epoch_utc``; later frames follow by their ``time_s`` (TDB seconds, as everywhere in
 :mod:`renderlab.trajectory_io`). Without an epoch the series keeps relative times (CCSDS needs one).
@@ -71,24 +72,66 @@ def truthset_pose_series(folder, epoch_utc: str | None = None) -> PoseSeries:
             epoch0 = parse_epoch(given, "UTC", "epoch_utc").plus(times[0])
     if epoch0 is not None:
         times = times - times[0]
-    frame = (m.get("render_frame") or {}).get("name") or "SCENE"
-    return PoseSeries(times_s=times, positions_m=pos, quat_xyzw=quat, frame=frame, epoch0=epoch0,
-                      source=Path(folder).name, attitude_frame="CAMERA",
+    names, vel = _names(m), None
+    inertial = _inertial_states(frames, folder)
+    if inertial is not None:
+        pos, vel, quat, names = inertial
+    return PoseSeries(times_s=times, positions_m=pos, quat_xyzw=quat, frame=names["frame"], epoch0=epoch0,
+                      velocities_m_s=vel, source=Path(folder).name, attitude_frame="CAMERA",
+                      object_name=names.get("object"), center_name=names.get("center"),
                       labels=tuple(f"frame {f.get('index', i)}" for i, f in enumerate(frames)))
 
 
-def export_truthset(folder, *, oem=None, aem=None, epoch_utc: str | None = None, object_name: str = "CAMERA",
-                    center_name: str = "ORIGIN", **kwargs) -> PoseSeries:
+def _names(m: dict) -> dict:
+    """The frame, origin and camera body the set was made in: the render frame's ``source_*`` names (a file
+    trajectory in the analytic world), else the scenario's SPICE/CCSDS names, else the render frame's name."""
+    rf = m.get("render_frame") if isinstance(m.get("render_frame"), dict) else {}
+    traj = ((m.get("scenario") or {}).get("trajectory") or {})
+    names = {"frame": rf.get("name") or "SCENE"}
+    if rf.get("name", "SCENE") == "SCENE" and traj.get("kind") in ("spice", "ccsds", "table"):
+        names.update({k: traj[key] for k, key in (("frame", "frame"), ("center", "center"), ("object", "observer"))
+                      if isinstance(traj.get(key), str) and traj[key]})
+    names.update({k: rf[f"source_{k}"] for k in ("frame", "center", "object") if isinstance(rf.get(f"source_{k}"), str)})
+    return names
+
+
+def _inertial_states(frames: list, folder):
+    """Earth-world frames (a per-frame ENU tile as render frame): the true GCRF states and attitude from each frame's
+    ``spacecraft`` record, ``(r, v, q_eci_from_cam, names)``; None for other worlds."""
+    from scipy.spatial.transform import Rotation
+
+    if not all(isinstance(f.get("spacecraft"), dict) and "r_eci_m" in f["spacecraft"] for f in frames):
+        return None
+    try:
+        sc = [f["spacecraft"] for f in frames]
+        r = np.array([s["r_eci_m"] for s in sc], float).reshape(len(sc), 3)
+        v = np.array([s["v_eci_mps"] for s in sc], float).reshape(len(sc), 3)
+        M = np.array([s["R_ecef_from_eci"] for s in sc], float).reshape(len(sc), 3, 3)
+        R_ecef_cam = Rotation.from_quat(np.array([s["quat_ecef_from_cam_xyzw"] for s in sc], float)).as_matrix()
+    except (KeyError, TypeError, ValueError) as err:
+        raise UserError(f"{shown(folder)}: a frame's spacecraft record is unusable ({short(str(err))})") from None
+    q = Rotation.from_matrix(np.einsum("nji,njk->nik", M, R_ecef_cam)).as_quat()
+    frame = (frames[0].get("frames") or {}).get("inertial") or "GCRF"
+    return r, v, q, {"frame": frame, "center": "EARTH"}
+
+
+def export_truthset(folder, *, oem=None, aem=None, epoch_utc: str | None = None, object_name: str | None = None,
+                    center_name: str | None = None, **kwargs) -> PoseSeries:
     """Write a truth set's camera poses as a KVN OEM and/or AEM (paths ``oem``, ``aem``); returns the series.
 
-    ``kwargs`` go to :func:`~renderlab.trajectory_io.ccsds.write_oem` / ``write_aem`` (``time_system``,
-    ``creation_date``, ``originator``, …; AEM-only ``attitude_dir``/``quaternion_type``).
+    The messages keep the names the set was made in (:func:`truthset_pose_series`): ``REF_FRAME`` the trajectory's
+    frame (a SPICE or OEM frame, ``GCRF`` for the Earth world, else the render frame's name), ``CENTER_NAME`` its
+    origin (default ``ORIGIN`` when the set has none), ``OBJECT_NAME`` the camera's body (default ``CAMERA``);
+    ``object_name`` / ``center_name`` override them. ``kwargs`` go to :func:`~renderlab.trajectory_io.ccsds.
+    write_oem` / ``write_aem`` (``time_system``, ``creation_date``, ``originator``, …; AEM-only
+    ``attitude_dir``/``quaternion_type``).
     """
     from renderlab.trajectory_io.ccsds import write_aem, write_oem
 
-    object_name = kvn_text(object_name, "--object-name")
-    center_name = kvn_text(center_name, "center name")
     series = truthset_pose_series(folder, epoch_utc)
+    object_name = kvn_text(object_name or series.object_name or "CAMERA", "--object-name")
+    center_name = kvn_text(center_name or series.center_name or "ORIGIN", "center name")
+    kvn_text(series.frame, "the set's frame name")
     if series.epoch0 is None and (oem or aem):
         raise UserError(f"{folder}: frames have relative times only; give epoch_utc to write CCSDS messages")
     aem_only = {"attitude_dir", "quaternion_type", "camera_frame"}

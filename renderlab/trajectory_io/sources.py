@@ -199,3 +199,18 @@ def spice_sun(traj, base_dir=None) -> np.ndarray:
     return read_spice_sun(kernels, observer=traj.observer, center=traj.center, frame=traj.frame,
                           epoch_utc=traj.epoch_utc, times_s=np.asarray(traj.frame_times(), float),
                           aberration=traj.aberration)
+
+
+def source_names(traj, base_dir=None) -> dict[str, str]:
+    """The names the user's files give the trajectory's frame, its origin and the camera's body, for a truth set's
+    manifest (``renderlab export`` writes them back): ``frame`` (OEM ``REF_FRAME``, SPICE ``frame``, a table's
+    ``trajectory.frame``), ``center`` (OEM ``CENTER_NAME``, SPICE ``center``), ``object`` (OEM ``OBJECT_NAME``,
+    SPICE ``observer``); a name the source does not give is left out."""
+    names = {"frame": traj.frame, "center": traj.center if traj.kind != "table" else None,
+             "object": traj.observer if traj.kind != "table" else None}
+    if traj.kind == "ccsds":
+        from renderlab.trajectory_io.ccsds import read_oem
+
+        oem = read_oem(resolve(base_dir, traj.oem, "oem"))
+        names = {"frame": oem.frame, "center": oem.center_name, "object": oem.object_name}
+    return {k: str(v) for k, v in names.items() if v}

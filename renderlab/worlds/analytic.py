@@ -114,10 +114,17 @@ def spice_suns(scenario, base_dir, frames: list) -> list:
 
 def make_plan(scenario, base_dir: Path):
     """World plan of an analytic scenario: one static scene, frames from ``trajectory`` (line/orbit/files); the sun
-    of ``[sun]``, or of the SPICE kernels per frame with ``sun.source = "spice"`` (:func:`spice_suns`)."""
+    of ``[sun]``, or of the SPICE kernels per frame with ``sun.source = "spice"`` (:func:`spice_suns`). With a file
+    trajectory the scene frame is the files' frame: the render frame records the names the files give it, its origin
+    and the camera body (``source_frame``, ``source_center``, ``source_object``; ``renderlab export`` keeps them)."""
     from renderlab.worlds.base import WorldPlan, frame_specs
 
     frames = frame_specs(scenario, base_dir)
     if getattr(scenario.sun, "source", "direction") == "spice":
         frames = spice_suns(scenario, base_dir, frames)
-    return WorldPlan(frames=frames, render_frame={"name": "SCENE"}, static_scene=build_scene(scenario.world, base_dir))
+    render_frame = {"name": "SCENE"}
+    if scenario.trajectory.kind in ("table", "ccsds", "spice"):  # the scene frame is the files' frame: keep names
+        from renderlab.trajectory_io.sources import source_names
+
+        render_frame.update({f"source_{k}": v for k, v in source_names(scenario.trajectory, base_dir).items()})
+    return WorldPlan(frames=frames, render_frame=render_frame, static_scene=build_scene(scenario.world, base_dir))
