@@ -312,9 +312,10 @@ class DaskExecutor:
     A scheduler is probed first (:func:`probe_scheduler`: connect and first answer within
     ``connect_timeout_s``); ``security`` (``distributed.security.Security``) is for tls:// addresses. Dask's
     protocol pickles: a scheduler can run code in this process, so connect only to one you trust. Local
-    workers start with SIGINT/SIGHUP ignored (the driver handles them and closes the cluster), their scheduler's
-HTTP endpoint on a free port of 127.0.0.1 (no dashboard), and keep
-    their scratch space under ``$DASK_TEMPORARY_DIRECTORY`` (the lab cache).
+    workers start with SIGINT/SIGHUP ignored (the driver handles them and closes the cluster), scheduler, workers
+    and the scheduler's HTTP endpoint listen on 127.0.0.1 only (no dashboard), and keep their scratch space under
+    ``$DASK_TEMPORARY_DIRECTORY`` (the lab cache). The local cluster is single-user: Dask offers no authentication
+    for it short of TLS certificates, so a local user of a shared host could submit work while it runs (README).
     """
 
     name = "dask"
@@ -352,7 +353,7 @@ HTTP endpoint on a free port of 127.0.0.1 (no dashboard), and keep
             _quiet_resource_tracker()
             with ignored_in_children():
                 self._cluster = LocalCluster(n_workers=self.workers, threads_per_worker=1, processes=True,
-                                             dashboard_address=None, silence_logs=logging.CRITICAL,
+                                             host="127.0.0.1", dashboard_address=None, silence_logs=logging.CRITICAL,
                                              scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                              env=thread_env(self.threads_per_run), local_directory=scratch)
                 self._client = Client(self._cluster)

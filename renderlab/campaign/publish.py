@@ -36,20 +36,20 @@ def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
     (:func:`write_published`; other files of ``out_dir`` — README, report — are kept). Returns ``out_dir``."""
     from renderlab.campaign import store
 
+    loaded = store.finished_campaign(Path(campaign_dir), "publish")  # validated before anything is created
     with store.staged_folder(Path(out_dir), "the published study") as stage:
-        write_published(campaign_dir, stage, Path(out_dir))
+        write_published(campaign_dir, stage, Path(out_dir), loaded)
     return Path(out_dir)
 
 
-def write_published(campaign_dir: Path, stage: Path, out_dir: Path) -> None:
-    """Write the published files of ``campaign_dir`` into the folder ``stage``, which becomes ``out_dir``
-    (``scenario_dir`` is made relative to ``out_dir``: the published files hold no absolute path)."""
+def write_published(campaign_dir: Path, stage: Path, out_dir: Path, loaded: tuple) -> None:
+    """Write the published files of ``campaign_dir`` (``loaded``: its :func:`renderlab.campaign.store.
+    finished_campaign`) into the folder ``stage``, which becomes ``out_dir`` (``scenario_dir`` is made relative to
+    ``out_dir``: the published files hold no absolute path)."""
     import pyarrow.parquet as pq
 
-    from renderlab.campaign import store
-
     src, out = Path(campaign_dir), Path(out_dir)
-    manifest, tables, statuses = store.finished_campaign(src, "publish")
+    manifest, tables, statuses = loaded
     (stage / TABLES).mkdir()
     for name, t in sorted(tables.items()):
         pq.write_table(t, str(stage / TABLES / f"{name}.parquet"), compression="zstd", compression_level=9)

@@ -39,15 +39,44 @@ def _result_folder_kind(folder: Path):
     return None
 
 
-def run(args) -> int:
-    from renderlab.campaign.publish import publish_campaign
+def shown_as(out: Path) -> str:
+    """How the published folder is named in its own report (no absolute path): as typed when relative, else relative
+    to the current folder when inside it, else by its name (the command run from its parent folder)."""
+    import os
+
+    if not out.is_absolute():
+        return out.as_posix()
+    rel = os.path.relpath(out.resolve(), Path.cwd().resolve())
+    return Path(rel).as_posix() if not rel.startswith("..") else out.name
+
+
+def _publish(src: Path, out: Path) -> int:
+    """``renderlab publish``: the tables and the report written into one stage, renamed into ``out`` together (an
+    interrupted publish leaves no study without its report); the report names the folder as :func:`shown_as`."""
+    from markupsafe import escape
+
+    from renderlab.campaign import store
+    from renderlab.campaign.publish import write_published
     from renderlab.report.campaign_report import make_report
 
+    loaded = store.finished_campaign(src, "publish")  # validated before anything is created
+    name = shown_as(out)
+    with store.staged_folder(out, "the published study") as stage:
+        write_published(src, stage, out, loaded)
+        make_report(stage, stage / "report")
+        for f in (stage / "report").iterdir():  # the stage's name → the study folder's, in the page and README
+            if f.suffix in (".md", ".html") and f.is_file():
+                text = f.read_text(encoding="utf-8")
+                for old, new in ((stage.as_posix(), name), (str(escape(stage.as_posix())), str(escape(name)))):
+                    text = text.replace(old, new)
+                f.write_text(text, encoding="utf-8")
+    print(f"renderlab: published {out} (tables/, campaign.json, runs.json); report {out / 'report' / 'index.html'}")
+    return 0
+
+
+def run(args) -> int:
     if getattr(args, "publish", False):
-        out = publish_campaign(Path(args.campaign), Path(args.out))
-        page = make_report(out, out / "report")
-        print(f"renderlab: published {out} (tables/, campaign.json, runs.json); report {page}")
-        return 0
+        return _publish(Path(args.campaign), Path(args.out))
     if getattr(args, "tables_only", False):
         from renderlab.contracts.result_folder import tables_only
 
