@@ -5,7 +5,9 @@ MRP → DCM (``MRP2C``): a planet-fixed point goes to inertial by ``J20002Pfix``
 camera by ``C(σ_CB)`` about the camera position ``cameraPos_B``, and to a pixel by the square-pixel pinhole of
 ``CameraConfigMsgPayload`` (``fieldOfView`` edge to edge along y) with the principal point that
 ``pixelLineConverter`` removes (``u − W/2 + 0.5``). The lab projects the same point with its own camera model from the
-pose ``frames.camera_pose`` builds. Skipped outside CI without Basilisk; in CI (``CI=true``) a missing Basilisk fails.
+pose ``frames.camera_pose`` builds. Positions are drawn at the scale of an orbit about the planet (a central-body
+frame, as Basilisk's OpNav scenarios use); heliocentric coordinates (~2e11 m) carry ε·|r| ≈ 2e-5 m of float64
+rounding in either chain. Skipped outside CI without Basilisk; in CI (``CI=true``) a missing Basilisk fails.
 """
 
 from __future__ import annotations
