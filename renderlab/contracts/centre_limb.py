@@ -7,8 +7,8 @@ frame). It returns one :class:`CentreLimbResult`: the projected body centre (px)
 as far as the method measures them, the limb ellipse (centre, semi-axes, angle), the limb points it used, the
 camera-to-body vector and range, their covariances, and a :class:`CentreLimbReason`.
 
-Truth for the kind is the ``centre_truth`` table of the ``planet`` world (:data:`renderlab.contracts.schemas.CENTRE_TRUTH`):
-projected body centre, centre of the true limb conic (off-axis it is not the projected centre,
+Truth for the kind is the ``centre_truth`` table of the ``planet`` world
+(:data:`renderlab.contracts.schemas.CENTRE_TRUTH`): projected body centre, centre of the true limb conic (off-axis it is not the projected centre,
 :mod:`renderlab.geometry.conic`), its semi-axes and angle, range and line of sight.
 
 Rules every method obeys (checked by :func:`renderlab.measurement.conformance_centre_limb.check_centre_limb_method`):

@@ -1,7 +1,7 @@
 """Observable kinds as data: what a kind of measurement is made of, so a later step can register kinds.
 
-The lab's first three kinds (``landmark``, ``filter``, ``pose``) are spelled out where they are used (the reason enums of
-:mod:`.reasons`, the table schemas of :mod:`.schemas`, the report dispatch, the executor, the command-line plug-in
+The lab's first three kinds (``landmark``, ``filter``, ``pose``) are spelled out where they are used (the reason enums
+of :mod:`.reasons`, the table schemas of :mod:`.schemas`, the report dispatch, the executor, the command-line plug-in
 registration). A new kind is instead described by one :class:`ObservableKind` object that carries every part the lab
 needs, by value or as a lazy ``"module:attr"`` reference (so the contracts stay free of pyarrow and of the estimators):
 

@@ -2,11 +2,11 @@
 limb truth is computed from.
 
 * Equal semi-axes: the renderer's analytic sphere (exact limb).
-* A spheroid or triaxial ellipsoid: an icosphere of ``mesh_level`` mapped onto the ellipsoid (``p = diag(a, b, c)·u``)
-  with the ellipsoid's exact normals at the vertices (smooth shading). An inscribed polyhedron's outline lies inside
-  the surface (by ``R(1 − cos φ)`` at an angle ``φ`` from a vertex along an edge of angle ``Δ``); the vertices are pushed
-  out by the mean of that deficit over the edges, so the rendered limb ripples about the true one by about
-  ``±R·Δ²/16`` (:func:`mesh_limb_ripple`) instead of lying inside it.
+* A spheroid or triaxial ellipsoid: an icosphere of ``mesh_level`` mapped onto the ellipsoid
+  (``p = diag(a, b, c)·u``) with the ellipsoid's exact normals at the vertices (smooth shading). An inscribed
+  polyhedron's outline lies inside the surface (its edges' chords dip below it); the vertices are pushed out by the
+  mean dip over the edges, so the rendered limb ripples about the true one by about ``±R·Δ²/16`` (Δ the edge angle;
+  :func:`mesh_limb_ripple`: ±6.7e-6 R at level 7) instead of lying inside it.
 * ``ev5``: the ``ev5`` world's procedural global shape (Busch et al. 2011) for ``ev5_seed`` and ``ev5_facet_m``, with its
   relative albedo; its limb is not a conic, and its truth is that of the *equivalent ellipsoid* (same volume, centre
   and second moments of volume, uniform density), the body model an onboard system would carry.

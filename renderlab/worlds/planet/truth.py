@@ -5,7 +5,8 @@ Geometry (:mod:`renderlab.geometry.conic`): with ``R`` = R_render_from_cam, the 
 ``Rᵀ A R``; the limb cone ``M`` (eq. 1 there) and, through the camera's pinhole map ``K``, the limb conic ``C``
 (eq. 2), whose centre, semi-axes and angle (eqs. 3–4) fill the ``limb_*`` columns. The projected centre uses the full
 camera model (distortion included); the conic is that of the distortion-free pinhole ``K`` (a distorted limb is no
-conic), the frame the onboard methods fit in after undistorting. Columns: :data:`renderlab.contracts.schemas.CENTRE_TRUTH`.
+conic), the frame the onboard methods fit in after undistorting. Columns:
+:data:`renderlab.contracts.schemas.CENTRE_TRUTH`.
 A body behind the camera, or one whose limb cone crosses the camera plane (no ellipse in the image), has NaN limb
 columns and ``limb_in_image`` false.
 """
