@@ -2,8 +2,8 @@ r"""Gravitation of a constant-density closed triangle mesh: potential, attractio
 
 R. A. Werner & D. J. Scheeres, "Exterior gravitation of a polyhedron derived and compared with harmonic and mascon
 gravitation representations of asteroid 4769 Castalia", Celestial Mechanics and Dynamical Astronomy 65, 313–344
-(1997), doi:10.1007/BF00053511 (WS97), section 2 ("Polyhedron gravitation"). With Gσ = G·ρ (density ρ), for a field
-point P:
+(1997), doi:10.1007/BF00053511 (WS97). With Gσ = G·ρ (density ρ), for a field point P (the equation labels P1–P7
+are this module's; WS97 number the same expressions in their own sequence):
 
 .. math::
 
