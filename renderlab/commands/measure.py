@@ -45,6 +45,36 @@ def add_parser(subparsers) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+#: upper bounds of measure's number flags (physical ranges: a search of 4096 px, 1e6 m of a-priori position error)
+FLAG_LIMITS = {"sigma_pos_m": 1e6, "sigma_att_deg": 180.0, "n_sigma": 100.0, "psf_sigma_px": 1000.0,
+               "max_search_px": 4096}
+
+
+def read_checked_catalog(folder):
+    """The maplets of a catalogue folder (:func:`renderlab.worlds.ev5.catalog.read_catalog`) with its table's schema
+    (:data:`renderlab.contracts.schemas.LANDMARK_CATALOG`) checked first and every centre finite and bounded."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from renderlab.contracts.file_models import POSITION_MAX_M
+    from renderlab.contracts.schemas import LANDMARK_CATALOG, read_parquet
+    from renderlab.errors import UserError
+    from renderlab.inputs import shown
+    from renderlab.worlds.ev5.catalog import read_catalog
+
+    table_path = Path(folder) / "landmarks.parquet"
+    if table_path.exists() or table_path.is_symlink():
+        read_parquet(table_path, f"landmark catalogue {shown(table_path)}", schema=LANDMARK_CATALOG)
+    maplets = read_catalog(Path(folder))
+    for m in maplets:
+        c = np.asarray(m.center_m, float)
+        if not (np.all(np.isfinite(c)) and np.all(np.abs(c) <= POSITION_MAX_M)):
+            raise UserError(f"landmark catalogue {shown(table_path)}: landmark {m.landmark_id} has a centre that is "
+                            "not finite or not physical")
+    return maplets
+
+
 def run(args) -> int:
     from pathlib import Path
 
@@ -61,10 +91,12 @@ def run(args) -> int:
 
         if args.peak not in FINDERS:
             raise UserError(f"--peak: unknown peak finder {args.peak!r} (choose from {', '.join(FINDERS)})")
-    for name in ("sigma_pos_m", "sigma_att_deg", "n_sigma", "psf_sigma_px"):
+    for name, hi in FLAG_LIMITS.items():
         v = getattr(args, name)
-        if not math.isfinite(v) or v < 0:
-            raise UserError(f"--{name.replace('_', '-')} must be a finite non-negative number, got {v}")
+        if not math.isfinite(v) or not 0 <= v <= hi:
+            raise UserError(f"--{name.replace('_', '-')} must be a finite number in 0..{hi:g}, got {v:g}")
+    if not -1.0 <= args.min_correlation <= 1.0:
+        raise UserError(f"--min-correlation must be in -1..1, got {args.min_correlation:g}")
     opts = MeasureOptions(sigma_pos_m=(args.sigma_pos_m,) * 3, sigma_att_rad=(math.radians(args.sigma_att_deg),) * 3,
                           n_sigma=args.n_sigma, max_search_px=args.max_search_px, peak=args.peak,
                           min_correlation=args.min_correlation, psf_sigma_px=args.psf_sigma_px,
@@ -82,10 +114,10 @@ def run(args) -> int:
         raise UserError(f"truth set {ts.path} has no landmark catalog (landmarks.parquet); "
                         "measure needs an EV5 truth set")
     try:
-        from renderlab.worlds.ev5.catalog import read_catalog
+        import renderlab.worlds.ev5.catalog  # noqa: F401  (the catalogue reader is installed)
     except ImportError:
         raise UserError("the EV5 catalog reader (renderlab.worlds.ev5.catalog) is not installed") from None
-    maplets = read_catalog(ts.path)
+    maplets = read_checked_catalog(ts.path)
     out = Path(args.out) if args.out else ts.path.parent / f"{ts.path.name}_{method.name}.parquet"
     if out.exists() and not args.overwrite:
         raise UserError(f"output {out} exists (use --overwrite to replace it)")
@@ -149,8 +181,8 @@ def _run_images(args, opts) -> int:
     from renderlab.errors import UserError
     from renderlab.measurement.apriori import check_frame
     from renderlab.measurement.images import measure_images, read_apriori
+    from renderlab.inputs import LIMITS, check_regular
     from renderlab.measurement.runner import write_table
-    from renderlab.worlds.ev5.catalog import read_catalog
 
     if args.truthset is not None:
         raise UserError("give either TRUTHSET or --images, not both")
@@ -159,9 +191,10 @@ def _run_images(args, opts) -> int:
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise UserError(f"output {out} exists (use --overwrite to replace it)")
+    check_regular(Path(args.images), "a-priori file", LIMITS["json"])  # no FIFO, no device, bounded size
     _, _, frame, _ = read_apriori(Path(args.images))  # validated before anything else is read
     check_frame(frame, Path(args.catalog), Path(args.images).name)
-    maplets = read_catalog(Path(args.catalog))
+    maplets = read_checked_catalog(Path(args.catalog))
     table = measure_images(Path(args.images), maplets, args.method, opts, allow_reference=True, progress=not args.quiet)
     write_table(table, out, overwrite=args.overwrite)
     print(f"renderlab: {table.num_rows} measurements of {Path(args.images).name}'s images -> {out}")
