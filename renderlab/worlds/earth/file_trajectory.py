@@ -63,7 +63,7 @@ def _checked(traj, base_dir):
 
 
 def file_orbit(scenario, base_dir):
-    """The frames of a file trajectory as a :class:`~renderlab.worlds.earth.plan.FrameOrbit` (module docstring).
+    """The frames of a file trajectory as a :class:`~renderlab.worlds.earth.frame_orbit.FrameOrbit` (module docstring).
 
     Raises
     ------
@@ -73,7 +73,7 @@ def file_orbit(scenario, base_dir):
     from renderlab.dynamics.orbits import nadir_attitude
     from renderlab.geometry.camera import CameraModel
     from renderlab.worlds.earth import orientation
-    from renderlab.worlds.earth.plan import FrameOrbit
+    from renderlab.worlds.earth.frame_orbit import FrameOrbit
 
     traj = scenario.trajectory
     fp, frame = _checked(traj, base_dir)

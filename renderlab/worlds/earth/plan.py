@@ -33,6 +33,7 @@ from renderlab.worlds.earth import orientation
 from renderlab.worlds.earth import sun as sunmod
 from renderlab.worlds.earth import tiles, wgs84
 from renderlab.worlds.earth.clouds import CloudField
+from renderlab.worlds.earth.frame_orbit import FrameOrbit
 
 GROUND_ID, CLOUD_ID = 0, 1
 FRAMES = {"inertial": "GCRF", "earth_fixed": "ITRF", "render": "ENU_TILE", "camera": "CAMERA",
@@ -58,26 +59,6 @@ def truth_orbit(tr, epoch, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         x = propagate(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), j2=True)[1:]
         return x[:, :3], x[:, 3:]
     return el.state(t)
-
-
-@dataclass(frozen=True)
-class FrameOrbit:
-    """The spacecraft of every frame, whatever the trajectory: GCRF state, true attitude, what the star tracker
-    reports, the epochs and Earth orientation (the ``leo`` orbit: :func:`leo_orbit`; a file trajectory:
-    :func:`renderlab.worlds.earth.file_trajectory.file_orbit`)."""
-
-    camera: CameraModel
-    epoch: object                 # datetime (UTC) of elapsed time 0
-    time_s: np.ndarray            # (N,) frame times on the trajectory's axis
-    elapsed_s: np.ndarray         # (N,) SI seconds after ``epoch`` (Earth orientation, sun)
-    epochs_utc: list              # (N,) ISO UTC of each frame (the manifest's epoch_utc)
-    r_eci: np.ndarray             # (N, 3) GCRF position, m
-    v_eci: np.ndarray             # (N, 3) GCRF velocity, m/s
-    R_eci_from_cam: np.ndarray    # (N, 3, 3) true attitude
-    R_eci_from_cam_st: np.ndarray  # (N, 3, 3) the star tracker's
-    eo: object                    # orientation.EarthOrientation at the frame epochs
-    model: str                    # the manifest's truth_orbit_model
-    star_tracker_sigma_arcsec: float
 
 
 def leo_orbit(scenario) -> FrameOrbit:

@@ -31,11 +31,11 @@ FRAMES = {"LVLH": ("LVLH", "RTN", "RSW", "RIC")}
 
 
 def file_truth(scenario, base_dir, features_body):
-    """The :class:`~renderlab.worlds.microsat.plan.SeparationTruth` of a file trajectory (module docstring): the
+    """The :class:`~renderlab.worlds.microsat.truth.SeparationTruth` of a file trajectory (module docstring): the
     files read once (:func:`renderlab.trajectory_io.sources.frame_poses`), their frame checked."""
     from renderlab.trajectory_io.sources import frame_poses
     from renderlab.worlds.microsat.config import MicrosatTumble
-    from renderlab.worlds.microsat.plan import SeparationTruth
+    from renderlab.worlds.microsat.truth import SeparationTruth
 
     traj, world = scenario.trajectory, scenario.world
     fp = frame_poses(traj, base_dir, velocities=True)

@@ -34,28 +34,7 @@ from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, SceneDesc
 from renderlab.worlds.base import WorldPlan
 
 from .model import KNOB_ID0, PART_IDS, build_parts
-
-
-@dataclass
-class SeparationTruth:
-    """True states at the frame times (LVLH / body frames, SI)."""
-
-    times_s: np.ndarray          # (N,)
-    rv_lvlh: np.ndarray          # (N, 6) target CM relative to chaser CM
-    quat_lvlh_from_body: np.ndarray  # (N, 4) xyzw
-    omega_body: np.ndarray       # (N, 3) rad/s, absolute
-    inertia: np.ndarray          # (3,)
-    n: float                     # mean motion, rad/s
-    camera_offset_lvlh: np.ndarray
-    R_lvlh_from_cam: np.ndarray  # (3, 3), or (N, 3, 3) for a file trajectory
-    sun_lvlh: np.ndarray         # (N, 3)
-    features_body: np.ndarray    # (M, 3)
-    epochs_utc: list | None = None  # ISO UTC of each frame (a file trajectory with epochs)
-
-    def R_lc(self, k: int) -> np.ndarray:
-        """``R_lvlh_from_cam`` of frame k."""
-        R = np.asarray(self.R_lvlh_from_cam)
-        return R if R.ndim == 2 else R[k]
+from .truth import SeparationTruth
 
 
 def separation_truth(scenario, features_body: np.ndarray) -> SeparationTruth:
