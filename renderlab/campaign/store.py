@@ -220,10 +220,16 @@ def run_statuses(campaign_dir: Path) -> list[dict]:
 def finished_campaign(campaign_dir: Path, purpose: str) -> tuple[dict, dict, list[dict]]:
     """(manifest, tables, run statuses) of a campaign or published study folder that has finished runs;
     UserError (``no finished runs to <purpose>``) otherwise."""
+    from renderlab.contracts.schemas import expected_kind
+
     manifest = read_manifest(campaign_dir)
     tables = load_tables(campaign_dir)
     if not tables:
-        raise UserError(f"campaign {campaign_dir} has no finished runs to {purpose}")
+        raise UserError(f"campaign {shown(campaign_dir)} has no finished runs to {purpose}")
+    empty = [n for n, t in sorted(tables.items()) if t.num_rows == 0 and expected_kind(n, t) != "other"]
+    if empty:
+        raise UserError(f"campaign {shown(campaign_dir)}: the {empty[0]} table has no rows in any run; nothing to "
+                        f"{purpose}")
     return manifest, tables, run_statuses(campaign_dir)
 
 

@@ -45,11 +45,15 @@ def disk_usage(folder: Path) -> tuple[int, int]:
 
 
 def _rows(path: Path) -> int | None:
+    """Rows a Parquet footer states, or None when the file is unreadable (or not a regular file: never opened)."""
     import pyarrow.parquet as pq
 
+    from renderlab.inputs import LIMITS, check_regular
+
     try:
+        check_regular(path, "table", LIMITS["table"])
         return pq.read_metadata(str(path)).num_rows
-    except (OSError, ValueError):
+    except (OSError, ValueError, UserError):
         return None
 
 

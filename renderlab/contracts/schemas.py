@@ -214,7 +214,7 @@ def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: in
     from renderlab.errors import UserError
 
     limit = LIMITS["table"] if limit is None else limit
-    fd, _ = open_regular(path, where, limit)  # a regular file of bounded size (then read by name: pyarrow's own I/O)
+    fd, _ = open_regular(path, "table", limit)  # a regular file of bounded size (then read by name: pyarrow's I/O)
     os.close(fd)
     try:
         pf = pq.ParquetFile(os.fspath(path))
