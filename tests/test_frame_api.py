@@ -177,13 +177,14 @@ def test_outputs_subset_and_spp_override():
     assert abs(float(f.radiance.mean()) / float(g.radiance.mean()) - 1) < 0.05
 
 
-def test_auto_exposure_is_chosen_per_frame_and_saturation_recorded():
-    """sensor.auto_exposure: each frame's exposure is exposure_for_peak of its own radiance (the documented behaviour;
-    the former code kept frame 0's for every frame), and each record counts its saturated pixels."""
+def test_auto_exposure_per_frame_and_saturation_recorded():
+    """sensor.auto_exposure = "per_frame": each frame's exposure is exposure_for_peak of its own radiance (the former
+    code documented this and silently kept frame 0's), and each record counts its saturated pixels."""
     from renderlab import Renderer
     from renderlab.sensor import exposure_for_peak
 
-    with Renderer(ANALYTIC, overrides=SMALL + ["trajectory.azimuth_end_deg=120"]) as r:
+    with Renderer(ANALYTIC, overrides=SMALL + ["trajectory.azimuth_end_deg=120",
+                                               'sensor.auto_exposure="per_frame"']) as r:
         frames = [r.frame(k) for k in range(r.n_frames)]
         want = [exposure_for_peak(f.radiance, r.options, fraction=r.scenario.sensor.auto_exposure_fraction)
                 for f in frames]
@@ -206,13 +207,13 @@ def test_a_world_whose_scene_follows_the_planned_pose_refuses_a_moved_camera():
         r.frame(0, pose=(p.position_m + 10.0, p.rotation))
 
 
-def test_first_frame_exposure_mode_keeps_the_first_frames_exposure(tmp_path):
-    """sensor.auto_exposure = "first_frame" re-makes the former behaviour: every frame of a truth set gets frame 0's."""
+def test_default_auto_exposure_keeps_the_first_frames_exposure(tmp_path):
+    """sensor.auto_exposure = true (documented now as it behaves): every frame of a truth set gets frame 0's."""
     from renderlab import Renderer
     from renderlab.sensor import exposure_for_peak
     from renderlab.truthset import TruthSet
 
-    sets = SMALL + ["trajectory.azimuth_end_deg=120", "sensor.auto_exposure=\"first_frame\""]
+    sets = SMALL + ["trajectory.azimuth_end_deg=120"]
     _cli_render(ANALYTIC, tmp_path / "ts", sets)
     ts = TruthSet.open(tmp_path / "ts")
     with Renderer(ANALYTIC, overrides=sets) as r:

@@ -211,7 +211,7 @@ def cached_frames_truthset(scenario, base_dir: Path, cache_root: Path, specs: li
 def render_frames(world, out_dir: Path, specs: list, *, note: dict | None = None) -> Path:
     """Render ``specs`` from ``world`` into a truth set at ``out_dir`` (written atomically) by the render loop of
     :func:`renderlab.pipeline.render_truthset` (:func:`renderlab.pipeline.write_frames`: same seeds,
-    auto-exposure per frame, sensor, files, the plan's metadata and truth tables) with the world's
+    auto-exposure on the first frame, sensor, files, the plan's metadata and truth tables) with the world's
     loaded renderer."""
     from renderlab.pipeline import write_frames
 

@@ -60,14 +60,14 @@ def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dic
                  overwrite: bool = False, progress: bool = False) -> Path:
     """The truth-set loop shared by :func:`render_truthset` and the per-pose truth cache
     (:func:`renderlab.campaign.cache.render_frames`): each frame spec and its ``SeedSequence`` through
-    :meth:`Renderer.render_spec <renderlab.pipeline.frame_api.Renderer.render_spec>` (auto-exposure per frame), and
+    :meth:`Renderer.render_spec <renderlab.pipeline.frame_api.Renderer.render_spec>` (auto-exposure on the set's first frame, or per frame), and
     the frame, the plan's metadata and truth tables and a contact sheet written into a truth set at ``out_dir``
     (staged: all or nothing); a warning names the frames with more than 1 % saturated pixels. ``head`` is the
     manifest's head."""
     from tqdm import tqdm
 
     plan = renderer.plan
-    renderer.reset_exposure()  # auto_exposure = "first_frame": this set's first frame
+    renderer.reset_exposure()  # auto_exposure = true: this set's first frame chooses it
     writer, rows, saturated = None, {}, []
     try:
         for spec, child in tqdm(list(zip(specs, seeds)), desc="render", unit="frame", disable=not progress):

@@ -24,12 +24,13 @@ tangent tile per footprint) declares ``scene_follows_pose`` and refuses a moved 
 spawns them), split into the sample pattern and the sensor noise; ``seed=`` gives another root. The sensor noise
 is keyed per pixel (:mod:`renderlab.sensor`), so two frames that differ in a few radiance pixels differ in those DN.
 
-**Exposure.** With ``sensor.auto_exposure`` every frame gets its own exposure time, chosen from its own radiance
-(:func:`renderlab.sensor.exposure_for_peak`: a high percentile of the mean charge at ``auto_exposure_fraction`` of
-full scale), as the scenario key says; otherwise ``sensor.exposure_s``. ``exposure_s=`` fixes it for one frame. Each
-frame's record carries the exposure and its count of saturated pixels (``sensor.saturated_px``).
-``auto_exposure = "first_frame"`` keeps the exposure of the first frame (of a truth set, or since
-:meth:`Renderer.reset_exposure`): the behaviour before, to re-make truth sets made with it.
+**Exposure.** With ``sensor.auto_exposure = true`` the exposure time is chosen on the first frame with DN (of a
+truth set, or since this renderer was made or :meth:`Renderer.reset_exposure`) and kept, like a camera whose
+exposure is set once per sequence (:func:`renderlab.sensor.exposure_for_peak`: a high percentile of the mean charge
+at ``auto_exposure_fraction`` of full scale); ``"per_frame"`` chooses it for every frame from its own radiance;
+``false`` uses ``sensor.exposure_s``; ``exposure_s=`` fixes it for one frame. Every frame's record carries its exposure
+and its count of saturated pixels (``sensor.saturated_px``), and a truth set warns about frames over 1 % saturated.
+To re-make frame k of a truth set alone, pass its manifest exposure (``exposure_s=``) or render frame 0 first.
 """
 
 from __future__ import annotations
@@ -144,7 +145,7 @@ class Renderer:
         self.plan = make_plan(self.scenario, self.base_dir)
         self._by_index = {s.index: k for k, s in enumerate(self.plan.frames)}
         self._key, self.scene, self.backend, self.loads = object(), None, None, 0
-        self._locked_exposure: float | None = None  # auto_exposure = "first_frame"
+        self._locked_exposure: float | None = None  # auto_exposure = true: the first frame's
 
     # ------------------------------------------------------------------ the world
     @property
@@ -203,7 +204,7 @@ class Renderer:
 
     # ------------------------------------------------------------------ frames
     def reset_exposure(self) -> None:
-        """With ``sensor.auto_exposure = "first_frame"``: the next frame with DN chooses the exposure again."""
+        """With ``sensor.auto_exposure = true``: the next frame with DN chooses the exposure again."""
         self._locked_exposure = None
 
     def frame(self, index: int | None = None, *, time_s: float | None = None, pose=None, sun=None, camera=None,
@@ -245,12 +246,12 @@ class Renderer:
             opts = self.options
             if exposure_s is not None:
                 opts = with_exposure(opts, _exposure(exposure_s))
-            elif self.scenario.sensor.auto_exposure:  # per frame, from the frame's own radiance
-                t = exposure_for_peak(lum, opts, fraction=self.scenario.sensor.auto_exposure_fraction)
-                if self.scenario.sensor.auto_exposure == "first_frame":  # locked on the set's first frame
-                    self._locked_exposure = t if self._locked_exposure is None else self._locked_exposure
-                    t = self._locked_exposure
-                opts = with_exposure(opts, t)
+            elif self.scenario.sensor.auto_exposure:
+                mode = self.scenario.sensor.auto_exposure
+                if mode == "per_frame" or self._locked_exposure is None:  # from this frame's own radiance
+                    t = exposure_for_peak(lum, opts, fraction=self.scenario.sensor.auto_exposure_fraction)
+                    self._locked_exposure = self._locked_exposure if mode == "per_frame" else t
+                opts = with_exposure(opts, t if mode == "per_frame" else self._locked_exposure)
             sensor = expose(lum, opts, np.random.default_rng(sensor_ss))
             out.dn, out.exposure_s = sensor.dn, float(opts.exposure_s)
             out.saturated_px = int(np.count_nonzero(sensor.saturated))

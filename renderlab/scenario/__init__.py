@@ -152,9 +152,9 @@ class SensorConfig(_Strict):
     """Sensor settings; keys other than ``auto_exposure`` are :class:`renderlab.sensor.SensorOptions` fields."""
 
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
-    auto_exposure: bool | Literal["first_frame"] = Field(True, description="Exposure per frame so the brightest "
-        "pixels reach auto_exposure_fraction of full scale (true); first_frame: a truth set's first frame's, kept (the "
-        "former behaviour, to re-make sets made with it); false: sensor.exposure_s")
+    auto_exposure: bool | Literal["per_frame"] = Field(True, description="Exposure chosen so the brightest pixels "
+        "reach auto_exposure_fraction of full scale: on a truth set's first frame and kept (true), or for every frame "
+        "from its own radiance (per_frame); false: sensor.exposure_s. Each frame records its saturated pixels")
     auto_exposure_fraction: Annotated[float, Field(gt=0, le=1)] = Field(0.8, description="Target of the "
                                                                         "auto-exposure, fraction of full scale")
 

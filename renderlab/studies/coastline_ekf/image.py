@@ -93,7 +93,7 @@ def _check_image_mode(scenario) -> None:
     if scenario.coastline.duration_s is not None:
         raise UserError("coastline.duration_s applies to mode 'geometric'; image mode renders trajectory.frames")
     if not scenario.sensor.auto_exposure:
-        raise UserError("coastline image mode needs sensor.auto_exposure = true (an exposure chosen per frame)")
+        raise UserError("coastline image mode needs sensor.auto_exposure = true (exposure from the first frame)")
 
 
 def _truth_set(scenario, base_dir, workdir):
