@@ -9,7 +9,8 @@
       report/                made by ``renderlab report RESULTS_DIR`` from the tables above alone
 
 :func:`renderlab.campaign.store.load_tables` and :func:`~renderlab.campaign.store.run_statuses` read this layout as
-they read a live campaign folder, so every report function works on both.
+they read a live campaign folder, so every report function works on both (the readers of the layout —
+``is_published``, ``load_published_tables``, ``published_statuses`` — live in the store; this module writes it).
 """
 
 from __future__ import annotations
@@ -18,24 +19,13 @@ import json
 import os
 from pathlib import Path
 
-from renderlab.inputs import shown
-from renderlab.errors import UserError
-
-TABLES = "tables"
-STATUSES = "runs.json"
-
-
-def is_published(folder: Path) -> bool:
-    """A published study folder (``tables/`` and ``runs.json`` beside ``campaign.json``, no ``runs/``)."""
-    d = Path(folder)
-    return (d / TABLES).is_dir() and (d / STATUSES).is_file() and not (d / "runs").is_dir()
-
+from renderlab.campaign import store
+from renderlab.campaign.store import (STATUSES, TABLES, is_published, load_published_tables,  # noqa: F401
+                                      published_statuses)  # the published layout is read by the store: re-exported
 
 def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
     """Write ``campaign.json``, ``runs.json`` and ``tables/`` of ``campaign_dir`` into ``out_dir`` through one stage
     (:func:`write_published`; other files of ``out_dir`` — README, report — are kept). Returns ``out_dir``."""
-    from renderlab.campaign import store
-
     loaded = store.finished_campaign(Path(campaign_dir), "publish")  # validated before anything is created
     with store.staged_folder(Path(out_dir), "the published study") as stage:
         write_published(campaign_dir, stage, Path(out_dir), loaded)
@@ -59,29 +49,3 @@ def write_published(campaign_dir: Path, stage: Path, out_dir: Path, loaded: tupl
     (stage / "campaign.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
     slim = [{k: s.get(k) for k in ("run", "status", "error", "seconds", "tables") if k in s} for s in statuses]
     (stage / STATUSES).write_text(json.dumps(slim, indent=1) + "\n", encoding="utf-8")
-
-
-def load_published_tables(folder: Path) -> dict:
-    """``{name: pyarrow.Table}`` of a published folder (names are plain identifiers inside ``tables/``; each table
-    checked as :func:`renderlab.campaign.store.read_run_table` checks a run's)."""
-    from renderlab.campaign.store import read_run_table
-
-    out = {}
-    for p in sorted((Path(folder) / TABLES).glob("*.parquet")):
-        if not p.stem.isidentifier() or p.is_symlink():
-            raise UserError(f"{shown(p)}: published table names must be plain identifiers (no links)")
-        out[p.stem] = read_run_table(p, p.stem)
-    return out
-
-
-def published_statuses(folder: Path) -> list[dict]:
-    """``runs.json``, validated (:data:`renderlab.contracts.file_models.RunStatuses`: each run once)."""
-    from renderlab.contracts.file_models import RunStatuses
-    from renderlab.inputs import read_checked
-
-    p = Path(folder) / STATUSES
-    data = read_checked(p, RunStatuses, "run statuses")
-    runs = [s["run"] for s in data]
-    if len(set(runs)) != len(runs):
-        raise UserError(f"run statuses {shown(p)}: a run is listed twice")
-    return data

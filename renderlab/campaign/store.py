@@ -162,11 +162,9 @@ def finished_runs(campaign_dir: Path, runs: int) -> list[int]:
 
 def load_tables(campaign_dir: Path) -> dict:
     """All finished runs' tables, concatenated per name in run order: ``{name: pyarrow.Table}``."""
-    from renderlab.campaign import publish
-
     m = read_manifest(campaign_dir)
-    if publish.is_published(campaign_dir):
-        return publish.load_published_tables(campaign_dir)
+    if is_published(campaign_dir):
+        return load_published_tables(campaign_dir)
     parts: dict[str, list] = {}
     for i in range(int(m["plan"]["runs"])):
         st = run_status(campaign_dir, i)
@@ -204,17 +202,50 @@ def concat_parts(name: str, parts: list):
 
 def run_statuses(campaign_dir: Path) -> list[dict]:
     """Status of every planned run (``{"run": i, "status": "missing"}`` where none was written)."""
-    from renderlab.campaign import publish
-
     m = read_manifest(campaign_dir)
-    if publish.is_published(campaign_dir):
-        out = publish.published_statuses(campaign_dir)
+    if is_published(campaign_dir):
+        out = published_statuses(campaign_dir)
         beyond = [s["run"] for s in out if s["run"] >= m["plan"]["runs"]]
         if beyond:
             raise UserError(f"{shown(campaign_dir)}: runs.json lists run {beyond[0]}, but the plan has "
                             f"{m['plan']['runs']} runs")
         return out
     return [run_status(campaign_dir, i) or {"run": i, "status": "missing"} for i in range(int(m["plan"]["runs"]))]
+
+
+# the published layout (renderlab.campaign.publish writes it), read like a live campaign folder
+TABLES = "tables"
+STATUSES = "runs.json"
+
+
+def is_published(folder: Path) -> bool:
+    """A published study folder (``tables/`` and ``runs.json`` beside ``campaign.json``, no ``runs/``)."""
+    d = Path(folder)
+    return (d / TABLES).is_dir() and (d / STATUSES).is_file() and not (d / "runs").is_dir()
+
+
+def load_published_tables(folder: Path) -> dict:
+    """``{name: pyarrow.Table}`` of a published folder (names are plain identifiers inside ``tables/``; each table
+    checked as :func:`read_run_table` checks a run's)."""
+    out = {}
+    for p in sorted((Path(folder) / TABLES).glob("*.parquet")):
+        if not p.stem.isidentifier() or p.is_symlink():
+            raise UserError(f"{shown(p)}: published table names must be plain identifiers (no links)")
+        out[p.stem] = read_run_table(p, p.stem)
+    return out
+
+
+def published_statuses(folder: Path) -> list[dict]:
+    """``runs.json``, validated (:data:`renderlab.contracts.file_models.RunStatuses`: each run once)."""
+    from renderlab.contracts.file_models import RunStatuses
+    from renderlab.inputs import read_checked
+
+    p = Path(folder) / STATUSES
+    data = read_checked(p, RunStatuses, "run statuses")
+    runs = [s["run"] for s in data]
+    if len(set(runs)) != len(runs):
+        raise UserError(f"run statuses {shown(p)}: a run is listed twice")
+    return data
 
 
 def finished_campaign(campaign_dir: Path, purpose: str) -> tuple[dict, dict, list[dict]]:
