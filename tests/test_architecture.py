@@ -1,5 +1,6 @@
 """The declared architecture holds: import-linter contracts (layers, study independence, self-contained
-estimators; function-level imports included), file and function sizes, contracts written once."""
+estimators; function-level imports included), no import cycle (every import statement counted, function-level ones
+included), file and function sizes, contracts written once."""
 
 from __future__ import annotations
 
@@ -24,6 +25,102 @@ def test_import_linter_contracts_are_kept():
 
 def _sources():
     return sorted(p for pkg in ("renderlab", "estimators") for p in (REPO / pkg).rglob("*.py"))
+
+
+def import_graph(root: Path, packages=("renderlab", "estimators")) -> tuple[dict, int, int]:
+    """(module → the internal modules it imports, module-level import statements, function-level ones) from every
+    ``import`` / ``from`` statement of every file under ``root/<package>`` (relative imports resolved; ``from a
+    import b`` names module ``a.b`` when that is a module, else ``a``). Only imports of ``packages`` count."""
+    files = {}
+    for pkg in packages:
+        for f in (root / pkg).rglob("*.py"):
+            parts = list(f.relative_to(root).with_suffix("").parts)
+            files[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = f
+    graph, top, inner = {m: set() for m in files}, 0, 0
+    for mod, f in files.items():
+        tree = ast.parse(f.read_text())
+        in_function = {id(n) for fn in ast.walk(tree) if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef))
+                       for n in ast.walk(fn)}
+        package = mod.split(".") if f.name == "__init__.py" else mod.split(".")[:-1]
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join(package[: len(package) - node.level + 1] + ([node.module] if node.module else []))
+                names = [f"{base}.{a.name}" for a in node.names]
+            else:
+                continue
+            hits = set()
+            for name in names:
+                while name and name not in files:
+                    name = name.rpartition(".")[0]
+                if name and name != mod and name.split(".")[0] in packages:
+                    hits.add(name)
+            graph[mod] |= hits
+            if hits:
+                inner, top = (inner + 1, top) if id(node) in in_function else (inner, top + 1)
+    return graph, top, inner
+
+
+def cycles(graph: dict) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan's algorithm, iterative)."""
+    index, low, on, stack, out, counter = {}, {}, set(), [], [], [0]
+    for start in graph:
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = counter[0]
+        counter[0] += 1
+        stack.append(start)
+        on.add(start)
+        while work:
+            v, it = work[-1]
+            for w in it:
+                if w not in index:
+                    index[w] = low[w] = counter[0]
+                    counter[0] += 1
+                    stack.append(w)
+                    on.add(w)
+                    work.append((w, iter(sorted(graph[w]))))
+                    break
+                if w in on:
+                    low[v] = min(low[v], index[w])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[v])
+                if low[v] == index[v]:
+                    comp = []
+                    while True:
+                        w = stack.pop()
+                        on.discard(w)
+                        comp.append(w)
+                        if w == v:
+                            break
+                    if len(comp) > 1:
+                        out.append(sorted(comp))
+    return out
+
+
+def test_the_cycle_check_finds_a_cycle_through_function_level_and_relative_imports(tmp_path):
+    pkg = tmp_path / "renderlab" / "sub"
+    pkg.mkdir(parents=True)
+    (tmp_path / "renderlab" / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("def f():\n    from .b import g\n    return g()\n")
+    (pkg / "b.py").write_text("from renderlab.sub import c\n")
+    (pkg / "c.py").write_text("import os\n\n\ndef h():\n    from renderlab.sub.a import f\n")
+    graph, top, inner = import_graph(tmp_path, ("renderlab",))
+    assert cycles(graph) == [["renderlab.sub.a", "renderlab.sub.b", "renderlab.sub.c"]]
+    assert (top, inner) == (1, 2)
+    (pkg / "c.py").write_text("import os\n")
+    assert cycles(import_graph(tmp_path, ("renderlab",))[0]) == []
+
+
+def test_no_import_cycle_counting_every_import():
+    assert cycles(import_graph(REPO)[0]) == []
 
 
 def test_no_file_over_400_lines():
