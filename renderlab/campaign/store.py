@@ -59,9 +59,9 @@ def read_manifest(campaign_dir: Path) -> dict:
     from renderlab.inputs import read_checked
 
     p = Path(campaign_dir) / MANIFEST
-    if not p.is_file():
+    if not os.path.lexists(p):
         raise UserError(f"{shown(campaign_dir)} is not a campaign folder (no {MANIFEST})")
-    return read_checked(p, CampaignManifest, "campaign manifest")
+    return read_checked(p, CampaignManifest, "campaign manifest")  # a FIFO or device is refused by name
 
 
 def _table_names(st: dict, where: Path) -> list[str]:

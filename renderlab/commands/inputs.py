@@ -21,6 +21,9 @@ from renderlab.inputs import LIMITS, check_regular, epoch_text, short, shown
 
 #: scenario keys holding images (checked by their header), by the key's last component
 IMAGE_KEYS = ("albedo_map",)
+#: the largest file a scenario key may name, by the key's last component (others: only hashed, streamed)
+KEY_LIMITS = {"file": LIMITS["trajectory"], "oem": LIMITS["trajectory"], "aem": LIMITS["trajectory"],
+              "shape_file": LIMITS["mesh"], "calibration_file": LIMITS["calibration"]}
 
 
 def _epochs(data, where: str = ""):
@@ -52,10 +55,11 @@ def check_files(data: dict, base_dir) -> None:
         p = Path(base_dir) / rel
         if not os.path.lexists(p):
             continue
-        if key.rsplit(".", 1)[-1] in IMAGE_KEYS:
+        last = key.rsplit(".", 1)[-1]
+        if last in IMAGE_KEYS:
             image_header(p, key)
         else:
-            check_regular(p, key, LIMITS["hashed"])
+            check_regular(p, key, KEY_LIMITS.get(last, LIMITS["hashed"]))
 
 
 def check_camera(camera) -> None:

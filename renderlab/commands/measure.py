@@ -106,7 +106,15 @@ def run(args) -> int:
 
     if args.method not in plugins.landmark_methods and ":" in str(args.method):
         check_landmark_method(args.method)  # imported and checked against the protocol before anything calls it
-    method = make_method(args.method, opts, allow_reference=True)  # an unknown name fails before anything is read
+    try:  # an unknown name fails before anything is read; the user's class is constructed once here
+        method = make_method(args.method, opts, allow_reference=True)
+    except UserError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - the user's method class failed to construct
+        from renderlab.inputs import short
+
+        raise UserError(f"--method {short(args.method)}: constructing it raised {type(exc).__name__}: "
+                        f"{short(str(exc), 120)}") from None
     if args.images is not None or args.truthset is None:
         return _run_images(args, opts)
     ts = TruthSet.open(args.truthset)

@@ -49,7 +49,8 @@ def load_reference(text: str, what: str):
 def is_landmark_method_class(obj) -> bool:
     """A class that follows :class:`renderlab.contracts.landmark.LandmarkMethod`: a ``measure_frame`` method and a
     ``name`` (a class attribute, or set by its constructor from the options)."""
-    return inspect.isclass(obj) and callable(getattr(obj, "measure_frame", None))
+    return (inspect.isclass(obj) and callable(getattr(obj, "measure_frame", None))
+            and not getattr(obj, "_is_protocol", False) and not inspect.isabstract(obj))
 
 
 def check_landmark_method(text: str, what: str = "--method"):
@@ -80,7 +81,8 @@ def _kind(obj) -> str:
     if inspect.ismodule(obj):
         return "a module"
     if inspect.isclass(obj):
-        return "a class without measure_frame"
+        return "a protocol or abstract class" if callable(getattr(obj, "measure_frame", None)) \
+            else "a class without measure_frame"
     if callable(obj):
         return "a function"
     return f"a {type(obj).__name__}"
