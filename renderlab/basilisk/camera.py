@@ -25,9 +25,9 @@ Camera conventions (:mod:`renderlab.basilisk.frames`): Basilisk's ``fieldOfView`
 y axis (image height), pixels are square, and the principal point is the centre of the detector — ``(W/2, H/2)`` with
 pixel corners at integers, ``cx = (W − 1)/2``, ``cy = (H − 1)/2`` in the lab's pixel-centre coordinates.
 ``pixelLineConverter`` re-centres a pixel ``u`` as ``u − W/2 + 0.5``, which is that principal point for ``u`` in
-pixel-centre coordinates; OpenCV's Hough transform (``houghCircles``) reports centres in corner coordinates (its
-accumulator cell ``x`` at ``x + 0.5``), so that chain sees the centre +0.5 px off along each axis
-(``tests/test_basilisk_camera.py`` measures it).
+pixel-centre coordinates. Which coordinates an image-processing module's output is really in, and with what bias, is
+for the lab to measure: ``last_frame.truth`` holds the reference (the ``planet`` world's ``centre_truth``: projected
+centre and true limb conic of the rendered pose, in pixel-centre coordinates).
 
 The PNG bytes live in the module (the last ``keep_images`` images): a message, or a recorder's copy of it, points
 into them only that long. ``last_frame`` holds the last :class:`renderlab.pipeline.frame_api.Frame` (its truth rows,
