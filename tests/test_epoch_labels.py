@@ -79,7 +79,6 @@ def test_oem_round_trip_keeps_every_epoch_text(tmp_path):
 def test_labels_agree_with_astropy_and_spice_across_years(tmp_path):
     """UTC + seconds: the lab's label is astropy's UTC arithmetic (leap seconds included, 2016-12-31 → 2017) to the
     printed microsecond, and the TDB it gives SPICE is spiceypy's unitim of TT + seconds (< 10 ns)."""
-    from astropy.time import Time, TimeDelta
 
     sp = pytest.importorskip("spiceypy")
     (tmp_path / "deltet.tls").write_text("KPL/LSK\n\\begindata\nDELTET/DELTA_T_A = 32.184\nDELTET/K = 1.657D-3\n"

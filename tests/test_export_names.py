@@ -92,7 +92,7 @@ def test_a_spice_set_exports_in_its_frame_about_its_centre(tmp_path, capsys):
             sp.unload(str(n))
     assert np.abs(o.positions_m - ref).max() < 1e-3
     # round trip: the exported OEM/AEM drive the same scene to the same poses
-    back = SCENE.split("[trajectory]")[0] + (f'[trajectory]\nkind = "ccsds"\noem = "probe.oem"\naem = "probe.aem"\n'
+    back = SCENE.split("[trajectory]")[0] + ('[trajectory]\nkind = "ccsds"\noem = "probe.oem"\naem = "probe.aem"\n'
                                               'camera_frame = "CAMERA"\ntimes_s = [0.0, 30.0, 60.0]\n')
     (tmp_path / "back.toml").write_text(back)
     assert main(["render", str(tmp_path / "back.toml"), "--out", str(tmp_path / "ts2"), "--quiet"]) == 0

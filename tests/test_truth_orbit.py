@@ -38,7 +38,7 @@ def test_j2_secular_raan_drift_matches_the_analytic_rate():
     el = orbits.OrbitElements.circular(1000e3, 45.0)
     t = np.arange(11) * el.period_s                                  # whole orbits: short-period terms repeat
     r0, v0 = el.state(0.0)
-    x = propagate_truth(np.r_[r0, v0], t, TruthForces(field=ONBOARD_J2, degree=2))
+    x = propagate_truth(np.r_[r0, v0], t, TruthForces(field=ONBOARD_J2, degree=2, pole="+z"))
     rate = np.polyfit(t, np.unwrap(orbits.raan_of(x[:, :3], x[:, 3:])), 1)[0]
     expect = orbits.j2_nodal_rate(el)
     print(f"J2 nodal rate {np.degrees(rate) * 86400:.4f} deg/day, analytic {np.degrees(expect) * 86400:.4f}, "
@@ -51,7 +51,7 @@ def test_dop853_matches_rk4_j2_when_the_extra_terms_are_off():
     t = np.linspace(0, el.period_s, 13)
     x0 = np.concatenate(el.state(0.0))
     ref = orbits.propagate(x0, t, j2=True, max_step_s=1.0)
-    x = propagate_truth(x0, t, TruthForces(field=ONBOARD_J2, degree=2))
+    x = propagate_truth(x0, t, TruthForces(field=ONBOARD_J2, degree=2, pole="+z"))
     d = np.linalg.norm(x[:, :3] - ref[:, :3], axis=1).max()
     print(f"DOP853 vs RK4 (1 s) two-body + J2 over one orbit: {d * 1e3:.3f} mm")
     assert d < 1e-3
@@ -70,7 +70,7 @@ def test_zonal_only_conserves_energy_and_polar_angular_momentum_tilted_pole():
     assert np.abs(E / E[0] - 1).max() < 1e-10 and np.abs(hz / hz[0] - 1).max() < 1e-10
     # rotation covariance: the same orbit about +z, rotated by the pole's rotation, is the same trajectory
     Q = Rotation.align_vectors([pole / np.linalg.norm(pole)], [[0, 0, 1.0]])[0].as_matrix()
-    xz = propagate_truth(np.r_[Q.T @ x[0, :3], Q.T @ x[0, 3:]], t, TruthForces(degree=6))
+    xz = propagate_truth(np.r_[Q.T @ x[0, :3], Q.T @ x[0, 3:]], t, TruthForces(degree=6, pole="+z"))
     assert np.linalg.norm(xz[:, :3] @ Q.T - x[:, :3], axis=1).max() < 1e-3
 
 
@@ -95,15 +95,15 @@ def test_drag_srp_and_third_body_have_their_closed_form_sizes():
     el = orbits.OrbitElements.circular(400e3, 51.6)
     x0 = np.concatenate(el.state(0.0))
     t = np.array([0.0, el.period_s])
-    base = propagate_truth(x0, t, TruthForces(degree=2, epoch_tt_jd=TT_2024))
+    base = propagate_truth(x0, t, TruthForces(degree=2, epoch_tt_jd=TT_2024, pole="+z"))
     for kw, lo, hi in ((dict(drag=True), 10.0, 2e3), (dict(srp=True), 0.05, 20.0),
                        (dict(third_body=True), 0.5, 200.0)):
-        x = propagate_truth(x0, t, TruthForces(degree=2, epoch_tt_jd=TT_2024, **kw))
+        x = propagate_truth(x0, t, TruthForces(degree=2, epoch_tt_jd=TT_2024, pole="+z", **kw))
         d = np.linalg.norm(x[-1, :3] - base[-1, :3])
         print(f"{kw}: one orbit at 400 km moves the truth by {d:.2f} m")
         assert lo < d < hi, (kw, d)
     # drag takes energy out: the orbit decays
-    x = propagate_truth(x0, t, TruthForces(degree=0, drag=True))
+    x = propagate_truth(x0, t, TruthForces(degree=0, drag=True, pole="+z"))
     assert np.linalg.norm(x[-1, :3]) < np.linalg.norm(base[0, :3]) + 1.0
     with pytest.raises(ValueError, match="epoch_tt_jd"):
         propagate_truth(x0, t, TruthForces(third_body=True))

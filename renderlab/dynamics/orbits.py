@@ -13,6 +13,12 @@ J2 adds the oblateness acceleration (Vallado eq. 8-30)
 whose secular effect on a near-circular orbit is the nodal regression
 :math:`\dot\Omega = -\tfrac32 n J_2 (R_e/p)^2 \cos i` (Vallado eq. 9-41), :math:`p = a(1-e^2)`.
 
+Constants: GM = 3.986004418e14 m³ s⁻² (WGS-84), R = 6378137 m and EGM96's J2 = 1.08262668e-3 — the onboard
+filters' class of model. The truth propagator :mod:`renderlab.dynamics.truth_orbit` uses EGM2008's GM =
+3.986004415e14, R = 6378136.3 m, J2 = 1.0826262e-3: from the same state at 1000 km / 45° the two J2 models drift
+apart by 1.6 m in a day (measured in ``tests/test_geopotential.py``), a deliberate truth ≠ model difference.
+The J2 term acts about the frame's z axis: the frame must have the Earth's pole on +z (equator of date).
+
 Numerical propagation is classic fixed-step RK4 vectorised over any number of states (rows), so a
 Monte Carlo of N runs propagates as one (N, 6) array. The inertial frame is the lab's ECI (equator and
 equinox of date, see :mod:`renderlab.worlds.earth.wgs84`). Nadir attitude: camera +z toward the Earth's

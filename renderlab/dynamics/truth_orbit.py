@@ -1,5 +1,6 @@
 r"""Truth orbit propagator, of higher fidelity than the onboard filters' models: DOP853 with zonal gravity
-J2–J6, optional drag, solar radiation pressure and Sun/Moon third-body attraction.
+J2–J6 or the full EGM2008 field to degree and order 20, optional drag, solar radiation pressure and Sun/Moon
+third-body attraction.
 
 The onboard coastline EKF (:mod:`estimators.coastline`) models two-body motion, and
 :func:`renderlab.dynamics.orbits.propagate` (fixed-step RK4, two-body + J2) is of the same class. Truth made
@@ -10,6 +11,20 @@ Theory
 ------
 State :math:`\mathbf x = [\mathbf r, \mathbf v]` in an inertial frame whose Earth pole is :math:`\hat{\mathbf p}`
 (GCRF in the Earth world: the ITRF z axis in GCRF per epoch, from :mod:`renderlab.worlds.earth.orientation`).
+The pole is always stated: ``TruthForces.pole`` is a vector, nodes in time, or ``"+z"`` for a frame whose z axis
+is the Earth's pole (an equator-of-date frame, as the coastline study's ECI); a zonal field without one is refused
+(+z in GCRF is off by the precession since J2000, 0.24–1.5 km/day in LEO).
+
+Full field (``TruthForces.harmonics``, ``trajectory.truth_model = "egm2008_dop853"``): EGM2008 to degree and
+order ≤ 20 evaluated in ITRF, :math:`\mathbf a = M^\mathsf T\mathbf a_\mathrm{ITRF}(M\mathbf r)` with the Earth
+world's GCRF → ITRF rotation M (:mod:`renderlab.dynamics.geopotential`); it needs ``TruthForces.earth_rotation``
+(refused without), and the pole of drag is then M's z axis. The tesseral and sectorial terms it adds move a LEO
+orbit by 3.5–5 km per day against J2–J6 alone.
+
+Two-body/J2 constants: :mod:`renderlab.dynamics.orbits` (the onboard class, ``j2_rk4``) uses EGM96's J2 =
+1.08262668e-3 with GM = 3.986004418e14 m³ s⁻² (WGS-84) and R = 6378137 m; this module uses EGM2008's GM =
+3.986004415e14, R = 6378136.3 m and J2 = 1.0826262e-3. From the same state at 1000 km / 45° the two J2 models
+drift apart by 1.6 m in a day (``tests/test_geopotential.py`` measures it).
 
 Zonal gravity: :math:`U = \frac{\mu}{r}\big[1 - \sum_{n=2}^{N} J_n (R/r)^n P_n(u)\big]`, :math:`u = \hat{\mathbf r}
 \cdot\hat{\mathbf p}`, whose gradient is
@@ -72,7 +87,7 @@ EXPONENTIAL_ATMOSPHERE = np.array([
 __all__ = ["ZonalField", "EGM2008", "EGM96", "TruthForces", "zonal_accel", "zonal_potential", "density_exponential",
            "propagate_truth", "forces_from_config", "propagate_for", "TRUTH_MODELS"]
 
-TRUTH_MODELS = ("j2_rk4", "zonal_dop853")
+TRUTH_MODELS = ("j2_rk4", "zonal_dop853", "egm2008_dop853")
 
 
 @dataclass(frozen=True)
@@ -111,24 +126,29 @@ def _legendre(u: np.ndarray, degree: int) -> tuple[list, list]:
 
 
 def _unit_pole(pole) -> np.ndarray:
-    p = np.array([0.0, 0.0, 1.0]) if pole is None else np.asarray(pole, float)
+    """The Earth's pole as a unit vector: ``"+z"`` (the frame's z axis) or a vector; None is refused."""
+    if pole is None:
+        raise ValueError("the Earth's pole in the propagation frame is not given: pass pole = its direction (GCRF: "
+                         "the ITRF z axis of the epoch) or '+z' for a frame whose z axis is the pole")
+    p = np.array([0.0, 0.0, 1.0]) if isinstance(pole, str) and pole == "+z" else np.asarray(pole, float)
     return p / np.linalg.norm(p, axis=-1, keepdims=True)
 
 
 def zonal_accel(r: np.ndarray, field: ZonalField = EGM2008, degree: int = 6, pole=None) -> np.ndarray:
-    """Gravity (central + zonal terms J2…J``degree``) at positions r (…, 3); ``pole`` (3,) or (…, 3), default +z.
+    """Gravity (central + zonal terms J2…J``degree``) at positions r (…, 3); ``pole`` (3,), (…, 3) or ``"+z"``,
+    required for ``degree`` ≥ 2 (ValueError without).
 
     ``degree`` < 2 gives the two-body acceleration alone.
     """
     if degree > field.degree_max():
         raise ValueError(f"zonal_accel: {field.name or 'the field'} has terms up to degree {field.degree_max()}")
     r = np.asarray(r, float)
-    p = _unit_pole(pole)
     rn = np.linalg.norm(r, axis=-1, keepdims=True)
     rh = r / rn
     k = field.mu / rn**2
     a = -k * rh
     if degree >= 2:
+        p = _unit_pole(pole)
         u = np.sum(rh * p, -1, keepdims=True)
         P, dP = _legendre(u, degree)
         q = field.radius_m / rn
@@ -139,10 +159,11 @@ def zonal_accel(r: np.ndarray, field: ZonalField = EGM2008, degree: int = 6, pol
 
 
 def zonal_potential(r: np.ndarray, field: ZonalField = EGM2008, degree: int = 6, pole=None) -> np.ndarray:
-    """U = μ/r [1 − Σ Jn (R/r)ⁿ Pn(u)] (m²/s², …) so that the specific energy is ½v² − U."""
+    """U = μ/r [1 − Σ Jn (R/r)ⁿ Pn(u)] (m²/s², …) so that the specific energy is ½v² − U (``pole`` as
+    :func:`zonal_accel`)."""
     r = np.asarray(r, float)
     rn = np.linalg.norm(r, axis=-1)
-    u = np.sum(r * _unit_pole(pole), -1) / rn
+    u = np.sum(r * _unit_pole(pole), -1) / rn if degree >= 2 else np.zeros_like(rn)
     P, _ = _legendre(u, max(degree, 1))
     s = np.zeros_like(rn)
     for n in range(2, degree + 1):
@@ -165,7 +186,12 @@ class TruthForces:
     Parameters
     ----------
     field, degree : ZonalField, int
-        Gravity field and the highest zonal degree (0 or 1: two-body).
+        Gravity field and the highest zonal degree (0 or 1: two-body); with ``harmonics`` the degree of that field.
+    harmonics, order : SphericalHarmonics or None, int or None
+        The full field (:func:`renderlab.dynamics.geopotential.egm2008`) evaluated in ITRF to ``degree`` and
+        ``order`` (default: = degree) instead of the zonal ``field``; needs ``earth_rotation``.
+    earth_rotation : EarthRotation or None
+        GCRF → ITRF nodes (:class:`renderlab.dynamics.geopotential.EarthRotation`) for ``harmonics``.
     drag, cd : bool, float
         Exponential-atmosphere drag and the drag coefficient.
     srp, cr : bool, float
@@ -176,8 +202,10 @@ class TruthForces:
         Sun and Moon attraction.
     epoch_tt_jd : (float, float) or None
         Two-part TT Julian date of t = 0 (needed by SRP and third body).
-    pole : None, (3,), or (t_nodes (M,), poles (M, 3))
-        The Earth's pole in the propagation frame: +z, fixed, or interpolated linearly in time.
+    pole : "+z", (3,), or (t_nodes (M,), poles (M, 3))
+        The Earth's pole in the propagation frame: the frame's z axis, fixed, or interpolated linearly in time;
+        required by a zonal field of degree ≥ 2 and by drag (None is refused there), taken from
+        ``earth_rotation`` with ``harmonics``.
     """
 
     field: ZonalField = EGM2008
@@ -190,8 +218,13 @@ class TruthForces:
     third_body: bool = False
     epoch_tt_jd: tuple[float, float] | None = None
     pole: object = dc_field(default=None, compare=False)
+    harmonics: object = dc_field(default=None, compare=False)
+    order: int | None = None
+    earth_rotation: object = dc_field(default=None, compare=False)
 
     def pole_at(self, t: float) -> np.ndarray:
+        if self.earth_rotation is not None and self.harmonics is not None:
+            return self.earth_rotation.at(t)[2]
         if self.pole is None or not isinstance(self.pole, tuple):
             return _unit_pole(self.pole)
         tn, pn = self.pole
@@ -269,13 +302,19 @@ def propagate_truth(x0: np.ndarray, t_s: np.ndarray, forces: TruthForces = Truth
     if needs_eph and forces.epoch_tt_jd is None:
         raise ValueError("propagate_truth: SRP and third-body forces need forces.epoch_tt_jd")
     eph = _Ephemeris(forces.epoch_tt_jd, t_end) if needs_eph else None
-    fixed_pole = None if isinstance(forces.pole, tuple) else forces.pole_at(0.0)
+    full = _full_field(forces)
+    needs_pole = full is None and (forces.degree >= 2 or forces.drag)
+    fixed_pole = forces.pole_at(0.0) if needs_pole and not isinstance(forces.pole, tuple) else None
 
     def rhs(t, y):
         x = y.reshape(-1, 6)
         r, v = x[:, :3], x[:, 3:]
-        pole = fixed_pole if fixed_pole is not None else forces.pole_at(t)
-        a = zonal_accel(r, forces.field, forces.degree, pole)
+        if full is not None:  # the field in ITRF: a = M^T a_itrf(M r), rows r @ M^T
+            M = forces.earth_rotation.at(t)
+            pole, a = M[2], full.accel(r @ M.T) @ M
+        else:
+            pole = fixed_pole if fixed_pole is not None or not needs_pole else forces.pole_at(t)
+            a = zonal_accel(r, forces.field, forces.degree, pole)
         if forces.drag or needs_eph:
             a = a + _perturbations(t, r, v, forces, pole, eph)
         return np.concatenate([v, a], -1).ravel()
@@ -287,32 +326,62 @@ def propagate_truth(x0: np.ndarray, t_s: np.ndarray, forces: TruthForces = Truth
     return sol.y.T.reshape((len(t_s),) + shape)
 
 
-def forces_from_config(cfg, epoch_tt_jd=None, pole=None) -> TruthForces:
-    """:class:`TruthForces` from a config with ``zonal_degree``, ``drag``, ``srp``, ``third_body``,
-    ``drag_cd``, ``srp_cr``, ``area_to_mass_m2_kg`` (missing ones take the defaults)."""
+def _full_field(forces: TruthForces):
+    """The truncated full field of ``forces.harmonics`` (None without), refused without the Earth's rotation."""
+    if forces.harmonics is None:
+        return None
+    if forces.earth_rotation is None:
+        raise ValueError("propagate_truth: the full field is evaluated in ITRF and needs forces.earth_rotation (the "
+                         "GCRF -> ITRF rotation, renderlab.dynamics.geopotential.EarthRotation)")
+    from renderlab.dynamics.geopotential import TruncatedField
+
+    return TruncatedField.of(forces.harmonics, forces.degree, forces.order)
+
+
+def forces_from_config(cfg, epoch_tt_jd=None, pole=None, earth_rotation=None) -> TruthForces:
+    """:class:`TruthForces` from a config with ``truth_model``, ``zonal_degree`` (or, for ``"egm2008_dop853"``,
+    ``gravity_degree`` and ``gravity_order``), ``drag``, ``srp``, ``third_body``, ``drag_cd``, ``srp_cr``,
+    ``area_to_mass_m2_kg`` (missing ones take the defaults); ``pole`` and ``earth_rotation`` as in
+    :class:`TruthForces`."""
     d = TruthForces()
     get = lambda name, default: getattr(cfg, name, default)  # noqa: E731
-    return TruthForces(field=EGM2008, degree=int(get("zonal_degree", d.degree)), drag=bool(get("drag", False)),
+    full = get("truth_model", "zonal_dop853") == "egm2008_dop853"
+    harmonics = None
+    if full:
+        from renderlab.dynamics.geopotential import egm2008
+
+        harmonics = egm2008()
+    degree = int(get("gravity_degree", 20)) if full else int(get("zonal_degree", d.degree))
+    order = get("gravity_order", None) if full else None
+    return TruthForces(field=EGM2008, degree=degree, drag=bool(get("drag", False)),
                        cd=float(get("drag_cd", d.cd)), srp=bool(get("srp", False)), cr=float(get("srp_cr", d.cr)),
                        area_to_mass_m2_kg=float(get("area_to_mass_m2_kg", d.area_to_mass_m2_kg)),
-                       third_body=bool(get("third_body", False)), epoch_tt_jd=epoch_tt_jd, pole=pole)
+                       third_body=bool(get("third_body", False)), epoch_tt_jd=epoch_tt_jd, pole=pole,
+                       harmonics=harmonics, order=None if order is None else int(order),
+                       earth_rotation=earth_rotation)
 
 
-def propagate_for(cfg, x0: np.ndarray, t_s: np.ndarray, *, epoch_tt_jd=None, pole=None,
+def propagate_for(cfg, x0: np.ndarray, t_s: np.ndarray, *, epoch_tt_jd=None, pole=None, earth_rotation=None,
                   rk4_step_s: float = 5.0) -> np.ndarray:
     """Truth states (T, …, 6) at ``t_s`` by ``cfg.truth_model`` (missing: ``"j2_rk4"``).
 
-    ``"j2_rk4"``: :func:`renderlab.dynamics.orbits.propagate` (RK4 two-body, + J2 when ``cfg.truth_j2`` or
-    ``cfg.j2``; steps ≤ ``rk4_step_s``). ``"zonal_dop853"``: :func:`propagate_truth` with
-    :func:`forces_from_config` (``cfg.epoch_tt_jd`` or ``epoch_tt_jd`` for SRP / third body, ``pole`` or +z).
+    ``"j2_rk4"``: :func:`renderlab.dynamics.orbits.propagate` (RK4 two-body, + J2 about the frame's z axis when
+    ``cfg.truth_j2`` or ``cfg.j2``; steps ≤ ``rk4_step_s``). ``"zonal_dop853"``: :func:`propagate_truth` with
+    :func:`forces_from_config` (``cfg.epoch_tt_jd`` or ``epoch_tt_jd`` for SRP / third body; ``pole`` required:
+    a direction, nodes, or ``"+z"``). ``"egm2008_dop853"``: the full field, which needs ``earth_rotation``.
+
+    Raises
+    ------
+    ValueError
+        An unknown model, a zonal model without ``pole``, the full field without ``earth_rotation``.
     """
     from renderlab.dynamics.orbits import propagate
 
     model = getattr(cfg, "truth_model", "j2_rk4")
     if model not in TRUTH_MODELS:
         raise ValueError(f"truth_model {model!r}: choose one of {', '.join(TRUTH_MODELS)}")
-    if model == "zonal_dop853":
+    if model != "j2_rk4":
         epoch = epoch_tt_jd if epoch_tt_jd is not None else getattr(cfg, "epoch_tt_jd", None)
-        return propagate_truth(x0, t_s, forces_from_config(cfg, epoch, pole))
+        return propagate_truth(x0, t_s, forces_from_config(cfg, epoch, pole, earth_rotation))
     j2 = bool(getattr(cfg, "truth_j2", getattr(cfg, "j2", False)))
     return propagate(x0, t_s, j2=j2, max_step_s=rk4_step_s)

@@ -181,7 +181,7 @@ def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
     t = o.t0_s + np.arange(K) * o.cadence_s
     r0, v0 = state_from_elements(R_EARTH_M + o.altitude_m, 0.0, o.inclination_rad, o.raan_rad, o.argp_rad,
                                  o.nu0_rad)
-    x = propagate_for(o, np.concatenate([r0, v0]), t, rk4_step_s=1.0)
+    x = propagate_for(o, np.concatenate([r0, v0]), t, pole="+z", rk4_step_s=1.0)  # the study's ECI: equator of date
     T = np.swapaxes(nadir_attitude(x[:, :3], x[:, 3:]), -1, -2)          # cam_from_eci
     db = coastline_points(o.db_spacing_m)
     tan_half = math.tan(0.5 * o.fov_rad)

@@ -76,6 +76,10 @@ class LEOTrajectory(Strict):
         ``zonal_degree`` about the true Earth pole of each epoch, plus ``drag`` (exponential atmosphere, ``drag_cd``),
         ``srp`` (cannonball, ``srp_cr``, cylindrical shadow) and ``third_body`` (Sun and Moon, ERFA ephemerides);
         ``area_to_mass_m2_kg`` is the spacecraft's cross-section over mass. ``j2`` is ignored.
+    ``"egm2008_dop853"``
+        The same with the full EGM2008 field to ``gravity_degree`` and ``gravity_order`` (≤ 20) evaluated in ITRF
+        through the world's GCRF → ITRF rotation (:mod:`renderlab.dynamics.geopotential`): the tesseral terms move
+        a LEO orbit by kilometres per day against the zonals alone.
     """
 
     kind: Literal["leo"] = Field("leo", description="Trajectory kind: a LEO orbit, nadir-pointing camera")
@@ -92,11 +96,15 @@ class LEOTrajectory(Strict):
     true_anomaly_deg: Annotated[float, Field(allow_inf_nan=False)] = Field(0.0, description="True anomaly at "
                                                                            "epoch_utc [deg]")
     j2: bool = Field(False, description="truth_model j2_rk4: RK4 two-body + J2 truth; false: Kepler two-body")
-    truth_model: Literal["j2_rk4", "zonal_dop853"] = Field("j2_rk4", description="Truth propagator: j2_rk4 "
-                                                           "(the filter's class of model) or zonal_dop853 "
-                                                           "(renderlab.dynamics.truth_orbit)")
+    truth_model: Literal["j2_rk4", "zonal_dop853", "egm2008_dop853"] = Field(
+        "j2_rk4", description="Truth propagator: j2_rk4 (the filter's class of model), zonal_dop853 (EGM2008 "
+        "zonals) or egm2008_dop853 (the full EGM2008 field in ITRF; renderlab.dynamics.truth_orbit)")
     zonal_degree: Annotated[int, Field(ge=2, le=6)] = Field(6, description="zonal_dop853: highest zonal degree "
                                                             "(EGM2008 J2..J6)")
+    gravity_degree: Annotated[int, Field(ge=2, le=20)] = Field(20, description="egm2008_dop853: highest degree of "
+                                                               "the EGM2008 field")
+    gravity_order: Annotated[int, Field(ge=0, le=20)] | None = Field(None, description="egm2008_dop853: highest "
+                                                                     "order (default: gravity_degree)")
     drag: bool = Field(False, description="zonal_dop853: exponential-atmosphere drag")
     srp: bool = Field(False, description="zonal_dop853: cannonball solar radiation pressure")
     third_body: bool = Field(False, description="zonal_dop853: Sun and Moon attraction")
@@ -139,12 +147,21 @@ class LEOTrajectory(Strict):
 
     @model_validator(mode="after")
     def _truth_options(self):
-        """Force-model options only mean something for ``truth_model = "zonal_dop853"``: refuse them otherwise."""
-        extra = {"zonal_degree", "drag", "srp", "third_body", "drag_cd", "srp_cr", "area_to_mass_m2_kg"}
-        given = sorted(n for n in extra & self.model_fields_set
+        """Force-model options only mean something for the DOP853 truth models (the degree keys each for its own):
+        refuse them otherwise."""
+        extra = {"zonal_degree", "gravity_degree", "gravity_order", "drag", "srp", "third_body", "drag_cd", "srp_cr",
+                 "area_to_mass_m2_kg"}
+        own = {"j2_rk4": set(), "zonal_dop853": extra - {"gravity_degree", "gravity_order"},
+               "egm2008_dop853": extra - {"zonal_degree"}}[self.truth_model]
+        given = sorted(n for n in (extra - own) & self.model_fields_set
                        if getattr(self, n) != type(self).model_fields[n].default)
-        if self.truth_model == "j2_rk4" and given:
-            raise ValueError(f"{', '.join(given)} need(s) truth_model = 'zonal_dop853' (truth_model is 'j2_rk4')")
+        if given:
+            need = {"zonal_degree": "'zonal_dop853'", "gravity_degree": "'egm2008_dop853'",
+                    "gravity_order": "'egm2008_dop853'"}.get(given[0], "'zonal_dop853' or 'egm2008_dop853'")
+            raise ValueError(f"{', '.join(given)} need(s) truth_model = {need} (truth_model is "
+                             f"'{self.truth_model}')")
+        if self.gravity_order is not None and self.gravity_order > self.gravity_degree:
+            raise ValueError(f"gravity_order {self.gravity_order} exceeds gravity_degree {self.gravity_degree}")
         return self
 
 

@@ -45,15 +45,19 @@ def truth_orbit(tr, epoch, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     el = OrbitElements(wgs84.A + tr.altitude_km * 1e3, tr.eccentricity, np.radians(tr.inclination_deg),
                        np.radians(tr.raan_deg), np.radians(tr.argp_deg), np.radians(tr.true_anomaly_deg))
     r0, v0 = el.state(0.0)
-    if tr.truth_model == "zonal_dop853":
+    if tr.truth_model in ("zonal_dop853", "egm2008_dop853"):
+        from renderlab.dynamics.geopotential import EarthRotation
         from renderlab.dynamics.truth_orbit import forces_from_config, propagate_truth
 
         t_end = float(t.max(initial=0.0))
-        nodes = np.linspace(0.0, t_end, max(2, int(np.ceil(t_end / 21600.0)) + 1))
-        eo = orientation.earth_orientation(epoch, nodes)              # the true pole every ≤ 6 h
+        step = 21600.0 if tr.truth_model == "zonal_dop853" else 60.0  # the pole every <= 6 h; ITRF every minute
+        nodes = np.linspace(0.0, t_end, max(2, int(np.ceil(t_end / step)) + 1))
+        eo = orientation.earth_orientation(epoch, nodes)
         tt = eo.time[0].tt
-        forces = forces_from_config(tr, (float(tt.jd1), float(tt.jd2)), (nodes, eo.pole_gcrf))
-        x = propagate_truth(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), forces)[1:]
+        rotation = EarthRotation(nodes, eo.R_itrf_from_gcrf, orientation.OMEGA_ERA)
+        forces = forces_from_config(tr, (float(tt.jd1), float(tt.jd2)), (nodes, eo.pole_gcrf), rotation)
+        times, back = np.unique(np.concatenate([[0.0], t]), return_inverse=True)  # start_s = 0: t_eval strictly
+        x = propagate_truth(np.concatenate([r0, v0]), times, forces)[back][1:]   # increasing for DOP853
         return x[:, :3], x[:, 3:]
     if tr.j2:
         x = propagate(np.concatenate([r0, v0]), np.concatenate([[0.0], t]), j2=True)[1:]
