@@ -221,7 +221,7 @@ STATUSES = "runs.json"
 def is_published(folder: Path) -> bool:
     """A published study folder (``tables/`` and ``runs.json`` beside ``campaign.json``, no ``runs/``)."""
     d = Path(folder)
-    return (d / TABLES).is_dir() and (d / STATUSES).is_file() and not (d / "runs").is_dir()
+    return (d / TABLES).is_dir() and os.path.lexists(d / STATUSES) and not (d / "runs").is_dir()
 
 
 def load_published_tables(folder: Path) -> dict:
