@@ -1,4 +1,4 @@
-"""Choosing Retina's sub-pixel peak step: every finder of ``estimators.retina.peaks`` side by side, in one run, on
+"""Choosing Retina's sub-pixel peak step: every finder of ``estimators.landmarks.peaks`` side by side, in one run, on
 
 * **EV5 templates**: Retina's predicted templates (``render_template``, 3×3 supersampling) of the maplets of the
   published Retina-vs-SPC world (``results/retina_vs_spc/scenario.toml``: procedural EV5 seed 2008, its three
@@ -136,7 +136,7 @@ def time_per_call(cases, reps=5):
     """Median µs per call of each step alone (the 7 x 7 surface given; the re-centred passes include their template
     moves and 3 x 3 correlations), every call timed on its own and the steps interleaved (a shared, loaded machine
     preempts single calls; the median ignores them)."""
-    from estimators.retina.correlation import correlation_surface
+    from estimators.landmarks.correlation import correlation_surface
 
     surf = [correlation_surface(c.image, c.template, c.valid, c.s0, c.l0, 3, c.image_valid)[0] for c in cases]
     times = {m: [] for m in STEPS}

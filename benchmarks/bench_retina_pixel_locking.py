@@ -1,7 +1,7 @@
 """Pixel-locking curves of the sub-pixel peak finders: bias (estimated − true shift) vs the fractional
 shift of a band-limited random texture (Fourier-shifted, exact), and of Retina-rendered maplets (the
 a-priori camera translated by a known sub-pixel amount, ``estimators.retina.locking``), for every finder
-of ``estimators.retina.peaks``, and for the refined steps of ``estimators.retina.peak_step`` (``gaussian_2d_rc``:
+of ``estimators.landmarks.peaks``, and for the refined steps of ``estimators.retina.peak_step`` (``gaussian_2d_rc``:
 ``retina_refined``'s; ``ml_shift``: ``retina_ml``'s), which need the template and image, not only the surface (on
 the same textures: ``texture_case`` of the same seeds). Prints both tables; ``--png FILE`` also draws the texture
 curves.
@@ -19,7 +19,7 @@ import argparse
 
 import numpy as np
 
-from estimators.retina.peaks import FINDERS, pixel_locking_curve
+from estimators.landmarks.peaks import FINDERS, pixel_locking_curve
 
 #: the refined steps of estimators.retina.peak_step shown beside the finders
 REFINED = ("gaussian_2d_rc", "ml_shift")

@@ -24,9 +24,9 @@ from scipy.ndimage import gaussian_filter  # noqa: E402
 
 from estimators.retina import (CameraPoseEstimate, RetinaOptions, TemplateOptions, build_mesh,  # noqa: E402
                                measure_landmark, render_template)
-from estimators.retina.correlation import (correlation_surface, correlation_surface_direct,  # noqa: E402
+from estimators.landmarks.correlation import (correlation_surface, correlation_surface_direct,  # noqa: E402
                                           correlation_surface_numpy)
-from estimators.retina.peaks import locate_peak  # noqa: E402
+from estimators.landmarks.peaks import locate_peak  # noqa: E402
 import estimators.spc as spc  # noqa: E402
 from renderlab.geometry.camera import CameraModel  # noqa: E402
 from renderlab.geometry.maplet import Maplet  # noqa: E402

@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.retina.correlation import correlation_surface
+from estimators.landmarks.correlation import correlation_surface
 from estimators.retina.ml_shift import MlShiftOptions, ml_shift
 from estimators.retina.peak_step import estimates, noise_sigma, texture_case
-from estimators.retina.peaks import locate_peak
+from estimators.landmarks.peaks import locate_peak
 
 
 def _ml(case, image):

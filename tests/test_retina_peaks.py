@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from estimators.retina import CameraPoseEstimate, RetinaOptions, build_mesh, measure_landmark, project_point
-from estimators.retina.peaks import FINDERS, locate_peak, pixel_locking_curve
+from estimators.landmarks.peaks import FINDERS, locate_peak, pixel_locking_curve
 from estimators.retina.predict import render_template
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet

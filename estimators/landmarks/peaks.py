@@ -197,7 +197,7 @@ def pixel_locking_curve(fractions, methods=tuple(FINDERS), size: int = 96, tpl: 
     dict
         ``{method: (bias_s (F,), bias_l (F,))}`` for the fractions F.
     """
-    from estimators.retina.correlation import correlation_surface
+    from estimators.landmarks.correlation import correlation_surface
 
     rng = np.random.default_rng(seed)
     fr = np.asarray(fractions, float)

@@ -15,9 +15,9 @@ relative albedo) between where the a-priori pose predicts it and where the image
    (eqs. 5–8) or a fitted L(α) table; k × k samples per pixel, optional PSF (:mod:`.predict`, :mod:`.raster`,
    :mod:`.raytrace`).
 3. **Correlate** (eq. 9, with the square root that makes it a correlation coefficient) at every integer
-   shift within the search distance, by FFT (:mod:`.correlation`).
+   shift within the search distance, by FFT (:mod:`estimators.landmarks.correlation`).
 4. **Peak** to sub-pixel precision, by default the paper's "linear interpolation over a 3×3 sub-pixel
-   grid" (``retina_3x3``; :mod:`.peaks`, with the other finders and the pixel-locking curve, :mod:`.locking`).
+   grid" (``retina_3x3``; :mod:`estimators.landmarks.peaks`, with the other finders and the pixel-locking curve, :mod:`.locking`).
    The lab's refined step (``peak="gaussian_2d"``, ``recentre_passes=2``: a 2-D Gaussian fit, then the template
    moved by the sub-pixel estimate and the fit repeated at zero offset, :mod:`.recentre`) locks ≈ 0.01 px where
    the 3×3 step locks 0.04–0.07 px (:mod:`.peak_step`, ``benchmarks/bench_retina_peak_step.py``). The
@@ -27,12 +27,13 @@ relative albedo) between where the a-priori pose predicts it and where the image
    filter, not dropped (:mod:`.landmarks`).
 
 Modules: :mod:`.maplet_mesh` (pre-processing), :mod:`.raytrace` (numba ray–facet and shadow rays),
-:mod:`.predict` (projection eqs. 1–4, search distance, synthetic image eqs. 5–8), :mod:`.correlation`
-(eq. 9), :mod:`.peaks` (sub-pixel peak finders, pixel-locking curve), :mod:`.landmarks` (per landmark and
-per frame, final output phase), :mod:`.raster` (the default rasterised synthetic image), :mod:`.locking`
+:mod:`.predict` (synthetic image eqs. 5–8), :mod:`.landmarks` (per landmark and per frame), :mod:`.raster` (the default rasterised synthetic image), :mod:`.locking`
 (pixel-locking curve on Retina-rendered maplets), :mod:`.recentre` (re-centred peak passes), :mod:`.ml_shift`
 (maximum-likelihood shift), :mod:`.peak_step`
 (bias and noise of the peak steps on cases with a known shift). No result is a bit in :mod:`estimators.flags`.
+What Retina shares with SPC is in :mod:`estimators.landmarks`: the a-priori pose, projection (eqs. 1–4) and
+search distance, the correlation (eq. 9), the sub-pixel peak finders and the pixel-locking curve, the
+measurement and the final output phase.
 
 Tuning
 ------
@@ -75,14 +76,14 @@ Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission (ARRM)", NASA
 2016. Equation numbers above are this paper's.
 
 J. P. Lewis, "Fast normalized cross-correlation", Vision Interface, Vol. 10, 1995, pp. 120–123 (the paper's
-ref. 19; :mod:`.correlation`).
+ref. 19; :mod:`estimators.landmarks.correlation`).
 """
 
-from estimators.retina.landmarks import (LandmarkMeasurement, RetinaOptions, final_output_phase,
-                                         measure_frame, measure_landmark)
+from estimators.landmarks import (CameraPoseEstimate, LandmarkMeasurement, final_output_phase, pixel_covariance,
+                                  project_point, search_radius_px)
+from estimators.retina.landmarks import RetinaOptions, measure_frame, measure_landmark
 from estimators.retina.maplet_mesh import MapletMesh, build_mesh
-from estimators.retina.predict import (CameraPoseEstimate, TemplateOptions, pixel_covariance, project_point,
-                                       render_template, search_radius_px)
+from estimators.retina.predict import TemplateOptions, render_template
 
 __all__ = ["LandmarkMeasurement", "RetinaOptions", "final_output_phase", "measure_frame", "measure_landmark",
            "MapletMesh", "build_mesh", "CameraPoseEstimate", "TemplateOptions", "pixel_covariance",

@@ -4,8 +4,8 @@ Description
 -----------
 For each landmark: the maplet is projected with the a-priori pose (eqs. 1–4); its synthetic image is
 ray-traced and lit with McEwen's law (eqs. 5–8, :mod:`.predict`); the correlation coefficient (eq. 9) is
-computed at every integer shift within the search distance (:mod:`.correlation`); the peak is located to
-sub-pixel precision (:mod:`.peaks`, the paper's 3×3 interpolation by default). The measured shift
+computed at every integer shift within the search distance (:mod:`estimators.landmarks.correlation`); the peak is located to
+sub-pixel precision (:mod:`estimators.landmarks.peaks`, the paper's 3×3 interpolation by default). The measured shift
 (Δs, Δl) moves the predicted landmark pixel onto the observed one: ``meas = pred + (Δs, Δl)``.
 
 No result (NaN shift, a flag of :mod:`estimators.flags`), checked in this order: prediction behind the
@@ -29,7 +29,7 @@ Tuning
 knob                  default       turn it when
 ====================  ============  ========================================================================
 ``peak``              retina_3x3    compare finders (``parabola_1d``, ``quadric_2d``, ``gaussian``,
-                                    ``gaussian_2d``, ``upsampled``): :func:`~.peaks.pixel_locking_curve` shows
+                                    ``gaussian_2d``, ``upsampled``): :func:`~estimators.landmarks.peaks.pixel_locking_curve` shows
                                     each one's bias
 ``min_correlation``   0.3           raise to refuse weak matches (fewer results, fewer gross errors); lower
                                     on low-contrast terrain
@@ -69,11 +69,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from estimators import flags as F
-from estimators.retina.correlation import correlation_surface
+from estimators.landmarks.correlation import correlation_surface
+from estimators.landmarks.measurement import LandmarkMeasurement, facing_flags, final_output_phase
+from estimators.landmarks.peaks import locate_peak
+from estimators.landmarks.pose import CameraPoseEstimate, project_point
 from estimators.retina.maplet_mesh import MapletMesh
 from estimators.retina.ml_shift import REFINEMENTS
-from estimators.retina.peaks import locate_peak
-from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
+from estimators.retina.predict import TemplateOptions, render_template
 from estimators.retina.recentre import recentred_shift
 from renderlab.geometry.camera import CameraModel
 
@@ -87,7 +89,7 @@ class RetinaOptions:
     template : TemplateOptions
         Synthetic image options (supersampling, PSF, McEwen parameters, shadow rays).
     peak : str
-        Peak finder (see :data:`estimators.retina.peaks.FINDERS`).
+        Peak finder (see :data:`estimators.landmarks.peaks.FINDERS`).
     min_correlation : float
         Peaks under this correlation are flagged ``LOW_CORRELATION`` (no result).
     min_pixels : int
@@ -102,7 +104,7 @@ class RetinaOptions:
     Raises
     ------
     ValueError
-        An unknown refinement (an unknown finder is refused by :func:`~.peaks.locate_peak`).
+        An unknown refinement (an unknown finder is refused by :func:`~estimators.landmarks.peaks.locate_peak`).
     """
 
     template: TemplateOptions = field(default_factory=TemplateOptions)
@@ -118,43 +120,6 @@ class RetinaOptions:
         if self.refine and self.refine not in REFINEMENTS:
             raise ValueError(f"unknown peak refinement {self.refine!r} (choose from {', '.join(REFINEMENTS)}, "
                              "or '' for none)")
-
-
-@dataclass
-class LandmarkMeasurement:
-    """One landmark's measurement in one image (px; NaN shifts when there is no result)."""
-
-    landmark_id: int
-    pred_s: float
-    pred_l: float
-    ds: float = float("nan")
-    dl: float = float("nan")
-    score: float = float("nan")
-    flags: int = 0
-    search_px: int = 0
-    n_pixels: int = 0
-    shadow_fraction: float = float("nan")
-    t_ms: float = 0.0
-
-    @property
-    def meas_s(self) -> float:
-        return self.pred_s + self.ds
-
-    @property
-    def meas_l(self) -> float:
-        return self.pred_l + self.dl
-
-    @property
-    def has_result(self) -> bool:
-        return not (self.flags & F.NO_RESULT_MASK) and np.isfinite(self.ds)
-
-
-def facing_flags(mesh_or_maplet, pose: CameraPoseEstimate, sun_body: np.ndarray) -> int:
-    """``FACING_AWAY`` when the maplet's up axis faces away from the sun or the camera."""
-    M = getattr(mesh_or_maplet, "maplet", mesh_or_maplet)
-    up = np.asarray(M.R_body_from_maplet, float)[:, 2]
-    to_cam = np.asarray(pose.position_m, float) - np.asarray(M.center_m, float)
-    return F.FACING_AWAY if (up @ np.asarray(sun_body, float) <= 0 or up @ to_cam <= 0) else 0
 
 
 def measure_landmark(image: np.ndarray, mesh: MapletMesh, camera: CameraModel, pose: CameraPoseEstimate,
@@ -206,24 +171,6 @@ def measure_landmark(image: np.ndarray, mesh: MapletMesh, camera: CameraModel, p
         return out
     finally:
         out.t_ms = (time.perf_counter() - t0) * 1e3
-
-
-def final_output_phase(measurements: list, k: float = 5.0, floor_px: float = 1.0) -> np.ndarray:
-    """Flag shifts inconsistent with the frame's median shift (in place); returns the median (Δs, Δl).
-
-    Needs at least three results; with fewer nothing is flagged (there is no majority to compare with).
-    """
-    good = [m for m in measurements if m.has_result]
-    if len(good) < 3:
-        return np.full(2, np.nan)
-    d = np.array([[m.ds, m.dl] for m in good])
-    med = np.median(d, axis=0)
-    dist = np.hypot(*(d - med).T)
-    thr = max(floor_px, k * 1.4826 * float(np.median(dist)))
-    for m, r in zip(good, dist):
-        if r > thr:
-            m.flags |= F.OUTLIER
-    return med
 
 
 def measure_frame(image: np.ndarray, meshes: list[MapletMesh], camera: CameraModel, pose: CameraPoseEstimate,

@@ -1,5 +1,5 @@
 r"""Pixel-locking curve of the peak finders on Retina-rendered maplets (the textures' curve is
-:func:`estimators.retina.peaks.pixel_locking_curve`).
+:func:`estimators.landmarks.peaks.pixel_locking_curve`).
 
 A maplet is rendered by Retina's synthetic-image tracer at the true pose of a nadir camera and pasted
 into an empty image (valid only where the template is); the a-priori camera is then translated parallel
@@ -15,8 +15,9 @@ import numpy as np
 from estimators.retina.landmarks import RetinaOptions, measure_landmark
 from estimators.retina.maplet_mesh import build_mesh
 from estimators.retina.peak_step import STEPS
-from estimators.retina.peaks import FINDERS
-from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
+from estimators.landmarks.peaks import FINDERS
+from estimators.landmarks.pose import CameraPoseEstimate, project_point
+from estimators.retina.predict import TemplateOptions, render_template
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet
 

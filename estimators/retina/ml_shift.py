@@ -2,7 +2,7 @@ r"""Maximum-likelihood sub-pixel shift: Gauss–Newton on the template itself, s
 
 Description
 -----------
-Retina's peak step (Wright et al., "Peak Finding") and every finder of :mod:`.peaks` look only at the
+Retina's peak step (Wright et al., "Peak Finding") and every finder of :mod:`estimators.landmarks.peaks` look only at the
 integer-lag correlation surface C (eq. 9) around its maximum. This step goes back to the pixels. Under white
 Gaussian pixel noise of variance σ², the image is modelled on the template's footprint as
 
@@ -207,7 +207,7 @@ def ml_shift(image, template, valid, s0: int, l0: int, ds: float, dl: float, ima
     template, valid : (h, w) arrays
         The noise-free prediction T and its footprint, placed with its (0, 0) at image pixel (``s0``, ``l0``).
     ds, dl : float
-        Start (px), e.g. a peak finder's estimate; the shift convention of :mod:`.peaks` (content of the
+        Start (px), e.g. a peak finder's estimate; the shift convention of :mod:`estimators.landmarks.peaks` (content of the
         template at x appears at x + δ in the image).
     image_valid : (H, W) bool or None
         Usable image pixels.

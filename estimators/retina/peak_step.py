@@ -18,7 +18,7 @@ relative to the template. Two kinds:
 
 :func:`estimates` correlates the template with the image (eq. 9, search radius ``radius``) plus Gaussian pixel
 noise of σ = std(template over its footprint) / SNR (:func:`noise_sigma`; the template, the prediction, stays
-noise-free as onboard) and runs every step of :data:`STEPS`: each finder of :data:`~.peaks.FINDERS` on the
+noise-free as onboard) and runs every step of :data:`STEPS`: each finder of :data:`~estimators.landmarks.peaks.FINDERS` on the
 integer maximum, the re-centred passes of :mod:`.recentre` and the maximum-likelihood shift of :mod:`.ml_shift`.
 Estimate − true shift is the step's error: its mean over noise-free cases at many fractions is the pixel-locking
 curve, its spread over noise draws is compared with a Cramér–Rao bound.
@@ -58,13 +58,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators.retina.correlation import correlation_surface
-from estimators.retina.peaks import FINDERS, locate_peak, shifted_texture
+from estimators.landmarks.correlation import correlation_surface
+from estimators.landmarks.peaks import FINDERS, locate_peak, shifted_texture
 
 
 
 class Step(NamedTuple):
-    """A peak step: the finder of :data:`~.peaks.FINDERS`, re-centred passes (:mod:`.recentre`) after it, and a
+    """A peak step: the finder of :data:`~estimators.landmarks.peaks.FINDERS`, re-centred passes (:mod:`.recentre`) after it, and a
     refinement of :data:`~.ml_shift.REFINEMENTS` after those ("" = none)."""
 
     finder: str
@@ -72,7 +72,7 @@ class Step(NamedTuple):
     refine: str = ""
 
 
-#: the steps compared: every finder of :data:`~.peaks.FINDERS` alone (0 passes), re-centred (:mod:`.recentre`,
+#: the steps compared: every finder of :data:`~estimators.landmarks.peaks.FINDERS` alone (0 passes), re-centred (:mod:`.recentre`,
 #: 2 passes) on the two 2-D fits, and the maximum-likelihood shift (:mod:`.ml_shift`) from ``gaussian_2d``
 STEPS = {**{m: Step(m) for m in FINDERS}, "quadric_2d_rc": Step("quadric_2d", 2), "gaussian_2d_rc": Step("gaussian_2d", 2),
          "ml_shift": Step("gaussian_2d", 0, "ml_shift")}
@@ -102,7 +102,8 @@ def texture_case(sigma_px: float, shift_sl, seed: int, size: int = 96, tpl: int 
 def rendered_case(mesh, camera, true_pose, sun_body, shift_sl, template_options=None) -> Case | None:
     """Retina's rendering of ``mesh`` at ``true_pose`` and its prediction from an a-priori camera translated so
     the prediction is off by ≈ ``shift_sl`` (module docstring); None if either template cannot be made."""
-    from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, project_point, render_template
+    from estimators.landmarks.pose import CameraPoseEstimate, project_point
+    from estimators.retina.predict import TemplateOptions, render_template
 
     opts = template_options or TemplateOptions()
     truth_tpl = render_template(mesh, camera, true_pose, sun_body, opts)

@@ -1,14 +1,5 @@
-r"""Landmark prediction: projection with the a-priori pose (eqs. 1–4), search distance, synthetic image.
-
-Projection. The landmark centre :math:`\mathbf{x}_B` (body frame) goes to the camera frame with
-:math:`\mathbf{x}_C = \mathbf{T}_C^B(\mathbf{x}_B - \mathbf{t}_B)` (eqs. 1–2, ``T_C^B = R_body_from_cam^T``),
-then through the gnomonic projection, distortion and pixel map of the camera model (eqs. 3–4).
-
-Search distance. The a-priori pose error (position δt, covariance Σ_t; attitude δθ, a small rotation of
-the camera frame, ``R_body_from_cam ← R_body_from_cam · exp([δθ]×)``, covariance Σ_θ) moves the landmark's
-pixel by J_t δt + J_θ δθ with J_t = −J_p T_C^B and J_θ = J_p [x_C]×, J_p the projection Jacobian. The
-search radius is n_σ times the square root of the largest eigenvalue of the 2×2 pixel covariance
-(3σ by default), rounded up.
+r"""Landmark prediction: the synthetic image of a maplet seen with the a-priori pose (the projection, eqs. 1–4,
+and the search distance are the shared :mod:`estimators.landmarks.pose`).
 
 Synthetic image (Retina "Synthetic Image Generation"): the pixels covering the maplet (bounding box of
 its projected grid points) are taken through the inverse camera model at k×k sub-pixel positions, the
@@ -28,56 +19,17 @@ The McEwen weight β is exp(−α/α0) (eq. 5) or a tabulated L(α) fitted to th
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.landmarks.pose import CameraPoseEstimate, project_point
 from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
 from estimators.retina.maplet_mesh import MapletMesh
 from estimators.retina.raster import pinhole_box, raster_pinhole
 from estimators.retina.raytrace import shade_pinhole, shade_pixels
 from estimators.retina.raytrace_numpy import trace_rays_numpy
 from renderlab.geometry.camera import CameraModel
-from renderlab.geometry.rotations import skew
-
-
-@dataclass(frozen=True)
-class CameraPoseEstimate:
-    """A camera pose in the body frame: ``p_body = R_body_from_cam @ p_cam + position_m``."""
-
-    R_body_from_cam: np.ndarray
-    position_m: np.ndarray
-
-    def to_camera(self, p_body: np.ndarray) -> np.ndarray:
-        """Eq. 1: body-frame points (..., 3) → camera frame."""
-        return (np.asarray(p_body, float) - np.asarray(self.position_m, float)) @ np.asarray(self.R_body_from_cam, float)
-
-
-def project_point(camera: CameraModel, pose: CameraPoseEstimate, p_body: np.ndarray) -> np.ndarray:
-    """Eqs. 1–4: body-frame point(s) (..., 3) → pixel (s, l) (..., 2); NaN behind the camera."""
-    return camera.project(pose.to_camera(p_body))
-
-
-def pixel_covariance(camera: CameraModel, pose: CameraPoseEstimate, p_body: np.ndarray,
-                     cov_pos_m2: np.ndarray, cov_rot_rad2: np.ndarray) -> np.ndarray:
-    """2×2 covariance (px²) of the landmark's pixel from the a-priori pose covariance (module docstring)."""
-    x_c = pose.to_camera(p_body)
-    Jp = camera.project_jacobian(x_c)
-    J_t = -Jp @ np.asarray(pose.R_body_from_cam, float).T
-    J_th = Jp @ skew(x_c)
-    return J_t @ np.asarray(cov_pos_m2, float) @ J_t.T + J_th @ np.asarray(cov_rot_rad2, float) @ J_th.T
-
-
-def search_radius_px(camera: CameraModel, pose: CameraPoseEstimate, p_body: np.ndarray,
-                     cov_pos_m2: np.ndarray, cov_rot_rad2: np.ndarray, n_sigma: float = 3.0,
-                     min_px: int = 2, max_px: int = 64) -> int:
-    """Search distance in whole pixels: ``ceil(n_sigma · sqrt(λ_max(Σ_px)))``, clamped to [min_px, max_px]."""
-    cov = pixel_covariance(camera, pose, p_body, cov_pos_m2, cov_rot_rad2)
-    if not np.all(np.isfinite(cov)):
-        return int(max_px)
-    lam = float(np.linalg.eigvalsh(cov)[-1])
-    return int(min(max(math.ceil(n_sigma * math.sqrt(max(lam, 0.0))), min_px), max_px))
 
 
 @dataclass(frozen=True)

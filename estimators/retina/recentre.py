@@ -2,7 +2,7 @@ r"""Re-centred sub-pixel peak: move the template by the current sub-pixel estima
 
 Description
 -----------
-Every 3-point or 3×3 peak fit of :mod:`.peaks` is exact at integer shifts and wrong in between when the
+Every 3-point or 3×3 peak fit of :mod:`estimators.landmarks.peaks` is exact at integer shifts and wrong in between when the
 correlation surface (Retina eq. 9) does not have the shape the fit assumes (pixel locking). Sampling the
 surface *around the estimate* instead of around the integer maximum removes most of it: with the estimate
 δ = n + φ (n integer, |φ| ≤ ½), the template I_p is moved by φ, I_p'(x) = I_p(x − φ) (cubic B-spline
@@ -34,8 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from estimators.retina.correlation import correlation_surface_direct
-from estimators.retina.peaks import FINDERS
+from estimators.landmarks.correlation import correlation_surface_direct
+from estimators.landmarks.peaks import FINDERS
 
 
 def moved_template(template: np.ndarray, valid: np.ndarray, phase_sl) -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,9 @@ The method the Retina paper compares against, with the approximations it blames 
    pose projects the maplet point (δx s, δy s, 0): Δs, Δl = that pixel − the predicted pixel.
 
 The maplet grid gives a cell-quantised view of the image: with GSD ≠ spacing, oblique views and heights
-this is where SPC's approximations bite. No-result flags and the final output phase are Retina's
-(:mod:`estimators.retina.landmarks`); the onboard photometry (``L_table``) is the same for both methods.
+this is where SPC's approximations bite. The projection, correlation, peak finders, measurement and final output
+phase are the landmark layer both methods share (:mod:`estimators.landmarks`); the onboard photometry
+(``L_table``) is the same for both methods.
 
 Tuning
 ------
@@ -31,7 +32,7 @@ Tuning
 ====================  ==========  ==============================================================================
 knob                  default     turn it when
 ====================  ==========  ==============================================================================
-``peak``              quadric_2d  SPC's quadric; any :data:`estimators.retina.peaks.FINDERS` name to compare
+``peak``              quadric_2d  SPC's quadric; any :data:`estimators.landmarks.peaks.FINDERS` name to compare
 ``min_correlation``   0.3         raise to refuse weak matches; lower on low-contrast terrain
 ``min_points``        64          lit grid points that must overlap the extracted image; lower for small maplets
 ``min_image_px``      9.0 px²     smallest image area of the maplet's footprint (``TOO_FEW_PIXELS`` below)
@@ -49,7 +50,7 @@ Use
 ---
 ::
 
-    from estimators.retina import CameraPoseEstimate
+    from estimators.landmarks import CameraPoseEstimate
     from estimators.spc import SpcOptions, measure_frame
     pose = CameraPoseEstimate(R_body_from_cam, position_m)          # a-priori, body frame
     res = measure_frame(dn_image, maplets, camera, pose, sun_body, search_px, SpcOptions())
@@ -59,11 +60,11 @@ References
 ----------
 R. W. Gaskell, O. Barnouin-Jha, D. J. Scheeres, A. S. Konopliv, T. Mukai, S. Abe, J. Saito, M. Ishiguro,
 T. Kubota, T. Hashimoto, et al., "Characterizing and navigating small bodies with imaging data", Meteoritics
-& Planetary Science, Vol. 43, No. 6, 2008, pp. 1049–1061.
+& Planetary Science, Vol. 43, No. 6, 2008, pp. 1049–1061, doi:10.1111/j.1945-5100.2008.tb00692.x.
 
 C. A. Wright, J. Van Eepoel, A. Liounis, M. Shoemaker, K. DeWeese, K. Getzandanner, "Relative Terrain Imaging
 Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission (ARRM)", NASA Goddard Space Flight Center,
-2016 (equation numbers above).
+2016 (equation numbers above; a technical report, no DOI).
 """
 
 from __future__ import annotations
@@ -77,10 +78,10 @@ from numba import njit
 
 from estimators import flags as F
 from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
-from estimators.retina.correlation import correlation_surface
-from estimators.retina.landmarks import LandmarkMeasurement, facing_flags, final_output_phase
-from estimators.retina.peaks import locate_peak
-from estimators.retina.predict import CameraPoseEstimate, project_point
+from estimators.landmarks.correlation import correlation_surface
+from estimators.landmarks.measurement import LandmarkMeasurement, facing_flags, final_output_phase
+from estimators.landmarks.peaks import locate_peak
+from estimators.landmarks.pose import CameraPoseEstimate, project_point
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet
 

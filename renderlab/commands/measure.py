@@ -31,7 +31,7 @@ def add_parser(subparsers) -> None:
     p.add_argument("--n-sigma", type=float, default=3.0, help="search distance in sigma (default 3)")
     p.add_argument("--max-search-px", type=int, default=48, help="largest search distance, px (default 48)")
     p.add_argument("--peak", metavar="FINDER",
-                   help="sub-pixel peak finder of estimators.retina.peaks (retina_3x3, parabola_1d, quadric_2d, "
+                   help="sub-pixel peak finder of estimators.landmarks.peaks (retina_3x3, parabola_1d, quadric_2d, "
                         "gaussian_2d, gaussian, upsampled; default: the method's own, retina_3x3 for retina)")
     p.add_argument("--min-correlation", type=float, default=0.3, help="correlation threshold (default 0.3)")
     p.add_argument("--photometry", choices=["fitted", "fixed"], default="fitted",
@@ -87,7 +87,7 @@ def run(args) -> int:
     if args.seed < 0:
         raise UserError(f"--seed must be >= 0, got {args.seed}")
     if args.peak is not None:
-        from estimators.retina.peaks import FINDERS
+        from estimators.landmarks.peaks import FINDERS
 
         if args.peak not in FINDERS:
             raise UserError(f"--peak: unknown peak finder {args.peak!r} (choose from {', '.join(FINDERS)})")

@@ -55,7 +55,7 @@ class LandmarkMethodOptions:
     Attributes
     ----------
     peak : str or None
-        Sub-pixel peak finder name (:data:`estimators.retina.peaks.FINDERS`); None: the method's own default.
+        Sub-pixel peak finder name (:data:`estimators.landmarks.peaks.FINDERS`); None: the method's own default.
     min_correlation : float
         Correlation under which a peak gives no result.
     supersample : int

@@ -1,6 +1,6 @@
 """The lab's own landmark methods behind the :class:`~renderlab.contracts.landmark.LandmarkMethod` contract:
 Retina (:mod:`estimators.retina`), Retina with the refined peak step (``retina_refined``: the 2-D Gaussian fit
-``gaussian_2d`` of :mod:`estimators.retina.peaks` instead of the paper's 3×3 step), Retina with the
+``gaussian_2d`` of :mod:`estimators.landmarks.peaks` instead of the paper's 3×3 step), Retina with the
 maximum-likelihood shift (``retina_ml``: :mod:`estimators.retina.ml_shift` after ``gaussian_2d``) and the SPC-style method
 (:mod:`estimators.spc`).
 

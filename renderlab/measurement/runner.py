@@ -104,7 +104,7 @@ class MeasureOptions:
         if self.psf_sigma_px < 0:
             raise UserError(f"psf_sigma_px must be >= 0, got {self.psf_sigma_px!r}")
         if self.peak is not None:
-            from estimators.retina.peaks import FINDERS
+            from estimators.landmarks.peaks import FINDERS
 
             if self.peak not in FINDERS:
                 raise UserError(f"peak must be one of {', '.join(FINDERS)}, got {self.peak!r}")
