@@ -127,7 +127,7 @@ def initial_state(opts: Options, mu: float):
 def build(opts: Options):
     """The simulation and its modules (a dict)."""
     from Basilisk.architecture import messaging
-    from Basilisk.fswAlgorithms import houghCircles, pixelLineConverter, relativeODuKF
+    from Basilisk.fswAlgorithms import houghCircles, pixelLineConverter
     from Basilisk.simulation import simpleNav, spacecraft
     from Basilisk.utilities import SimulationBaseClass, macros, simIncludeGravBody
 

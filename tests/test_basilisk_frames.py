@@ -102,7 +102,7 @@ def test_sun_direction_and_camera_model():
     from renderlab.basilisk import frames
     from renderlab.errors import UserError
 
-    PN = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])      # planet-fixed = inertial turned −90° about z
+    PN = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # the planet-fixed x axis is inertial y
     s = frames.sun_direction([0.0, 3e11, 0.0], [0.0, 1e11, 0.0], PN)
     assert np.allclose(s, [1.0, 0.0, 0.0])
     cam = frames.camera_model(np.radians(90.0), (640, 480))

@@ -92,99 +92,107 @@ def set_image_pointer(payload, buffer: np.ndarray) -> None:
     payload.imageBufferLength = int(buffer.size)
 
 
+class CameraLogic:
+    """What ``RenderlabCamera`` does (module docstring); the class itself adds Basilisk's ``SysModel``.
+
+    Parameters
+    ----------
+    renderer : renderlab.Renderer
+        The world, opened once (a ``planet`` world: its render frame is the planet-fixed frame).
+    fieldOfView : float
+        rad, edge to edge along the camera's y axis (Basilisk's ``CameraConfigMsgPayload.fieldOfView``).
+    resolution : (int, int)
+        Width, height in pixels.
+    sigma_CB, cameraPos_B : 3-vectors
+        Camera mount: MRPs of the camera frame relative to the body, its position in the body frame (m).
+    cameraID : int
+        Written into both messages.
+    spp : int, optional
+        Samples per pixel (default: the scenario's ``render.spp``).
+    keep_images : int
+        How many encoded images stay alive (≥ 1): a message, or a recorder's copy, may point into them.
+    keep_truth : bool
+        Keep the truth AOVs of the last frame in ``last_frame.aovs`` (the truth rows are always kept).
+    """
+
+    def _setup(self, messaging, renderer, *, fieldOfView: float, resolution, sigma_CB=(0.0, 0.0, 0.0),
+               cameraPos_B=(0.0, 0.0, 0.0), cameraID: int = 1, spp: int | None = None, keep_images: int = 2,
+               keep_truth: bool = False) -> None:
+        from renderlab.basilisk import frames
+
+        if isinstance(keep_images, bool) or not isinstance(keep_images, int) or keep_images < 1:
+            raise UserError(f"keep_images must be an integer >= 1, got {str(keep_images)[:40]}")
+        self._messaging, self.renderer = messaging, renderer
+        self.camera = frames.camera_model(fieldOfView, resolution)
+        self.fieldOfView = float(fieldOfView)
+        self.sigma_CB = frames.dcm_to_mrp(frames.mrp_to_dcm(sigma_CB))  # validated, the short set
+        self.cameraPos_B = frames.vec3(cameraPos_B, "cameraPos_B")
+        self.cameraID, self.spp, self.keep_truth = int(cameraID), spp, bool(keep_truth)
+        self.scStateInMsg = messaging.SCStatesMsgReader()
+        self.planetInMsg = messaging.SpicePlanetStateMsgReader()
+        self.sunInMsg = messaging.SpicePlanetStateMsgReader()
+        self.imageOutMsg = messaging.CameraImageMsg()
+        self.cameraConfigOutMsg = messaging.CameraConfigMsg()
+        self._buffers = collections.deque(maxlen=keep_images)
+        self.last_frame = None
+        self.frames_rendered = 0
+
+    def config_payload(self):
+        """The ``CameraConfigMsgPayload`` of this camera."""
+        p = self._messaging.CameraConfigMsgPayload()
+        p.cameraID, p.isOn, p.fieldOfView = self.cameraID, 1, self.fieldOfView
+        p.resolution = [int(self.camera.width), int(self.camera.height)]
+        p.sigma_CB = [float(v) for v in self.sigma_CB]
+        p.cameraPos_B = [float(v) for v in self.cameraPos_B]
+        return p
+
+    def Reset(self, CurrentSimNanos=0):
+        if not self.scStateInMsg.isLinked():
+            raise UserError("RenderlabCamera.scStateInMsg is not connected (subscribe it to the spacecraft's "
+                            "scStateOutMsg)")
+        self.cameraConfigOutMsg.write(self.config_payload(), CurrentSimNanos, self.moduleID)
+
+    def pose_at(self, CurrentSimNanos: int):
+        """(lab camera pose, sun direction in the render frame or None) from the input messages."""
+        from renderlab.basilisk import frames
+
+        sc = self.scStateInMsg()
+        r_P, PN = np.zeros(3), None
+        if self.planetInMsg.isLinked():
+            pl = self.planetInMsg()
+            r_P, PN = np.array(pl.PositionVector, float), np.array(pl.J20002Pfix, float)
+        pose = frames.camera_pose(sc.r_BN_N, sc.sigma_BN, sigma_CB=self.sigma_CB, cameraPos_B=self.cameraPos_B,
+                                  r_PN_N=r_P, dcm_PN=PN, time_s=CurrentSimNanos * 1e-9)
+        sun = frames.sun_direction(self.sunInMsg().PositionVector, r_P, PN) if self.sunInMsg.isLinked() else None
+        return pose, sun
+
+    def UpdateState(self, CurrentSimNanos):
+        pose, sun = self.pose_at(CurrentSimNanos)
+        frame = self.renderer.frame(time_s=CurrentSimNanos * 1e-9, pose=pose, sun=sun, camera=self.camera,
+                                    spp=self.spp, outputs=("dn", "truth"))
+        if not self.keep_truth:
+            frame.aovs = None
+        buf = encode_png8(frame.dn, self.renderer.options.adc_max)
+        self._buffers.append(buf)  # alive until keep_images newer images replace it
+        p = self._messaging.CameraImageMsgPayload()
+        set_image_pointer(p, buf)
+        p.timeTag, p.valid, p.cameraID, p.imageType = int(CurrentSimNanos), 1, self.cameraID, 1
+        self.imageOutMsg.write(p, CurrentSimNanos, self.moduleID)
+        self.cameraConfigOutMsg.write(self.config_payload(), CurrentSimNanos, self.moduleID)
+        self.last_frame, self.frames_rendered = frame, self.frames_rendered + 1
+
+
 @functools.lru_cache(maxsize=1)
 def camera_class():
-    """The ``RenderlabCamera`` class, built on Basilisk's ``SysModel`` at first use."""
+    """The ``RenderlabCamera`` class: :class:`CameraLogic` on Basilisk's ``SysModel``, built at first use."""
     messaging, sys_model, _ = basilisk_modules()
-    from renderlab.basilisk import frames
 
-    class RenderlabCamera(sys_model.SysModel):
-        """renderlab as a Basilisk camera (module docstring of :mod:`renderlab.basilisk.camera`).
+    class RenderlabCamera(CameraLogic, sys_model.SysModel):
+        __doc__ = CameraLogic.__doc__
 
-        Parameters
-        ----------
-        renderer : renderlab.Renderer
-            The world, opened once (a ``planet`` world: its render frame is the planet-fixed frame).
-        fieldOfView : float
-            rad, edge to edge along the camera's y axis (Basilisk's ``CameraConfigMsgPayload.fieldOfView``).
-        resolution : (int, int)
-            Width, height in pixels.
-        sigma_CB, cameraPos_B : 3-vectors
-            Camera mount: MRPs of the camera frame relative to the body, its position in the body frame (m).
-        cameraID : int
-            Written into both messages.
-        spp : int, optional
-            Samples per pixel (default: the scenario's ``render.spp``).
-        keep_images : int
-            How many encoded images stay alive (≥ 1): a message, or a recorder's copy, may point into them.
-        keep_truth : bool
-            Keep the truth AOVs of the last frame in ``last_frame.aovs`` (the truth rows are always kept).
-        """
-
-        def __init__(self, renderer, *, fieldOfView: float, resolution, sigma_CB=(0.0, 0.0, 0.0),
-                     cameraPos_B=(0.0, 0.0, 0.0), cameraID: int = 1, spp: int | None = None,
-                     keep_images: int = 2, keep_truth: bool = False):
-            super().__init__()
-            if isinstance(keep_images, bool) or not isinstance(keep_images, int) or keep_images < 1:
-                raise UserError(f"keep_images must be an integer >= 1, got {str(keep_images)[:40]}")
-            self.renderer = renderer
-            self.camera = frames.camera_model(fieldOfView, resolution)
-            self.fieldOfView = float(fieldOfView)
-            self.sigma_CB = frames.dcm_to_mrp(frames.mrp_to_dcm(sigma_CB))  # validated, short set
-            self.cameraPos_B = np.array(cameraPos_B, dtype=float).reshape(3)
-            self.cameraID, self.spp, self.keep_truth = int(cameraID), spp, bool(keep_truth)
-            self.scStateInMsg = messaging.SCStatesMsgReader()
-            self.planetInMsg = messaging.SpicePlanetStateMsgReader()
-            self.sunInMsg = messaging.SpicePlanetStateMsgReader()
-            self.imageOutMsg = messaging.CameraImageMsg()
-            self.cameraConfigOutMsg = messaging.CameraConfigMsg()
-            self._buffers = collections.deque(maxlen=keep_images)
-            self.last_frame = None
-            self.frames_rendered = 0
-
-        def config_payload(self):
-            """The ``CameraConfigMsgPayload`` of this camera."""
-            p = messaging.CameraConfigMsgPayload()
-            p.cameraID, p.isOn, p.fieldOfView = self.cameraID, 1, self.fieldOfView
-            p.resolution = [int(self.camera.width), int(self.camera.height)]
-            p.sigma_CB = [float(v) for v in self.sigma_CB]
-            p.cameraPos_B = [float(v) for v in self.cameraPos_B]
-            return p
-
-        def Reset(self, CurrentSimNanos=0):
-            if not self.scStateInMsg.isLinked():
-                raise UserError("RenderlabCamera.scStateInMsg is not connected (subscribe it to the "
-                                "spacecraft's scStateOutMsg)")
-            self.cameraConfigOutMsg.write(self.config_payload(), CurrentSimNanos, self.moduleID)
-
-        def pose_at(self, CurrentSimNanos: int):
-            """(lab camera pose, sun direction in the render frame or None) from the input messages."""
-            sc = self.scStateInMsg()
-            r_P, PN = np.zeros(3), None
-            if self.planetInMsg.isLinked():
-                pl = self.planetInMsg()
-                r_P, PN = np.array(pl.PositionVector, float), np.array(pl.J20002Pfix, float)
-            pose = frames.camera_pose(sc.r_BN_N, sc.sigma_BN, sigma_CB=self.sigma_CB, cameraPos_B=self.cameraPos_B,
-                                      r_PN_N=r_P, dcm_PN=PN, time_s=CurrentSimNanos * 1e-9)
-            sun = None
-            if self.sunInMsg.isLinked():
-                sun = frames.sun_direction(self.sunInMsg().PositionVector, r_P, PN)
-            return pose, sun
-
-        def UpdateState(self, CurrentSimNanos):
-            pose, sun = self.pose_at(CurrentSimNanos)
-            frame = self.renderer.frame(time_s=CurrentSimNanos * 1e-9, pose=pose, sun=sun, camera=self.camera,
-                                        spp=self.spp, outputs=("dn", "truth"))
-            if not self.keep_truth:
-                frame.aovs = None
-            buf = encode_png8(frame.dn, self.renderer.options.adc_max)
-            self._buffers.append(buf)  # alive until keep_images newer images replace it
-            p = messaging.CameraImageMsgPayload()
-            set_image_pointer(p, buf)
-            p.timeTag, p.valid, p.cameraID, p.imageType = int(CurrentSimNanos), 1, self.cameraID, 1
-            self.imageOutMsg.write(p, CurrentSimNanos, self.moduleID)
-            self.cameraConfigOutMsg.write(self.config_payload(), CurrentSimNanos, self.moduleID)
-            self.last_frame, self.frames_rendered = frame, self.frames_rendered + 1
+        def __init__(self, renderer, **settings):
+            sys_model.SysModel.__init__(self)
+            self._setup(messaging, renderer, **settings)
 
     return RenderlabCamera
 

@@ -37,7 +37,8 @@ from renderlab.errors import UserError
 from renderlab.geometry.camera import CameraModel
 
 
-def _vec3(v, name: str) -> np.ndarray:
+def vec3(v, name: str) -> np.ndarray:
+    """``v`` as a finite float64 3-vector, or a one-line error naming it."""
     try:
         a = np.asarray(v, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
@@ -65,7 +66,7 @@ def skew(v) -> np.ndarray:
 
 def mrp_to_dcm(sigma) -> np.ndarray:
     """``[BN] = C(σ)`` of an MRP set (module docstring)."""
-    s = _vec3(sigma, "sigma")
+    s = vec3(sigma, "sigma")
     s2 = float(s @ s)
     S = skew(s)
     return np.eye(3) + (8.0 * S @ S - 4.0 * (1.0 - s2) * S) / (1.0 + s2) ** 2
@@ -74,7 +75,7 @@ def mrp_to_dcm(sigma) -> np.ndarray:
 def mrp_to_quat_wxyz(sigma) -> np.ndarray:
     """Euler parameters ``(β₀, β₁, β₂, β₃)`` (scalar first) of an MRP set: ``β₀ = (1 − σ²)/(1 + σ²)``,
     ``β_i = 2σ_i/(1 + σ²)``."""
-    s = _vec3(sigma, "sigma")
+    s = vec3(sigma, "sigma")
     s2 = float(s @ s)
     return np.concatenate([[(1.0 - s2) / (1.0 + s2)], 2.0 * s / (1.0 + s2)])
 
@@ -150,14 +151,14 @@ def camera_pose(r_BN_N, sigma_BN, *, sigma_CB=(0.0, 0.0, 0.0), cameraPos_B=(0.0,
     BN = mrp_to_dcm(sigma_BN)
     CB = mrp_to_dcm(sigma_CB)
     PN = np.eye(3) if dcm_PN is None else _dcm(dcm_PN, "J20002Pfix")
-    c_N = _vec3(r_BN_N, "r_BN_N") + BN.T @ _vec3(cameraPos_B, "cameraPos_B") - _vec3(r_PN_N, "PositionVector")
+    c_N = vec3(r_BN_N, "r_BN_N") + BN.T @ vec3(cameraPos_B, "cameraPos_B") - vec3(r_PN_N, "PositionVector")
     R = PN @ BN.T @ CB.T
     return CameraPose(float(time_s), PN @ c_N, Rotation.from_matrix(R))
 
 
 def sun_direction(r_SN_N, r_PN_N, dcm_PN=None) -> np.ndarray:
     """Unit vector from the planet toward the sun in the planet-fixed frame (``[PN](r_SN_N − r_PN_N)``)."""
-    d = _vec3(r_SN_N, "sun PositionVector") - _vec3(r_PN_N, "PositionVector")
+    d = vec3(r_SN_N, "sun PositionVector") - vec3(r_PN_N, "PositionVector")
     n = float(np.linalg.norm(d))
     if n <= 0.0:
         raise UserError("the sun and the planet are at the same position")
