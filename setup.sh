@@ -33,7 +33,7 @@ fi
 # (bpy 5.0.1 needs numpy 1.26). setuptools in the venv builds the wheel offline (tests/test_packaging.py).
 LOCK=requirements.lock
 .venv/bin/python -m pip install -q -c "$LOCK" --upgrade pip setuptools
-# everything: the core and every extra (cycles, earth, cluster, spice; see renderlab/extras.py) and the tests;
+# everything: the core and every extra (cycles, earth, cluster, spice, basilisk; see renderlab/extras.py) and the tests;
 # `pip install renderlab` elsewhere gets the core only
 .venv/bin/python -m pip install -q -c "$LOCK" -e ".[all,test]"
 # the worked third-party plug-in (examples/ncc_baseline): installed like any user package, found by entry point
