@@ -1,0 +1,123 @@
+"""Fuzz by category: every file the lab reads is validated at its boundary, and small inputs cannot hang or exhaust
+the machine.
+
+The families are generated (tests/fuzz_families.py, tests/fuzz_families2.py) over real files made by the lab's own
+writers (tests/fuzz_files.py): the metadata models' every declared key, every column of the campaign tables, every
+numeric key of every shipped scene, every file slot with every kind of special file, alias bombs and image headers of
+several sizes, every malformed ``module:attr`` and every control character of a KVN value. Each family runs in one
+``python`` child under a 4 GiB address-space cap (``RLIMIT_AS``), each case in-process there through
+:func:`renderlab.cli.main` with a 30 s alarm; a case passes when it exits 2 with exactly one ``renderlab: error:``
+line naming its needle, no traceback, nothing created in its working folder, its inputs untouched, and no recorded
+callable called. :func:`test_longest_error_line` bounds every line (values are quoted by a short prefix).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+TESTS = Path(__file__).resolve().parent
+sys.path.insert(0, str(TESTS))
+from fuzz_files import PREFIX, _tree, build_lab, families  # noqa: E402
+
+FAMILIES = list(families())
+#: the fewest cases each family must generate (it grows with the models, scenes and slots)
+MIN_CASES = {"metadata": 150, "tables": 90, "values": 250, "resources": 100, "references": 60, "outputs": 50}
+#: the longest error line any case may print (values are quoted by a short prefix; paths are the test's own)
+MAX_LINE = 400
+_RESULTS: dict = {}
+
+
+def _limit_memory():  # pragma: no cover - runs in the child
+    resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fuzz_lab")
+    env = {"RENDERLAB_CACHE": os.environ.get("RENDERLAB_CACHE")}
+    os.environ["RENDERLAB_CACHE"] = str(root.parent / "fuzz_lab_cache")
+    try:
+        build_lab(root / "lab")
+    finally:
+        if env["RENDERLAB_CACHE"] is None:
+            os.environ.pop("RENDERLAB_CACHE", None)
+        else:
+            os.environ["RENDERLAB_CACHE"] = env["RENDERLAB_CACHE"]
+    before = _tree(root / "lab")
+    yield root / "lab"
+    assert _tree(root / "lab") == before, "a case changed the shared lab"
+
+
+def family_results(family: str, lab: Path, tmp: Path) -> tuple[int, list[dict], float]:
+    """(cases generated, per-case results, seconds) of one family run in a capped child (cached per session)."""
+    if family in _RESULTS:
+        return _RESULTS[family]
+    root = tmp / family
+    root.mkdir(parents=True)
+    code = (f"import sys; sys.path.insert(0, {str(TESTS)!r}); import fuzz_files; "
+            f"fuzz_files.run_family({family!r}, __import__('pathlib').Path({str(lab)!r}), "
+            f"__import__('pathlib').Path({str(root)!r}))")
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900, cwd=root,
+                          preexec_fn=_limit_memory, env={**os.environ, "RENDERLAB_CACHE": str(root / "cache")})
+    seconds = time.perf_counter() - t0
+    lines = (root / "results.jsonl").read_text().splitlines() if (root / "results.jsonl").exists() else []
+    assert lines, f"the {family} child wrote nothing: rc {proc.returncode}, {proc.stderr[-2000:]}"
+    n = json.loads(lines[0])["cases"]
+    results = [json.loads(x) for x in lines[1:]]
+    if len(results) < n:  # the child died inside a case: that case fails
+        results.append({"id": f"case {len(results)} (the child died: rc {proc.returncode}, "
+                              f"{proc.stderr.strip()[-300:]!r})", "rc": "died", "lines": 0, "line": "", "longest": 0,
+                        "needle": "", "seconds": 0, "created": [], "changed": [], "called": [], "traceback": False})
+    _RESULTS[family] = (n, results, seconds)
+    return _RESULTS[family]
+
+
+def problems_of(r: dict) -> list[str]:
+    out = []
+    if r["rc"] != 2:
+        out.append(f"exit {r['rc']}")
+    if r["lines"] != 1 or not r["line"].startswith(PREFIX):
+        out.append(f"{r['lines']} stderr lines: {r['line'][:200]!r}")
+    if r["needle"] and r["needle"] not in r["line"]:
+        out.append(f"does not name {r['needle'][:40]!r}: {r['line'][:300]!r}")
+    if r["traceback"]:
+        out.append("traceback")
+    if r["created"] or r["changed"]:
+        out.append(f"created {r['created'][:3]} / changed {r['changed'][:3]}")
+    if r["called"]:
+        out.append(f"called {r['called']}")
+    if r["seconds"] > 30:
+        out.append(f"took {r['seconds']:.0f} s")
+    return out
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_family_refused_cleanly(family, lab, tmp_path_factory, capsys):
+    n, results, seconds = family_results(family, lab, tmp_path_factory.getbasetemp() / "fuzz_runs")
+    bad = {r["id"]: problems_of(r) for r in results if problems_of(r)}
+    clean = len(results) - len(bad)
+    with capsys.disabled():
+        print(f"\n[fuzz family {family}] {n} cases, {clean} refused cleanly, {seconds:.1f} s")
+    assert n >= MIN_CASES[family], f"{family}: only {n} cases generated"
+    assert not bad, f"{family}: {len(bad)} of {n} not refused cleanly: " + "; ".join(
+        f"{k}: {', '.join(v)}" for k, v in list(bad.items())[:12])
+
+
+def test_longest_error_line(lab, tmp_path_factory):
+    """No error line quotes user data unbounded: the longest line of every case of every family (which include
+    200 000-character strings, 400-character references and 100 000-deep nesting) stays under MAX_LINE."""
+    longest = []
+    for family in FAMILIES:
+        _, results, _ = family_results(family, lab, tmp_path_factory.getbasetemp() / "fuzz_runs")
+        longest += [(r["longest"], r["id"], r["line"][:120]) for r in results]
+    worst = max(longest)
+    assert worst[0] <= MAX_LINE, f"longest error line: {worst}"
