@@ -5,7 +5,7 @@ one after the other in one run of this script, on the same descent frames at the
 
 * ``old``: ``world.site.lod = false`` (the full-resolution site in every frame), ``world.build_cache = false``
   (world built in the process), numpy rays (``MitsubaBackend.ray_path = "numpy"``), Mitsuba's ``path``
-  integrator at ``max_depth = 2`` (``MitsubaBackend.integrator = "path"``): the code before issue 19.
+  integrator at ``max_depth = 2`` (``MitsubaBackend.integrator = "path"``): the code before ``rl_direct_sun``.
 * ``old_drjit`` (with ``--paths``): the full site, Dr.Jit rays, ``path`` (the ray change alone).
 * ``new_cold``: tiles with levels of detail, Dr.Jit rays, the direct-sun integrator (``rl_direct_sun``:
   primary + shadow ray, renderlab/render/mitsuba_direct.py), world cache empty (built and stored).

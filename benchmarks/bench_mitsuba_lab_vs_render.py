@@ -14,7 +14,7 @@ configuration once, in an order rotated by r):
 * ``lab path``: the same with Mitsuba's ``path`` integrator, ``max_depth = 2`` (the integrator before the
   direct-sun change: a third, BSDF-sampled ray per sample and a second BSDF evaluation);
 * ``lab numpy``: ``lab path`` with ``ray_path = "numpy"`` (the former path: float64 numpy rays per
-  sample, one wavefront per sample): the code before issue 19;
+  sample, one wavefront per sample): the code before the Dr.Jit ray path;
 * ``mi.render``, ``mi.render path``, ``mi.render direct``: Mitsuba's own renderer on a plain scene with a
   ``perspective`` sensor (``hdrfilm``, ``box`` rfilter, ``independent`` sampler), the lab's Python BSDF
   plugins, the same spp and resolution, with ``rl_direct_sun`` (the lab's integrator: the like-for-like
@@ -168,7 +168,7 @@ def main(argv=None):
     agree("lab drjit", "lab path", "same rays: float32 rounding only for a delta sun")
     if "lab numpy" in med:
         ratio("lab numpy", "lab path", "(speed-up of the Dr.Jit rays, both with path)")
-        ratio("lab numpy", "lab drjit", "(the code before issue 19 vs now)")
+        ratio("lab numpy", "lab drjit", "(numpy rays, the former code, vs now)")
         agree("lab path", "lab numpy", "same sub-pixel positions and seeds; a sample within float32 rounding of an "
               "edge falls on the other side: one sample's value / spp")
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2

@@ -16,7 +16,7 @@ noise equals Mitsuba's at ``--spp`` (log-log interpolation between the measured 
 ``mitsuba`` renders with the lab's direct-sun integrator (``rl_direct_sun``, renderlab/render/mitsuba_direct.py);
 ``mitsuba-path`` is the same backend with Mitsuba's ``path`` integrator (``max_depth = 2``: the integrator before
 the direct-sun change); ``mitsuba-numpy`` adds ``ray_path = "numpy"`` (numpy rays per sample: the code before
-issue 19), timed in the same run for the before/after ratios (``--skip-numpy`` leaves it out).
+the Dr.Jit ray path), timed in the same run for the before/after ratios (``--skip-numpy`` leaves it out).
 
 Run:  .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py                 # 256 px, 16 spp
       .venv/bin/python benchmarks/bench_mitsuba_vs_cycles.py --size 64 --repeats 1   # smoke
@@ -45,7 +45,7 @@ def _scenario(size: int, spp: int):
 
 def _backend(renderer: str, size: int, spp: int):
     """``renderer`` is a registered renderer, ``mitsuba-path`` (Mitsuba's ``path`` integrator instead of the
-    direct-sun one) or ``mitsuba-numpy`` (``path`` and the former numpy ray path: the code before issue 19)."""
+    direct-sun one) or ``mitsuba-numpy`` (``path`` and the former numpy ray path: the code before the Dr.Jit ray path)."""
     from renderlab.pipeline import make_backend
     from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.worlds.base import make_plan
@@ -103,7 +103,7 @@ def main() -> None:
     m = configs[0]
     print(f"\nMitsuba path integrator / direct-sun integrator time = {med[('mitsuba-path', args.spp)] / med[m]:.2f}")
     if ("mitsuba-numpy", args.spp) in med:
-        print(f"Mitsuba before issue 19 (numpy rays, path) / now time = {med[('mitsuba-numpy', args.spp)] / med[m]:.2f}")
+        print(f"Mitsuba with numpy rays and path / now time = {med[('mitsuba-numpy', args.spp)] / med[m]:.2f}")
     print(f"\nequal samples ({args.spp} spp): Cycles / Mitsuba time = {med[('cycles', args.spp)] / med[m]:.2f}")
     cs = [c for c in configs if c[0] == "cycles"]
     ln, lt = np.log([noise[c] for c in cs]), np.log([med[c] for c in cs])

@@ -25,7 +25,7 @@ Retina does) for the same steps.
 
     .venv/bin/python benchmarks/bench_retina_peak_step.py [--per-frame 5] [--textures 6] [--trials 25] [--snr 10 20 50]
 
-Criterion of issue 20: |bias| < 0.02 px and noise ≤ 1.5 × CRLB at SNR ≥ 20 (``ok`` column).
+Criterion for a better peak step: |bias| < 0.02 px and noise ≤ 1.5 × CRLB at SNR ≥ 20 (``ok`` column).
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ def cases_of(kind, item, shifts):
 
 def border_crlb(case, snr):
     """Registration CRLB (s, l), px, of the noise-free image over the template's footprint at the true shift
-    (``registration_crlb``, finite differences; the benchmark's bound before issue 20: on a rendered case the
+    (``registration_crlb``, finite differences; the benchmark's former bound: on a rendered case the
     differences cross the footprint's border into the masked zeros, ``estimators.retina.peak_step``)."""
     from renderlab.campaign.scoring import registration_crlb
 

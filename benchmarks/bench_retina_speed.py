@@ -2,7 +2,7 @@
 and shadow rays, and seconds per 1 Mpx frame with 20 landmarks; the plain-numpy Retina (brute-force ray
 casting, numpy correlation) measured in the same run for the ratio.
 
-Targets (issue 5, from ARRM's 3 Hz on a 75 MHz processor): ≥ 200 templates/s, ≤ 100 ms per frame.
+Targets (from ARRM's 3 Hz on a 75 MHz processor): ≥ 200 templates/s, ≤ 100 ms per frame.
 
 Both 2×2 and 1×1 supersampling are timed (the target does not fix it); CPU time of the thread is the
 headline figure (the machine may be shared), wall time in parentheses. The default synthetic image is the

@@ -5,6 +5,7 @@ included), file and function sizes, contracts written once."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -161,3 +162,24 @@ def test_truth_cache_fingerprint_covers_files_that_exist():
     root = REPO / "renderlab"
     assert [m for m in cache._TRUTH_MODULES if not (root / m).is_file()] == []
     assert [p for p in cache._TRUTH_PACKAGES if not (root / p).is_dir()] == []
+
+
+def test_every_estimator_package_cites_its_references():
+    """Each package of ``estimators`` has a References section whose entries give a DOI or say there is none."""
+    missing = {}
+    for init in sorted((REPO / "estimators").glob("*/__init__.py")):
+        doc = ast.get_docstring(ast.parse(init.read_text())) or ""
+        refs = doc.split("References\n----------\n", 1)[1] if "References\n----------\n" in doc else ""
+        entries = [e for e in refs.split("\n\n") if e.strip()]
+        bad = [e[:60] for e in entries if "doi:" not in e and "no DOI" not in e and "none is given" not in e]
+        if not entries or bad:
+            missing[init.parent.name] = bad or "no References section"
+    assert missing == {}
+
+
+def test_no_issue_tracker_numbers_in_code():
+    """Code, docstrings and tests name the finding, not a number of a tracker outside the repository."""
+    hits = [f"{p.relative_to(REPO)}:{k}" for p in _sources() + sorted((REPO / "tests").glob("*.py"))
+            + sorted((REPO / "benchmarks").glob("*.py")) for k, line in enumerate(p.read_text().splitlines(), 1)
+            if re.search(r"\bissues? [0-9]+\b", line) and p.name != "test_architecture.py"]
+    assert hits == []

@@ -1,4 +1,5 @@
-"""SIGKILL a running ``renderlab campaign`` and resume it (issue 6 acceptance).
+"""SIGKILL a running ``renderlab campaign`` and resume it (the campaign engine's acceptance: exactly N runs, none
+doubled, tables identical to an uninterrupted campaign).
 
 The killed campaign is resumed with ``--resume``: exactly N run folders, each run once, and every
 table equal (timing column ``t_ms`` excluded) to an uninterrupted campaign with the same seed.

@@ -1,4 +1,4 @@
-"""The error budget (issue 20, renderlab/studies/retina_vs_spc/budget*.py): configurations from scenario keys,
+"""The error budget (renderlab/studies/retina_vs_spc/budget*.py): configurations from scenario keys,
 its statistics against direct numpy computations on synthetic tables with known bias/noise, the quadrature check
 on additive vs interacting sources, and the published folder results/error_budget regenerating from its tables."""
 

@@ -1,4 +1,4 @@
-"""Retina end to end on rendered EV5 descent frames (issue 5 acceptance).
+"""Retina end to end on rendered EV5 descent frames (the acceptance of the Retina and SPC methods).
 
 The real pipeline and Mitsuba backend render two small frames of the procedural EV5 landing site
 (65 m: the regional tier at ~0.54 px per maplet spacing; 45 m: the site tier at ~0.74); Retina measures

@@ -33,6 +33,18 @@ Use
 
 The lab wraps them as centre/limb methods of ``renderlab.contracts.centre_limb`` in
 ``renderlab.measurement.centre_limb_methods``.
+
+References
+----------
+J. A. Christian and S. B. Robinson, "Noniterative horizon-based optical navigation by Cholesky factorization",
+J. Guidance, Control, and Dynamics 39(12), 2016, doi:10.2514/1.G000539.
+
+J. A. Christian, "Accurate planetary limb localization for image-based spacecraft navigation", J. Spacecraft and
+Rockets 54(3), 2017, doi:10.2514/1.A33692.
+
+A. Fitzgibbon, M. Pilu and R. B. Fisher, "Direct least square fitting of ellipses", IEEE TPAMI 21(5), 1999,
+doi:10.1109/34.765658; R. Halíř and J. Flusser, "Numerically stable direct least squares fitting of ellipses",
+WSCG 1998 (no DOI).
 """
 
 from .centroid import CentroidOptions, IntensityCentroid

@@ -50,7 +50,9 @@ Use
 References
 ----------
 M. N. Straub and J. A. Christian, "Autonomous Optical Navigation for Earth-Observing Satellites Using
-Coastline Matching", West Virginia University, AIAA paper, c. 2015 (equation numbers above).
+Coastline Matching", Department of Mechanical and Aerospace Engineering, West Virginia University, Morgantown, WV;
+an AIAA conference paper, c. 2015 (equation numbers above). The paper's text names neither its venue nor a DOI,
+and none could be confirmed here, so none is given.
 """
 
 from .dynamics import MU_EARTH, dynamics_jacobian, propagate_state_stm, two_body_rhs

@@ -47,6 +47,22 @@ Use
 ``"landmark_ids": ids, "landmark_cov_m2": C`` (k,), (k, 3, 3) to the context; ``f.x``, ``f.P`` stay [r, v] and
 its covariance, ``f.xa``, ``f.Pa``, ``f.map_ids`` are the augmented state. The lab's contract adapter is
 ``renderlab.measurement.descent_filter.DescentNavFilter`` (registered filter ``descent_ekf``).
+
+References
+----------
+C. A. Wright et al., "Relative Terrain Imaging Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission
+(ARRM)", NASA Goddard Space Flight Center, 2016 (the loop and eqs. 1–4; a technical report, no DOI).
+
+Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with Applications to Tracking and Navigation*, Wiley, 2001,
+doi:10.1002/0471221279 (the EKF, the process noise of D4–D5, the χ² gate, NEES/NIS, the iterated update).
+
+A. I. Mourikis, N. Trawny, S. I. Roumeliotis, A. E. Johnson, A. Ansar and L. Matthies, "Vision-Aided Inertial
+Navigation for Spacecraft Entry, Descent, and Landing", IEEE Transactions on Robotics 25(2), 2009, pp. 264–280,
+doi:10.1109/TRO.2009.2012342 (mapped landmarks in an EKF).
+
+D. J. Scheeres, *Orbital Motion in Strongly Perturbed Environments*, Springer-Praxis, 2012 (eq. 3.1, the rotating
+frame's dynamics of D1; no DOI confirmed here). S. F. Schmidt, "Application of state-space methods to navigation
+problems", Advances in Control Systems 3, 1966 (the consider filter of ``map_states = "consider"``; no DOI).
 """
 
 from estimators.descent_nav.ekf import DescentEKF, DescentNavOptions, DescentUpdate

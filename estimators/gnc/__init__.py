@@ -36,6 +36,17 @@ control_period_s=Δ))``; every Δ: ``a_cmd = g.command(t, x_est)``; ``a = thr.re
 ``thr = ThrusterModel(ThrusterOptions(...), np.random.default_rng(seed))``; integrate the truth with ``a`` held.
 The lab's contract adapter is ``renderlab.studies.descent_gnc.guidance.ZemZevLaw`` (registered guidance law
 ``zem_zev``, :data:`renderlab.plugins.guidance`).
+
+References
+----------
+Y. Guo, M. Hawkins and B. Wie, "Applications of generalized zero-effort-miss/zero-effort-velocity feedback guidance
+algorithm", J. Guidance, Control, and Dynamics 36(3), 2013, doi:10.2514/1.58099.
+
+B. Ebrahimi, M. Bahrami and J. Roshanian, "Optimal sliding-mode guidance with terminal velocity constraint for
+fixed-interval propulsive maneuvers", Acta Astronautica 62, 2008, doi:10.1016/j.actaastro.2008.01.011.
+
+C. A. Wright et al., "Relative Terrain Imaging Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission
+(ARRM)", NASA Goddard Space Flight Center, 2016 (the GN&C loop of its Fig. 2; a technical report, no DOI).
 """
 
 from estimators.gnc.thrusters import ThrusterModel, ThrusterOptions

@@ -58,7 +58,8 @@ Use
 References
 ----------
 D. Ivanov et al., "Relative Pose and Inertia Determination of Unknown Satellite Using Monocular Vision",
-International Journal of Aerospace Engineering, vol. 2018, Article ID 9731512, 9 pages, 2018 (Keldysh
+International Journal of Aerospace Engineering, vol. 2018, Article ID 9731512, 9 pages, 2018,
+doi:10.1155/2018/9731512 (Keldysh
 Institute of Applied Mathematics RAS; equation and section numbers above are this paper's).
 """
 

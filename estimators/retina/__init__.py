@@ -73,10 +73,10 @@ References
 ----------
 C. A. Wright, J. Van Eepoel, A. Liounis, M. Shoemaker, K. DeWeese, K. Getzandanner, "Relative Terrain Imaging
 Navigation (RETINA) Tool for the Asteroid Redirect Robotic Mission (ARRM)", NASA Goddard Space Flight Center,
-2016. Equation numbers above are this paper's.
+2016 (a technical report: it has no DOI). Equation numbers above are this paper's.
 
 J. P. Lewis, "Fast normalized cross-correlation", Vision Interface, Vol. 10, 1995, pp. 120–123 (the paper's
-ref. 19; :mod:`estimators.landmarks.correlation`).
+ref. 19; :mod:`estimators.landmarks.correlation`; no DOI).
 """
 
 from estimators.landmarks import (CameraPoseEstimate, LandmarkMeasurement, final_output_phase, pixel_covariance,

@@ -27,7 +27,8 @@ Which bound: on a texture case every image pixel is observed and the registratio
 :func:`renderlab.campaign.scoring.registration_crlb` (finite-difference gradients of the noise-free image) is
 the bound. A rendered case's image is zero and masked outside the maplet's footprint; finite differences across
 that border count the step from terrain to the masked zeros as signal, which no estimator can use (the pixels
-beyond it are not observed): on the benchmark's EV5 templates that bound is 2–4× too small (measured, issue 20).
+beyond it are not observed): on the benchmark's EV5 templates that bound is 2–4× too small (measured by
+``benchmarks/bench_retina_peak_step.py``).
 :func:`rendered_crlb` is the Fisher information of the rendered model itself (ML-3 of :mod:`.ml_shift`):
 the derivative of every observed pixel with respect to the shift from templates re-rendered at ±``h_px``
 (finely supersampled, so the pixel integral is smooth in the shift), gain and offset as nuisance parameters.

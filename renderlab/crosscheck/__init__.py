@@ -26,7 +26,8 @@ agree. Per frame (both truth sets read back from disk):
   each renderer's own edge error |L − L_oracle|/step in px (``edge_vs_oracle_*_p99_px``). Scenes
   with albedo maps or mesh files are not refereed (NaN).
 
-Targets (issue 4): median radiometric ≤ 1 %, geometric ≤ 0.05 px, shadow edges ≤ 0.5 px.
+Targets, set before the renderers were compared (what sub-pixel navigation truth needs): median radiometric
+≤ 1 %, geometric ≤ 0.05 px, shadow edges ≤ 0.5 px (:data:`~renderlab.crosscheck.agreement.TARGETS`).
 """
 
 from renderlab.crosscheck.agreement import (LIT_FRACTION, TARGETS, FrameAgreement, frame_agreement,  # noqa: F401

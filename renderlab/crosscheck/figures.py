@@ -7,7 +7,7 @@ the shadow-edge shift images, float32, row-major). :func:`write_report` makes ``
 ``crosscheck.png`` / ``.svg`` from these two tables alone, so the run and ``renderlab report FOLDER`` give the
 same files.
 
-The page: the targets of issue 4 with the worst frame and PASS / FAIL, then one row per frame with its verdict.
+The page: the targets (:data:`~renderlab.crosscheck.agreement.TARGETS`) with the worst frame and PASS / FAIL, then one row per frame with its verdict.
 The figure: per frame, Mitsuba, Cycles, the relative radiance difference, the hit-point gap and the shadow-edge
 shift, each difference on a colour scale fitted to its data, with the target in the title (PASS / FAIL) and
 marked on the colour bar where it falls inside the scale. A panel with nothing to show (a frame without a
@@ -185,7 +185,7 @@ def markdown_table(rows, title: str, targets: dict) -> str:
     """The page: the targets with the worst frame and PASS / FAIL (n/a where a check has no pixels), then one row
     per frame (its verdict: PASS when every applicable target is met)."""
     f = lambda v, fmt: "–" if not np.isfinite(v) else format(v, fmt)  # noqa: E731
-    lines = [f"# {title}", "", f"{len(rows)} frames. Targets (issue 4) on the worst frame:", "",
+    lines = [f"# {title}", "", f"{len(rows)} frames. Targets on the worst frame:", "",
              "| quantity | target | worst frame | worst value | verdict |", "|---|---|---|---|---|"]
     passed = {r.frame: True for r in rows}
     for field, what, key, scale, unit in _checks(targets):

@@ -10,7 +10,7 @@ the former path (every sample's (s, l) through :meth:`CameraModel.unproject` in 
 per sample) for the benchmarks. The integrator evaluates the radiance along the rays: for direct sunlight
 (``max_depth = 2``) the lab's ``rl_direct_sun`` (:mod:`renderlab.render.mitsuba_direct`: primary and shadow
 ray, one BSDF evaluation; ``shadows = False`` drops the shadow ray), for longer paths Mitsuba's ``path``;
-``integrator = "path"`` keeps ``path`` at ``max_depth = 2`` too (the integrator before issue 19: a third,
+``integrator = "path"`` keeps ``path`` at ``max_depth = 2`` too (the integrator before ``rl_direct_sun``: a third,
 BSDF-sampled ray per sample that cannot reach the delta sun, and a second BSDF evaluation), for the benchmarks.
 
 * Box pixel filter: sample j of pixel (s, l) is at (s, l) + frac(r2_j + u_pix) − ½, with r2_j the
@@ -81,7 +81,7 @@ class MitsubaBackend(NumpyRayPath):
     #: pinholes through the direction grid, as before commit 7018b77 (:meth:`render`); ``$RENDERLAB_MITSUBA_RAYS``
     ray_path = os.environ.get("RENDERLAB_MITSUBA_RAYS") or "drjit"
     #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) for max_depth 2, else ``path``;
-    #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before issue 19), kept for the benchmarks
+    #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before ``rl_direct_sun``), kept for the benchmarks
     integrator = "auto"
     #: tiled surfaces: ``"auto"``, in a second scene where the design applies (LLVM variants with the direct-sun
     #: integrator; renderlab.render.mitsuba_two_scene); ``"two"``, a second scene on CUDA variants too (not yet

@@ -89,7 +89,7 @@ KINDS = ("auto", "path", "direct")
 
 def integrator_dict(max_depth: int, shadows: bool, kind: str = "auto") -> dict:
     """The scene's integrator for ``kind``: ``"direct"``, ``rl_direct_sun`` (direct sunlight, ``max_depth = 2``);
-    ``"path"``, Mitsuba's ``path`` (the lab's integrator before issue 19, kept for the benchmarks); ``"auto"``,
+    ``"path"``, Mitsuba's ``path`` (the lab's integrator before ``rl_direct_sun``, kept for the benchmarks); ``"auto"``,
     ``rl_direct_sun`` for direct sunlight (``max_depth = 2``), ``path`` for longer light paths. Shadows can be
     switched off only with ``rl_direct_sun``."""
     if kind not in KINDS:

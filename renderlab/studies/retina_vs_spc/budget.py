@@ -1,4 +1,4 @@
-"""Error budget of the landmark methods against the registration Cramér–Rao bound (issue 20).
+"""Error budget of the landmark methods against the registration Cramér–Rao bound (what each error source adds).
 
 Every error source of the ``retina_vs_spc`` campaign is switched on alone, all others off, on the published
 reduced EV5 scenario (``results/retina_vs_spc/scenario.toml``), plus "all off" and "all on"; every
