@@ -7,8 +7,14 @@ Programming errors stay ordinary exceptions.
 """
 
 
+#: the longest message a UserError keeps: a user's value quoted without a bound is cut here, never printed whole
+MAX_MESSAGE = 1000
+
+
 class UserError(Exception):
-    """An error caused by the user's input; its message is one line that names the problem."""
+    """An error caused by the user's input; its message is one line that names the problem (at most
+    :data:`MAX_MESSAGE` characters)."""
 
     def __init__(self, message: str):
-        super().__init__(" ".join(str(message).split()))
+        text = " ".join(str(message).split())
+        super().__init__(text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 1] + "…")

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.contracts.file_models import MAX_RUNS  # noqa: F401  (the plan's bound, written once)
 from renderlab.errors import UserError
-
-MAX_RUNS = 1_000_000
+from renderlab.inputs import short
 
 
 @dataclass(frozen=True)
@@ -94,10 +94,10 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     from renderlab import plugins as registry
 
     if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
-        raise UserError(f"--runs must be an integer in 1..{MAX_RUNS}, got {runs!r}")
+        raise UserError(f"--runs must be an integer in 1..{MAX_RUNS}, got {short(runs)}")
     seed = scenario.campaign.seed if seed is None else seed
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise UserError(f"campaign seed must be a non-negative integer, got {seed!r}")
+        raise UserError(f"campaign seed must be a non-negative integer, got {short(seed)}")
     name = study or study_for(scenario)
     found = registry.studies.get(name, where="campaign.study: ")  # fails early on an unknown study
     kind = scenario.world.kind

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import math
 
+from renderlab.inputs import short
+
 MAD_TO_SIGMA = 1.482602218505602  # σ of a normal distribution per unit median absolute deviation
 GROSS_PX = 1.0  # |err| above this on either axis is a gross error (the reports' default), px
 
@@ -90,7 +92,7 @@ def run(args) -> int:
         from estimators.landmarks.peaks import FINDERS
 
         if args.peak not in FINDERS:
-            raise UserError(f"--peak: unknown peak finder {args.peak!r} (choose from {', '.join(FINDERS)})")
+            raise UserError(f"--peak: unknown peak finder {short(args.peak)} (choose from {', '.join(FINDERS)})")
     for name, hi in FLAG_LIMITS.items():
         v = getattr(args, name)
         if not math.isfinite(v) or not 0 <= v <= hi:
@@ -111,8 +113,6 @@ def run(args) -> int:
     except UserError:
         raise
     except Exception as exc:  # noqa: BLE001 - the user's method class failed to construct
-        from renderlab.inputs import short
-
         raise UserError(f"--method {short(args.method)}: constructing it raised {type(exc).__name__}: "
                         f"{short(str(exc), 120)}") from None
     if args.images is not None or args.truthset is None:

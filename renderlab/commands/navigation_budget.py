@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from renderlab.errors import UserError
+from renderlab.inputs import short
 
 
 def add_parser(sub) -> None:
@@ -48,7 +49,7 @@ def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None, 
         raise UserError(f"--runs must be >= 2, got {opts.runs}")
     bad = sorted(set(opts.mappings) - set(MAPPINGS))
     if bad:
-        raise UserError(f"--mappings: {bad[0]!r} is not one of {', '.join(MAPPINGS)}")
+        raise UserError(f"--mappings: {short(bad[0])} is not one of {', '.join(MAPPINGS)}")
     meas, configs = read_tables(folder)
     geom = descent_geometry(scenario_path)
     models = [m for mp in opts.mappings
@@ -56,12 +57,12 @@ def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None, 
     if only:
         unknown = sorted(set(only) - {m.config for m in models})
         if unknown:
-            raise UserError(f"--only: the budget has no configuration {unknown[0]!r}")
+            raise UserError(f"--only: the budget has no configuration {short(unknown[0])}")
         models = [m for m in models if m.config in only]
     if methods:
         unknown = sorted(set(methods) - {m.method for m in models})
         if unknown:
-            raise UserError(f"--methods: the budget has no rows of method {unknown[0]!r}")
+            raise UserError(f"--methods: the budget has no rows of method {short(unknown[0])}")
         models = [m for m in models if m.method in methods]
     table = fly_models(scenario_path, models, opts.runs, opts.seed, workers,
                        floor=None if only or methods else (NONE_CONFIG, NONE_METHOD))

@@ -210,7 +210,7 @@ def opencv_intrinsics(camera: CameraModel) -> tuple[np.ndarray, np.ndarray, bool
     ignores ``K[0, 1]`` and ``K[1, 0]``; the fisheye's ``alpha`` is ``skew / fx``.
     """
     if camera.model not in _VECTOR_ORDER:
-        raise UserError(f"camera.model {camera.model!r} has no OpenCV form")
+        raise UserError(f"camera.model {short(camera.model)} has no OpenCV form")
     d = np.array([camera.distortion[n] for n in _VECTOR_ORDER[camera.model]])
     return camera.K_matrix, d, camera.model == "kannala_brandt"
 
@@ -259,7 +259,7 @@ def _size(data: Mapping[str, Any], keys: Sequence[str], name: str) -> int | None
     if key is None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or value != int(value) or value <= 0:
-        raise UserError(f"{name}: {key} must be a positive integer, got {value!r}")
+        raise UserError(f"{name}: {key} must be a positive integer, got {short(value)}")
     return int(value)
 
 
@@ -269,7 +269,7 @@ def _flag(data: Mapping[str, Any], name: str) -> bool | None:
         if key in data:
             flag = data[key]
             if not isinstance(flag, (bool, int)) or flag not in (0, 1):
-                raise UserError(f"{name}: {key} must be 0 or 1, got {flag!r}")
+                raise UserError(f"{name}: {key} must be 0 or 1, got {short(flag)}")
             return bool(flag)
     return None
 
@@ -280,7 +280,7 @@ def _declared(model: str | None, flag: bool | None, model_name: str | None, name
         return model_name or None
     key = str(model).strip().lower()
     if key not in _MODEL_NAMES:
-        raise UserError(f"calibration model {model!r} is not one of {', '.join(MODEL_NAMES)}")
+        raise UserError(f"calibration model {short(model)} is not one of {', '.join(MODEL_NAMES)}")
     fish = _MODEL_NAMES[key] == "kannala_brandt"
     file_named = _MODEL_NAMES.get(str(model_name).strip().lower()) if model_name else None
     clash = (flag is not None and flag != fish) or (
@@ -327,7 +327,7 @@ def read_calibration(path: str | Path, model: str | None = None) -> dict[str, An
     flag = _flag(data, name)
     model_name = data.get("distortion_model")
     if model_name is not None and not isinstance(model_name, str):
-        raise UserError(f"{name}: distortion_model must be a name, got {model_name!r}")
+        raise UserError(f"{name}: distortion_model must be a name, got {short(model_name)}")
     return camera_from_opencv(K, D, _size(data, _W_KEYS, name),
                               _size(data, _H_KEYS, name), fisheye=flag,
                               distortion_model=_declared(model, flag, model_name, name), where=name)

@@ -127,7 +127,7 @@ def owen_coefficients_from_mm(e_mm: Mapping[str, float], focal_length_mm: float)
     coeffs = normalize_distortion("owen", e_mm, where="owen")
     f = float(focal_length_mm)
     if not (np.isfinite(f) and f > 0):
-        raise UserError(f"focal_length_mm must be a positive finite number, got {focal_length_mm!r}")
+        raise UserError(f"focal_length_mm must be a positive finite number, got {short(focal_length_mm)}")
     power = {"e1": 1, "e2": 2, "e3": 3, "e4": 4, "e5": 1, "e6": 1}
     return {k: v * f ** power[k] for k, v in coeffs.items()}
 

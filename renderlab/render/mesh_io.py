@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.errors import UserError
-from renderlab.inputs import LIMITS, check_regular, shown
+from renderlab.inputs import LIMITS, check_regular, short, shown
 
 #: metres per file unit
 UNITS_M = {"m": 1.0, "km": 1000.0, "cm": 0.01}
@@ -175,9 +175,9 @@ def load_mesh(path: str | Path, *, units: str = "m", scale: float = 1.0, normals
     """
     path = Path(path)
     if units not in UNITS_M:
-        raise UserError(f"{where}: units must be one of {', '.join(UNITS_M)}, got {units!r}")
+        raise UserError(f"{where}: units must be one of {', '.join(UNITS_M)}, got {short(units)}")
     if normals not in NORMALS:
-        raise UserError(f"{where}: normals must be 'flat' or 'smooth', got {normals!r}")
+        raise UserError(f"{where}: normals must be 'flat' or 'smooth', got {short(normals)}")
     if not (np.isfinite(scale) and scale > 0):
         raise UserError(f"{where}: scale must be a positive finite number, got {scale}")
     mesh = _read(path, where)
