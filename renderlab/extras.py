@@ -10,6 +10,7 @@ cycles     bpy (≈ 820 MB)                     the Blender Cycles renderer (``-
 earth      roaring-landmask, shapely          the Earth world (GSHHG coastlines): coastline EKF, visibility
 cluster    dask[distributed]                  campaigns on Dask workers (``--workers N``, ``--scheduler``)
 spice      spiceypy                           SPICE trajectories (``trajectory.kind = "spice"``)
+basilisk   bsk, bsk-opnav (Basilisk 2.12)     renderlab as Basilisk's camera (``renderlab.basilisk``)
 all        all of the above
 test       pytest, hypothesis, ...            the lab's tests
 =========  =================================  ===============================================================
@@ -32,6 +33,7 @@ FEATURES = {
     "earth": "the Earth world (GSHHG coastlines)",
     "cluster": "a campaign on Dask workers",
     "spice": "a SPICE trajectory",
+    "basilisk": "renderlab as Basilisk's camera",
 }
 
 #: importable module → the extra that installs it
@@ -42,6 +44,7 @@ MODULE_EXTRA = {
     "dask": "cluster",
     "distributed": "cluster",
     "spiceypy": "spice",
+    "Basilisk": "basilisk",
 }
 
 

@@ -176,7 +176,8 @@ def test_pyproject_has_ranges_and_the_lock_pins_every_dependency_inside_them():
 @pytest.mark.parametrize("blocked, argv, extra", [
     ("bpy", ["render", "scenes/analytic_sphere_box.toml", "--renderer", "cycles", *TINY], "cycles"),
     ("bpy", ["crosscheck", "scenes/analytic_sphere_box.toml", *TINY], "cycles"),
-    ("roaring_landmask", ["render", "scenes/earth_leo.toml", *TINY], "earth"),
+    ("roaring_landmask", ["render", "scenes/earth_leo.toml", "--frames", "1", "--set", "render.spp=1", "--set",
+                          "camera.width=32", "--set", "camera.height=24"], "earth"),  # its FOV is trajectory.fov_deg
     ("shapely", ["campaign", "scenes/coastline_ekf.toml", "--runs", "1", "--workers", "0"], "earth"),
     ("roaring_landmask", ["visibility", "--hours", "0.5"], "earth"),
     ("distributed,dask", ["campaign", "scenes/analytic_sphere_box.toml", "--runs", "2", "--workers", "2"], "cluster"),
