@@ -219,7 +219,7 @@ def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: in
     try:
         pf = pq.ParquetFile(os.fspath(path))
         meta = pf.metadata
-        unpacked = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+        unpacked = decoded_bytes(meta)
         if meta.num_rows > MAX_TABLE_ROWS or unpacked > limit:
             raise UserError(f"{where}: the table states {meta.num_rows} rows, {unpacked} bytes unpacked; more than "
                             f"the lab reads ({MAX_TABLE_ROWS} rows, {limit} bytes)")
@@ -237,7 +237,20 @@ def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: in
 
 
 #: the most rows a table read by the lab may hold
-MAX_TABLE_ROWS = 200_000_000
+MAX_TABLE_ROWS = 50_000_000
+#: bytes per value once decoded, by Parquet physical type (BYTE_ARRAY: its offset; the data counts in the pages)
+_VALUE_BYTES = {"BOOLEAN": 1, "INT32": 4, "FLOAT": 4, "INT64": 8, "DOUBLE": 8, "INT96": 12, "BYTE_ARRAY": 8}
+
+
+def decoded_bytes(meta) -> int:
+    """A lower bound of a Parquet file's size once decoded, from its footer alone: rows × the value width of every
+    column plus the encoded pages (a column of a billion zeros run-length-encodes into a few bytes but decodes into
+    8 GB)."""
+    schema = meta.schema
+    width = sum(_VALUE_BYTES.get(schema.column(i).physical_type, schema.column(i).length or 8)
+                for i in range(meta.num_columns))
+    pages = sum(meta.row_group(i).total_byte_size for i in range(meta.num_row_groups))
+    return meta.num_rows * width + pages
 
 
 def empty_landmark_table() -> pa.Table:
