@@ -173,8 +173,38 @@ APRIORI_VALUES = [
 ]
 
 
+def _maplet_hex(bad: str) -> str:
+    """A 15 × 15 maplet EXR (the lab's writer) with one NaN or infinite height or albedo."""
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+
+    from renderlab.imageio import write_exr
+
+    h, a = np.zeros((15, 15)), np.full((15, 15), 0.2)
+    {"nan_height": h, "inf_height": h, "nan_albedo": a}[bad][7, 7] = np.inf if bad.startswith("inf") else np.nan
+    with tempfile.TemporaryDirectory() as d:
+        write_exr(Path(d) / "m.exr", {"height": h, "albedo": a})
+        return (Path(d) / "m.exr").read_bytes().hex()
+
+
+def _catalog_cases() -> list:
+    """NaN maplet heights and NaN catalogue numbers: refused before any landmark is measured."""
+    measure = ["measure", "--images", f"{CASE}/apriori.json", "--catalog", f"{CASE}/cat", "--out", f"{CASE}/m.parquet",
+               "--method", "retina"]
+    base = [["copy", "apriori.json"], ["copy", "img.png"], ["copy", "cat"]]
+    out = [(f"values:catalog:{bad}", [*base, ["bytes_hex", "cat/maplets/000001.exr", _maplet_hex(bad)]], measure,
+            "finite") for bad in ("nan_height", "inf_height", "nan_albedo")]
+    for col, needle in (("center_x_m", "centre"), ("center_z_m", "centre"), ("spacing_m", "spacing_m"),
+                        ("q_body_from_maplet_w", "landmark 1")):
+        out.append((f"values:catalog:{col}=nan", [*base, ["table", "cat/landmarks.parquet", "set_nan", col]], measure,
+                    needle))
+    return out
+
+
 def values_cases(lab) -> list:
-    out = _string_number_cases() + _intrinsic_cases() + _epoch_cases() + _calibration_cases()
+    out = _string_number_cases() + _intrinsic_cases() + _epoch_cases() + _calibration_cases() + _catalog_cases()
     ts_cmds = [["export", f"{CASE}/ts", "--oem", f"{CASE}/x.oem", "--epoch-utc", "2024-01-01T00:00:00"],
                ["info", f"{CASE}/ts"], ["measure", f"{CASE}/ts", "--method", "retina"]]
     for k, (tag, path, value, needle) in enumerate(MANIFEST_VALUES):

@@ -222,6 +222,9 @@ def _table(path: Path, op: str, arg) -> None:
         t = t.set_column(t.column_names.index(arg), arg, new)
     elif op == "empty":
         t = t.slice(0, 0)
+    elif op == "set_nan":  # the first row of a float column becomes NaN
+        vals = t.column(arg).to_pylist()
+        t = t.set_column(t.column_names.index(arg), arg, pa.array([math.nan, *vals[1:]], pa.float64()))
     elif op == "add_string_column":
         t = t.append_column(arg, pa.array(["x"] * t.num_rows, pa.string()))
     else:
