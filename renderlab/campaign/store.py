@@ -163,8 +163,9 @@ def finished_runs(campaign_dir: Path, runs: int) -> list[int]:
 def load_tables(campaign_dir: Path) -> dict:
     """All finished runs' tables, concatenated per name in run order: ``{name: pyarrow.Table}``."""
     m = read_manifest(campaign_dir)
+    own = own_tables(m)
     if is_published(campaign_dir):
-        return load_published_tables(campaign_dir)
+        return load_published_tables(campaign_dir, own)
     parts: dict[str, list] = {}
     for i in range(int(m["plan"]["runs"])):
         st = run_status(campaign_dir, i)
@@ -172,17 +173,29 @@ def load_tables(campaign_dir: Path) -> dict:
             continue
         d = run_dir(campaign_dir, i)
         for name in _table_names(st, d / "status.json"):
-            parts.setdefault(name, []).append(read_run_table(d / f"{name}.parquet", name))
+            parts.setdefault(name, []).append(read_run_table(d / f"{name}.parquet", name, own))
     return {name: concat_parts(name, ts) for name, ts in parts.items()}
 
 
-def read_run_table(path: Path, name: str):
-    """One campaign table file, read with its boundaries and the schema of its kind checked
-    (:func:`renderlab.contracts.schemas.read_parquet`, :func:`~renderlab.contracts.schemas.check_campaign_table`)."""
+def own_tables(manifest: dict) -> tuple[str, ...]:
+    """The tables the campaign's study reports itself (``Study.own_tables``; its own schema, read by its own code),
+    or none when the study is not registered here."""
+    from renderlab import plugins
+
+    study = manifest["plan"]["study"]
+    return tuple(getattr(plugins.studies.get(study), "own_tables", ()) or ()) if study in plugins.studies else ()
+
+
+def read_run_table(path: Path, name: str, own: tuple = ()):
+    """One campaign table file, read with its boundaries and (unless the study reports it itself: ``own``) the
+    schema of its kind checked (:func:`renderlab.contracts.schemas.read_parquet`,
+    :func:`~renderlab.contracts.schemas.check_campaign_table`)."""
     from renderlab.contracts.schemas import check_campaign_table, read_parquet
 
     where = f"table {shown(path)}"
     table = read_parquet(path, where)
+    if name in own:
+        return table
     try:
         check_campaign_table(name, table, where)
     except ValueError as exc:
@@ -224,14 +237,14 @@ def is_published(folder: Path) -> bool:
     return (d / TABLES).is_dir() and os.path.lexists(d / STATUSES) and not (d / "runs").is_dir()
 
 
-def load_published_tables(folder: Path) -> dict:
+def load_published_tables(folder: Path, own: tuple = ()) -> dict:
     """``{name: pyarrow.Table}`` of a published folder (names are plain identifiers inside ``tables/``; each table
     checked as :func:`read_run_table` checks a run's)."""
     out = {}
     for p in sorted((Path(folder) / TABLES).glob("*.parquet")):
         if not p.stem.isidentifier() or p.is_symlink():
             raise UserError(f"{shown(p)}: published table names must be plain identifiers (no links)")
-        out[p.stem] = read_run_table(p, p.stem)
+        out[p.stem] = read_run_table(p, p.stem, own)
     return out
 
 
@@ -257,7 +270,9 @@ def finished_campaign(campaign_dir: Path, purpose: str) -> tuple[dict, dict, lis
     tables = load_tables(campaign_dir)
     if not tables:
         raise UserError(f"campaign {shown(campaign_dir)} has no finished runs to {purpose}")
-    empty = [n for n, t in sorted(tables.items()) if t.num_rows == 0 and expected_kind(n, t) != "other"]
+    own = own_tables(manifest)
+    empty = [n for n, t in sorted(tables.items())
+             if t.num_rows == 0 and n not in own and expected_kind(n, t) != "other"]
     if empty:
         raise UserError(f"campaign {shown(campaign_dir)}: the {empty[0]} table has no rows in any run; nothing to "
                         f"{purpose}")
