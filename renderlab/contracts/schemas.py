@@ -184,12 +184,16 @@ def expected_kind(name: str, table: pa.Table) -> str:
     more than half of a kind's core columns (beside ``campaign``/``run``) is of that kind; else ``"other"``."""
     if name == "measurements":
         return "landmark"
+    whole = table_kind(table)  # every core column of a kind there: that kind
+    if whole != "other":
+        return whole
     names = set(table.column_names)
+    share = {}
     for kind in ("landmark", "filter", "pose"):
         core = [c for c in CORE[kind].names if c not in ("campaign", "run")]
-        if 2 * sum(c in names for c in core) > len(core):
-            return kind
-    return "other"
+        share[kind] = sum(c in names for c in core) / len(core)
+    best = max(share, key=share.get)
+    return best if share[best] > 0.5 else "other"
 
 
 def check_campaign_table(name: str, table: pa.Table, where: str) -> str:
