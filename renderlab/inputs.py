@@ -45,6 +45,11 @@ MAX_YAML_NODES = 100_000
 #: characters of a user value an error message quotes at most
 QUOTE_CHARS = 60
 _READ_BLOCK = 1 << 20
+#: the largest |focal length|, |principal point| or |skew| the lab takes, px (a 2 m focal length on 1 µm pixels is
+#: 2e6 px; past this a camera is a typo, and products of intrinsics overflow)
+PIXEL_MAX = 1e7
+#: the largest |distortion coefficient| the lab takes
+COEFF_MAX = 1e6
 #: calendar years of the epochs the lab's time scales support: UTC exists from 1960 (ERFA's leap-second table starts
 #: there), and ERFA's Earth ephemeris ``epv00`` and precession-nutation are stated for 1900-2100
 EPOCH_YEARS = (1960, 2100)
@@ -215,7 +220,7 @@ def validation_message(exc, where: str) -> str:
 
 
 def validate(model, data: Any, where: str):
-    """``model.model_validate(data)``, a ``ValidationError`` becoming one UserError line (:func:`validation_message`)."""
+    """``model.model_validate(data)`` (or a TypeAdapter's), a ``ValidationError`` becoming one UserError line."""
     from pydantic import ValidationError
 
     try:

@@ -66,7 +66,7 @@ def check_camera(camera) -> None:
     """The scenario's camera as the lab's camera model (bounded intrinsics: one UserError line otherwise)."""
     from renderlab.geometry.camera import CameraModel
 
-    d = camera.to_dict() if hasattr(camera, "to_dict") else camera.model_dump() if hasattr(camera, "model_dump") else camera
+    d = camera.model_dump() if hasattr(camera, "model_dump") else camera
     keys = ("width", "height", "fx", "fy", "cx", "cy", "skew", "skew_yx", "model", "distortion")
     if isinstance(d, dict) and all(d.get(k) is not None for k in ("width", "height", "fx", "fy", "cx", "cy")):
         CameraModel.from_dict({k: d[k] for k in keys if d.get(k) is not None})

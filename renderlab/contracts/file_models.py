@@ -1,20 +1,20 @@
 """One validated model per metadata file the lab reads (read with :func:`renderlab.inputs.read_model`).
 
-=======================  ====================================================  ========================================
-model                    file                                                  read by
-=======================  ====================================================  ========================================
-:class:`CampaignManifest`  ``campaign.json`` of a campaign or published study   ``report``, ``publish``, ``info``, resume
-:class:`RunStatus`       ``runs/NNNNNN/status.json`` of a campaign             the same
-:class:`RunStatuses`     ``runs.json`` of a published study folder             the same
-:class:`TruthManifest`   ``manifest.json`` of a truth set                      ``measure``, ``export``, ``info``, studies
-=======================  ====================================================  ========================================
+==========================  ==========================================  ==========================================
+model                       file                                        read by
+==========================  ==========================================  ==========================================
+:class:`CampaignManifest`   ``campaign.json`` (campaign, published)     ``report``, ``publish``, ``info``, resume
+:class:`RunStatus`          ``runs/NNNNNN/status.json`` of a campaign   the same
+:data:`RunStatuses`         ``runs.json`` of a published study          the same
+:class:`TruthManifest`      ``manifest.json`` of a truth set            ``measure``, ``export``, ``info``, studies
+==========================  ==========================================  ==========================================
 
 (The a-priori file of ``measure --images`` has its own model, :class:`renderlab.measurement.apriori.AprioriFile`.)
 The models are strict: no string is read as a number (``"64"`` for a width), no float as an integer, no boolean
 as either; numbers are finite and inside physical ranges (:data:`FOCAL_MAX_PX` …); lists and strings have
 bounded lengths; epochs lie in :data:`renderlab.inputs.EPOCH_YEARS`. Keys a writer of the file never wrote are
-refused where the lab writes the whole file (``campaign.json``, ``status.json``, ``runs.json``); records that worlds and studies
-extend (a truth set's frame records) keep their other keys, unchecked here, for their own readers.
+refused where the lab writes the whole file (``campaign.json``, ``status.json``, ``runs.json``); records that worlds
+and studies extend (a truth set's frame records) keep their other keys, unchecked here, for their own readers.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import (AfterValidator, BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, field_validator,
                       model_validator)
 
-from renderlab.inputs import EPOCH_YEARS, check_epoch_text  # noqa: F401  (EPOCH_YEARS re-exported)
+from renderlab.inputs import COEFF_MAX, EPOCH_YEARS, PIXEL_MAX, check_epoch_text  # noqa: F401  (re-exported)
 
 #: the most runs a campaign plan may have
 MAX_RUNS = 1_000_000
@@ -33,12 +33,8 @@ MAX_RUNS = 1_000_000
 MAX_FRAMES = 1_000_000
 #: image sides, px
 MAX_SIDE_PX = 65_535
-#: largest focal length in pixels (a 2 m focal length on 1 µm pixels is 2e6)
-FOCAL_MAX_PX = 1e7
-#: largest |principal point|, |skew|, px
-PIXEL_MAX = 1e7
-#: largest |distortion coefficient|
-COEFF_MAX = 1e6
+#: largest focal length, |principal point|, |skew| in pixels; largest |distortion coefficient| (renderlab.inputs)
+FOCAL_MAX_PX = PIXEL_MAX
 #: largest |position|, m (100 au)
 POSITION_MAX_M = 1.5e13
 #: largest |time| in s from a truth set's start (about 3000 years)

@@ -231,7 +231,8 @@ def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: in
     except UserError:
         raise
     except (OSError, ValueError, TypeError, IndexError, KeyError, pa.ArrowException) as exc:
-        raise UserError(f"cannot read {where}: not a readable Parquet table ({' '.join(str(exc).split())[:120]})") from None
+        text = " ".join(str(exc).split())[:120]
+        raise UserError(f"cannot read {where}: not a readable Parquet table ({text})") from None
     if schema is not None:
         try:
             check_schema(table, schema, where)

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from renderlab.inputs import LIMITS, load_yaml, read_text, short
+from renderlab.inputs import LIMITS, PIXEL_MAX, load_yaml, read_text, short
 from renderlab.errors import UserError
 
 from .camera import CameraModel
@@ -47,7 +47,7 @@ from .fisheye import KEYS as FISHEYE_KEYS
 __all__ = ["MODEL_NAMES", "read_calibration", "camera_from_opencv", "opencv_intrinsics"]
 
 #: the largest |number| a calibration file may hold (intrinsics in px, distortion coefficients)
-VALUE_MAX = 1e7
+VALUE_MAX = PIXEL_MAX
 _K_KEYS = ("camera_matrix", "K", "k", "cameraMatrix")
 _D_KEYS = ("distortion_coefficients", "D", "d", "distCoeffs", "dist_coeffs")
 _W_KEYS, _H_KEYS = ("image_width", "width"), ("image_height", "height")

@@ -36,15 +36,12 @@ from typing import Any, Literal
 import numpy as np
 
 from renderlab.errors import UserError
-from renderlab.inputs import short
+from renderlab.inputs import PIXEL_MAX, short
 
 from .distortion import MODELS, distort, distortion_jacobian, max_valid_radius, normalize_distortion, undistort
 
 __all__ = ["CameraModel"]
 
-#: the largest |focal length|, |principal point| or |skew| the lab takes, px (a 2 m focal length on 1 µm pixels is
-#: 2e6 px; beyond this a camera model is a typo, and products of intrinsics overflow)
-PIXEL_MAX = 1e7
 _DICT_KEYS = ("width", "height", "fx", "fy", "cx", "cy", "skew", "skew_yx", "model", "distortion")
 _REQUIRED_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
 

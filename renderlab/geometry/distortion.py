@@ -35,10 +35,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from renderlab.errors import UserError
-from renderlab.inputs import short
-
-#: the largest |distortion coefficient| the lab takes
-COEFF_MAX = 1e6
+from renderlab.inputs import COEFF_MAX, short
 
 from . import distortion_opencv, fisheye
 
@@ -100,8 +97,7 @@ def normalize_distortion(model: str, distortion: Mapping[str, float] | None, whe
             if float(value) != 0.0:
                 raise UserError(f"{name} is {float(value)!r} but {where}.model is 'pinhole' (no distortion)")
         else:
-            allowed = ", ".join(keys) if keys else "none"
-            raise UserError(f"{name}: unknown coefficient for model {short(model)} (allowed: {allowed})")
+            raise UserError(f"{name}: unknown coefficient for model '{model}' (allowed: {', '.join(keys) or 'none'})")
     return out
 
 
