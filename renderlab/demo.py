@@ -19,10 +19,18 @@ import sys
 import time
 from pathlib import Path
 
-from renderlab.errors import UserError
-
 from renderlab.builtin import SCENES_DIR  # noqa: F401
 from renderlab.builtin import scene_path as builtin_scene
+from renderlab.errors import UserError
+from renderlab.pipeline import render_truthset
+from renderlab.report.preview import truthset_preview
+from renderlab.report.truth_checks import check_frame, lambert_residual_image
+from renderlab.scenario import load_scenario
+from renderlab.studies.coastline_ekf.study import run_demo_coastline
+from renderlab.studies.retina_vs_spc.demo import DEMO_RUNS, headline_table, run_demo_campaign
+from renderlab.studies.unknown_satellite.demo import DEMO_RUNS as US_DEMO_RUNS
+from renderlab.studies.unknown_satellite.demo import run_demo_unknown_satellite
+from renderlab.truthset import TruthSet
 
 DEMO_SCENE = "analytic_sphere_box.toml"
 
@@ -105,12 +113,6 @@ def _unknown_satellite_section(out: Path, us: dict, seconds: float) -> list[str]
 
 def _render_section(out: Path, progress: bool) -> tuple[list[str], object]:
     """Stage 1: the analytic truth set, its closed-form checks and the preview; the report lines."""
-    from renderlab.pipeline import render_truthset
-    from renderlab.report.preview import truthset_preview
-    from renderlab.report.truth_checks import check_frame, lambert_residual_image
-    from renderlab.scenario import load_scenario
-    from renderlab.truthset import TruthSet
-
     scenario, base = load_scenario(builtin_scene(DEMO_SCENE))
     _stage(progress, f"1/4 rendering the analytic scene {DEMO_SCENE}")
     t0 = time.perf_counter()
@@ -156,8 +158,6 @@ def _render_section(out: Path, progress: bool) -> tuple[list[str], object]:
 
 def _retina_section(out: Path, html: Path, seconds: float) -> list[str]:
     """The Retina-vs-SPC campaign's headline table (from its report's summary.csv) and link."""
-    from renderlab.studies.retina_vs_spc.demo import headline_table
-
     rel = html.relative_to(out).as_posix()
     return [
         "## Campaign: Retina vs SPC (and the NCC baseline plug-in) on a tiny EV5 descent",
@@ -194,11 +194,6 @@ def run_demo(out: Path, progress: bool = True, runs: tuple[int, int, int] | None
     ``runs``: runs of the (Retina-vs-SPC, coastline-EKF, unknown-satellite) campaigns; ``None`` = the
     demo's defaults (40, 16, 4). Smaller counts are for tests.
     """
-    from renderlab.studies.coastline_ekf.study import run_demo_coastline
-    from renderlab.studies.retina_vs_spc.demo import DEMO_RUNS, run_demo_campaign
-    from renderlab.studies.unknown_satellite.demo import DEMO_RUNS as US_DEMO_RUNS
-    from renderlab.studies.unknown_satellite.demo import run_demo_unknown_satellite
-
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")

@@ -19,8 +19,10 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from renderlab.inputs import shown
+from renderlab.contracts.image_headers import check_image
 from renderlab.errors import UserError
+from renderlab.geometry.rotations import rotation_from_quat_xyzw
+from renderlab.inputs import LIMITS, read_bytes, shown
 
 _RESERVED_HEADER = {"channels", "compression", "dataWindow", "displayWindow", "lineOrder", "name",
                     "pixelAspectRatio", "screenWindowCenter", "screenWindowWidth", "type", "tiles",
@@ -110,8 +112,6 @@ def read_exr(path, size: tuple[int, int] | None = None) -> dict:
     file, a sane size and, with ``size`` = (width, height), that size: :func:`renderlab.contracts.image_headers.
     check_image`). A missing, truncated or corrupt file raises :class:`UserError` naming the file.
     """
-    from renderlab.contracts.image_headers import check_image
-
     p = Path(path)
     if not os.path.lexists(p):
         raise UserError(f"EXR file not found: {shown(p)}")
@@ -199,8 +199,6 @@ def frame_exr_header(index: int, time_s: float, meta: dict, channels, *,
     render_frame : str, optional
         Render frame name when ``meta`` has no ``render_frame``.
     """
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
-
     names = list(channels)
     hdr = {"renderlab:frame_index": int(index), "renderlab:time_s": repr(float(time_s)),
            "renderlab:units": "; ".join(f"{c}={CHANNEL_UNITS[c]}" for c in sorted(names) if c in CHANNEL_UNITS)}
@@ -306,9 +304,6 @@ def read_dn_png(path, size: tuple[int, int] | None = None) -> np.ndarray:
     (width, height), the header must say that size before anything is decoded).
 
     The values come back exactly as stored; an ``sBIT`` chunk does not shift them."""
-    from renderlab.inputs import LIMITS, read_bytes
-    from renderlab.contracts.image_headers import check_image
-
     p = Path(path)
     hdr = check_image(p, "PNG", size=size)
     if hdr.kind != "png":

@@ -33,6 +33,9 @@ from pydantic import BaseModel
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
+from renderlab.scenario import WORLD_TRAJECTORIES, scenario_model
+from renderlab.sensor import SensorOptions
+
 DOC = Path(__file__).resolve().parents[1] / "docs" / "scenario_keys.md"
 REGENERATE = "python -m renderlab.keyref"
 _UNIT = re.compile(r"\s*\[([^\[\]]+)\]$")
@@ -209,7 +212,6 @@ def _kinds(cls: type) -> list[str]:
 def iter_fields(model: type | None = None, prefix: str = ""):
     """Every (dotted key, model class, field name, FieldInfo) under ``model`` (default: the scenario model)."""
     if model is None:
-        from renderlab.scenario import scenario_model
 
         model = scenario_model()
     for name, f in model.model_fields.items():
@@ -252,8 +254,6 @@ def _walk(model: type, prefix: str, title: str, out: list[Section], note: str = 
 
 def _sensor_rows() -> list[tuple[str, ...]]:
     """``[sensor]`` keys: the fields of :class:`renderlab.sensor.SensorOptions` (numpy-style docstring)."""
-    from renderlab.sensor import SensorOptions
-
     doc = (SensorOptions.__doc__ or "").split("Attributes", 1)[-1]
     text = {m.group(1): " ".join(m.group(3).split()) for m in
             re.finditer(r"^\s{4}(\w+) : ([^\n]+)\n((?:\s{8}[^\n]*\n?)+)", doc, re.M)}
@@ -269,8 +269,6 @@ def _sensor_rows() -> list[tuple[str, ...]]:
 
 def sections() -> list[Section]:
     """The reference's sections, in file order (top level first, then each table depth-first)."""
-    from renderlab.scenario import scenario_model
-
     out: list[Section] = []
     _walk(scenario_model(), "", "Top level", out)
     return out
@@ -278,8 +276,6 @@ def sections() -> list[Section]:
 
 def render() -> str:
     """The whole reference as Markdown (deterministic: no paths, dates or versions)."""
-    from renderlab.scenario import WORLD_TRAJECTORIES
-
     lines = ["# Scenario key reference", "",
              f"Generated from the pydantic models by `{REGENERATE}`; do not edit by hand "
              "(`tests/test_keyref.py` fails when it is stale).", "",

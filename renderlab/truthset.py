@@ -22,15 +22,27 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from renderlab.inputs import short, shown
+from renderlab.contracts.file_models import TruthManifest
+from renderlab.contracts.schemas import TRUTH_TABLES, read_parquet
 from renderlab.errors import UserError
+from renderlab.inputs import read_checked, short, shown
 
 FORMAT = "renderlab.truthset/1"
 MANIFEST = "manifest.json"
 AOV_CHANNELS = ("P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z", "range", "id")
 RGB_CHANNELS = ("R", "G", "B")
-from renderlab.imageio import (_MAX_EXACT_ID, decode_ids, encode_ids, frame_exr_header,  # noqa: F401
-                               read_dn_png, read_exr, write_dn_png, write_dn_preview, write_exr)
+from renderlab.imageio import (  # noqa: F401
+    _MAX_EXACT_ID,
+    decode_ids,
+    encode_ids,
+    frame_exr_header,
+    read_dn_png,
+    read_exr,
+    write_dn_png,
+    write_dn_preview,
+    write_exr,
+)
+
 
 # ------------------------------------------------------------------------------------ metadata
 def _jsonable(obj, where: str):
@@ -299,9 +311,6 @@ class TruthSet:
     @classmethod
     def open(cls, path) -> "TruthSet":
         """Open and validate a truth set folder (manifest format, listed files exist)."""
-        from renderlab.contracts.file_models import TruthManifest
-        from renderlab.inputs import read_checked
-
         root = Path(path)
         mpath = root / MANIFEST
         if not root.is_dir():
@@ -331,8 +340,6 @@ class TruthSet:
     def read_table(self, name: str):
         """Read ``<name>.parquet`` as a ``pyarrow.Table`` (boundaries checked, and the schema its readers rely on for
         the tables of :data:`renderlab.contracts.schemas.TRUTH_TABLES`)."""
-        from renderlab.contracts.schemas import TRUTH_TABLES, read_parquet
-
         p = self.path / _safe_relpath(f"{name}.parquet", "table name")
         if not os.path.lexists(p):
             raise UserError(f"truth set {shown(self.path)} has no table {short(name)}.parquet")

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.landmarks.correlation import correlation_surface
+
 
 def _three(C, a, b):
     return C[a - 1:a + 2, b - 1:b + 2]
@@ -197,8 +199,6 @@ def pixel_locking_curve(fractions, methods=tuple(FINDERS), size: int = 96, tpl: 
     dict
         ``{method: (bias_s (F,), bias_l (F,))}`` for the fractions F.
     """
-    from estimators.landmarks.correlation import correlation_surface
-
     rng = np.random.default_rng(seed)
     fr = np.asarray(fractions, float)
     out = {m: (np.zeros(len(fr)), np.zeros(len(fr))) for m in methods}

@@ -61,7 +61,10 @@ import numpy as np
 
 from estimators.landmarks.correlation import correlation_surface
 from estimators.landmarks.peaks import FINDERS, locate_peak, shifted_texture
-
+from estimators.landmarks.pose import CameraPoseEstimate, project_point
+from estimators.retina.ml_shift import REFINEMENTS
+from estimators.retina.predict import TemplateOptions, render_template
+from estimators.retina.recentre import recentred_shift
 
 
 class Step(NamedTuple):
@@ -103,9 +106,6 @@ def texture_case(sigma_px: float, shift_sl, seed: int, size: int = 96, tpl: int 
 def rendered_case(mesh, camera, true_pose, sun_body, shift_sl, template_options=None) -> Case | None:
     """Retina's rendering of ``mesh`` at ``true_pose`` and its prediction from an a-priori camera translated so
     the prediction is off by ≈ ``shift_sl`` (module docstring); None if either template cannot be made."""
-    from estimators.landmarks.pose import CameraPoseEstimate, project_point
-    from estimators.retina.predict import TemplateOptions, render_template
-
     opts = template_options or TemplateOptions()
     truth_tpl = render_template(mesh, camera, true_pose, sun_body, opts)
     if truth_tpl is None:
@@ -147,8 +147,6 @@ def rendered_crlb(mesh, camera, true_pose, sun_body, shift_sl, sigma: float, h_p
     prediction re-rendered at ``shift_sl`` ± ``h_px`` on each axis (``supersample``² rays per pixel, so the pixel
     values are smooth in the shift), over the image's footprint where all four renders are valid; gain and
     offset as nuisance parameters (module docstring). ``(inf, inf)`` when a render fails or J is singular."""
-    from estimators.retina.predict import TemplateOptions
-
     base = rendered_case(mesh, camera, true_pose, sun_body, (0.0, 0.0))
     if base is None:
         return float("inf"), float("inf")
@@ -182,9 +180,6 @@ def noise_sigma(case: Case, snr: float) -> float:
 
 def estimate(step: str, C, image, case: Case, image_valid=None) -> tuple[float, float]:
     """(Δs, Δl) of one step on the surface C of the case's template in ``image``; NaN on the search border."""
-    from estimators.retina.recentre import recentred_shift
-
-    from estimators.retina.ml_shift import REFINEMENTS
 
     finder, passes, refine = STEPS[step]
     p = locate_peak(C, finder)

@@ -44,7 +44,9 @@ import functools
 
 import numpy as np
 
+from renderlab.basilisk import frames
 from renderlab.errors import UserError
+from renderlab.extras import require
 
 #: what needs the extra (the subject of the missing-extra message)
 WHAT = "renderlab's Basilisk camera"
@@ -52,8 +54,6 @@ WHAT = "renderlab's Basilisk camera"
 
 def basilisk_modules():
     """(messaging, sysModel, sim_model) of the installed Basilisk, or a one-line error naming the extra."""
-    from renderlab.extras import require
-
     messaging = require("Basilisk.architecture.messaging", "basilisk", WHAT)
     sys_model = require("Basilisk.architecture.sysModel", "basilisk", WHAT)
     sim_model = require("Basilisk.architecture.sim_model", "basilisk", WHAT)
@@ -118,8 +118,6 @@ class CameraLogic:
     def _setup(self, messaging, renderer, *, fieldOfView: float, resolution, sigma_CB=(0.0, 0.0, 0.0),
                cameraPos_B=(0.0, 0.0, 0.0), cameraID: int = 1, spp: int | None = None, keep_images: int = 2,
                keep_truth: bool = False) -> None:
-        from renderlab.basilisk import frames
-
         if isinstance(keep_images, bool) or not isinstance(keep_images, int) or keep_images < 1:
             raise UserError(f"keep_images must be an integer >= 1, got {str(keep_images)[:40]}")
         self._messaging, self.renderer = messaging, renderer
@@ -154,8 +152,6 @@ class CameraLogic:
 
     def pose_at(self, CurrentSimNanos: int):
         """(lab camera pose, sun direction in the render frame or None) from the input messages."""
-        from renderlab.basilisk import frames
-
         sc = self.scStateInMsg()
         r_P, PN = np.zeros(3), None
         if self.planetInMsg.isLinked():

@@ -5,10 +5,11 @@ geometric and shadow-edge agreement of a Mitsuba and a Cycles render of the same
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
+
+from renderlab.geometry.camera import CameraModel
 
 LIT_FRACTION = 0.02
 TARGETS = {"rad_median_rel": 0.01, "geo_max_px": 0.05, "shadow_p99_px": 0.5}
@@ -118,7 +119,6 @@ def frame_agreement(fm, fc, landmarks=None) -> tuple[FrameAgreement, dict]:
     """Agreement of one frame of the Mitsuba (``fm``) and Cycles (``fc``) truth sets (TruthFrame)."""
     from scipy.spatial.transform import Rotation
 
-    from renderlab.geometry.camera import CameraModel
 
     meta = fm.meta
     camera = CameraModel.from_dict(meta["camera"])

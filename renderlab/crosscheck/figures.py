@@ -24,6 +24,7 @@ import numpy as np
 
 from renderlab.contracts.result_folder import figures_wanted
 from renderlab.crosscheck.agreement import TARGETS, FrameAgreement, radiometric_agreement
+from renderlab.errors import UserError
 
 __all__ = ["figure", "markdown_table", "write_images", "read_images", "is_crosscheck_folder", "write_report"]
 
@@ -266,7 +267,6 @@ def _load(folder: Path):
     """(title, rows, frames, images) of a crosscheck folder; UserError for a missing or unreadable table."""
     import pyarrow.parquet as pq
 
-    from renderlab.errors import UserError
 
     folder = Path(folder)
     if not (folder / IMAGES).is_file():
@@ -295,7 +295,6 @@ def write_report(folder: Path, out_dir: Path) -> list[Path]:
     import shutil
     import tempfile
 
-    from renderlab.errors import UserError
 
     title, rows, drawn, images = _load(folder)
     out_dir = Path(out_dir)

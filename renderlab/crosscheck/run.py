@@ -13,6 +13,12 @@ from renderlab.crosscheck.agreement import TARGETS, FrameAgreement, frame_agreem
 from renderlab.crosscheck.figures import TABLE, TITLE_KEY, write_images, write_report
 from renderlab.crosscheck.figures import figure as draw
 from renderlab.crosscheck.figures import markdown_table as table
+from renderlab.errors import UserError
+from renderlab.extras import require
+from renderlab.pipeline import render_truthset
+from renderlab.render.ray_oracle import consistent, oracle_scene, pixel_truth
+from renderlab.truthset import TruthSet
+from renderlab.worlds.base import make_plan
 
 ORACLE_K = 16  # oracle sub-samples per pixel side
 ORACLE_MAX_PX = 300  # refereed pixels per frame and kind (evenly spaced in raster order beyond this)
@@ -28,8 +34,6 @@ def _spread(mask: np.ndarray, n_max: int) -> tuple[np.ndarray, np.ndarray]:
 
 def referee(row: FrameAgreement, images: dict, oracle, spec, spp: int) -> None:
     """Fill the ``oracle_*`` and ``edge_vs_oracle_*`` fields of ``row`` (see the module docstring)."""
-    from renderlab.render.ray_oracle import consistent, pixel_truth
-
     Lm, Lc = images["Lm"], images["Lc"]
     line, s = _spread(images["one_only"], ORACLE_MAX_PX)
     row.n_oracle = int(len(line))
@@ -66,9 +70,6 @@ def referee(row: FrameAgreement, images: dict, oracle, spec, spp: int) -> None:
 
 def compare_truthsets(path_m: Path, path_c: Path) -> tuple[list[FrameAgreement], list[dict]]:
     """Per-frame agreement rows and images of two truth sets of the same scenario."""
-    from renderlab.errors import UserError
-    from renderlab.truthset import TruthSet
-
     tm, tc = TruthSet.open(path_m), TruthSet.open(path_c)
     if len(tm) != len(tc):
         raise UserError(f"truth sets differ in frame count: {len(tm)} vs {len(tc)}")
@@ -101,9 +102,6 @@ def figure(rows: list[FrameAgreement], images: list[dict], path: Path, max_frame
 
 
 def _referee_all(scenario, base_dir, rows, images) -> None:
-    from renderlab.render.ray_oracle import oracle_scene
-    from renderlab.worlds.base import make_plan
-
     plan = make_plan(scenario, base_dir)
     specs = {spec.index: spec for spec in plan.frames}
     cache: dict = {}
@@ -125,9 +123,6 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from renderlab.errors import UserError
-    from renderlab.extras import require
-    from renderlab.pipeline import render_truthset
 
     require("bpy", "cycles", load=False)  # before out_dir is made
     out_dir = Path(out_dir)

@@ -19,6 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from renderlab.errors import UserError
 from renderlab.geometry.rotations import look_at
+from renderlab.trajectory_io.sources import frame_poses
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,6 @@ def camera_path(traj, base_dir: str | Path | None = None) -> list[CameraPose]:
         One pose per frame (``epoch_utc`` set for file trajectories with epochs).
     """
     if traj.kind in FILE_KINDS:
-        from renderlab.trajectory_io.sources import frame_poses
 
         return file_poses(frame_poses(traj, base_dir), traj)
     target = np.asarray(traj.target_m, float)

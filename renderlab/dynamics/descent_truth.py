@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from renderlab.dynamics.polyhedron_gravity import PolyhedronGravity
 from renderlab.errors import UserError
 
 
@@ -69,7 +70,6 @@ def make_gravity(kind: str, *, gm_m3_s2: float, j2: float = 0.0, r_ref_m: float 
     if kind == "polyhedron":
         if vertices is None or faces is None:
             raise UserError("truth gravity 'polyhedron' needs the shape mesh (vertices and faces)")
-        from renderlab.dynamics.polyhedron_gravity import PolyhedronGravity
 
         return PolyhedronGravity(vertices, faces, gm_m3_s2=float(gm_m3_s2))
     raise UserError(f"unknown truth gravity '{kind}' (point_mass_j2, polyhedron)")

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from renderlab.geometry.rotations import quat_xyzw
+
 
 @dataclass(frozen=True)
 class SpinState:
@@ -73,8 +75,6 @@ class SpinState:
 
     def to_dict(self, t_s: float) -> dict:
         """JSON-able spin state at ``t_s`` (for the truth-set manifest)."""
-        from renderlab.geometry.rotations import quat_xyzw
-
         return {"pole_lambda_deg": self.pole_lambda_deg, "pole_beta_deg": self.pole_beta_deg,
                 "period_s": self.period_s, "rotation_angle_rad": float(self.rotation_angle(t_s)),
                 "quat_eclip_from_body_xyzw": [float(v) for v in quat_xyzw(self.T_eclip_from_body(t_s))]}

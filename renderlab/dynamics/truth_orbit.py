@@ -66,6 +66,9 @@ from dataclasses import field as dc_field
 
 import numpy as np
 
+from renderlab.dynamics.geopotential import TruncatedField, egm2008
+from renderlab.dynamics.orbits import propagate
+
 AU_M = 149597870700.0
 C_MPS = 299792458.0
 MU_SUN = 1.32712440018e20       # m^3/s^2 (IAU 2009 / DE421)
@@ -333,7 +336,6 @@ def _full_field(forces: TruthForces):
     if forces.earth_rotation is None:
         raise ValueError("propagate_truth: the full field is evaluated in ITRF and needs forces.earth_rotation (the "
                          "GCRF -> ITRF rotation, renderlab.dynamics.geopotential.EarthRotation)")
-    from renderlab.dynamics.geopotential import TruncatedField
 
     return TruncatedField.of(forces.harmonics, forces.degree, forces.order)
 
@@ -348,7 +350,6 @@ def forces_from_config(cfg, epoch_tt_jd=None, pole=None, earth_rotation=None) ->
     full = get("truth_model", "zonal_dop853") == "egm2008_dop853"
     harmonics = None
     if full:
-        from renderlab.dynamics.geopotential import egm2008
 
         harmonics = egm2008()
     degree = int(get("gravity_degree", 20)) if full else int(get("zonal_degree", d.degree))
@@ -375,8 +376,6 @@ def propagate_for(cfg, x0: np.ndarray, t_s: np.ndarray, *, epoch_tt_jd=None, pol
     ValueError
         An unknown model, a zonal model without ``pole``, the full field without ``earth_rotation``.
     """
-    from renderlab.dynamics.orbits import propagate
-
     model = getattr(cfg, "truth_model", "j2_rk4")
     if model not in TRUTH_MODELS:
         raise ValueError(f"truth_model {model!r}: choose one of {', '.join(TRUTH_MODELS)}")

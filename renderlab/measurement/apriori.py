@@ -27,8 +27,14 @@ import numpy as np
 import pydantic
 from pydantic import Field, model_validator
 
+from renderlab import keyref
 from renderlab.config_types import Finite, NonNegative, Positive, Strict, Vec3
 from renderlab.errors import UserError
+from renderlab.geometry.calibration import read_calibration
+from renderlab.geometry.camera import CameraModel
+from renderlab.geometry.rotations import rotation_from_quat_xyzw
+from renderlab.measurement.runner import MeasureOptions, draw_apriori
+from renderlab.truthset import TruthSet
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "apriori_file.md"
 REGENERATE = "python -m renderlab.measurement.apriori"
@@ -152,9 +158,6 @@ def _error_line(err: pydantic.ValidationError, source: str) -> str:
 
 
 def _camera(cam: AprioriCamera, base: Path, source: str):
-    from renderlab.geometry.calibration import read_calibration
-    from renderlab.geometry.camera import CameraModel
-
     d = cam.model_dump(exclude_none=True)
     if cam.calibration_file is not None:
         try:
@@ -176,8 +179,6 @@ def _camera(cam: AprioriCamera, base: Path, source: str):
 def read_apriori(path: Path, base: Path | None = None):
     """(CameraModel, adc_max or None, frame name, [AprioriImage]) from an a-priori file (:class:`AprioriFile`);
     one-line :class:`UserError` on anything the schema refuses."""
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
-
     path = Path(path)
     if not path.is_file():
         raise UserError(f"a-priori file not found: {path}")
@@ -261,9 +262,6 @@ def write_apriori(truthset, out: Path, *, position_sigma_m: float = 0.5, attitud
     """
     from scipy.spatial.transform import Rotation
 
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
-    from renderlab.measurement.runner import MeasureOptions, draw_apriori
-    from renderlab.truthset import TruthSet
 
     out = Path(out)
     for name, v in (("position_sigma_m", position_sigma_m), ("attitude_sigma_deg", attitude_sigma_deg)):
@@ -309,8 +307,6 @@ def write_apriori(truthset, out: Path, *, position_sigma_m: float = 0.5, attitud
 # ------------------------------------------------------------------------------------------- reference
 def render() -> str:
     """``docs/apriori_file.md``: one table per object of the format, from the models' field descriptions."""
-    from renderlab import keyref
-
     lines = ["# The a-priori file of `renderlab measure --images`", "",
              f"Generated from the pydantic models of `renderlab.measurement.apriori` by `{REGENERATE}`; do not edit "
              "by hand (`tests/test_apriori_file.py` fails when it is stale).", "",

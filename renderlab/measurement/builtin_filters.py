@@ -14,6 +14,9 @@ from dataclasses import fields, replace
 
 import numpy as np
 
+from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions
+from estimators.coastline.los import skew_batch, stacked_measurement_covariance
+from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
 from renderlab.contracts.navigation import FilterMeasurement, FilterUpdate
 
 __all__ = ["CoastlineEKF", "CoastlineSqrtEKF", "los_noise_from_R"]
@@ -25,8 +28,6 @@ _R_FORM_RTOL = 1e-2
 
 def _options(options):
     """EKFOptions from None (defaults), an EKFOptions, or a mapping of its fields."""
-    from estimators.coastline.ekf import EKFOptions
-
     if options is None:
         return EKFOptions()
     if isinstance(options, EKFOptions):
@@ -63,8 +64,6 @@ def los_noise_from_R(R: np.ndarray, y_cam: np.ndarray) -> tuple[float, float]:
     ValueError
         If R is not of that form (relative residual above 1e-2) or σθ is not positive.
     """
-    from estimators.coastline.los import skew_batch, stacked_measurement_covariance
-
     e = y_cam / np.linalg.norm(y_cam, axis=-1, keepdims=True)
     A = stacked_measurement_covariance(e[None], 1.0, 0.0)[0]
     G = skew_batch(e).reshape(-1, 3)
@@ -206,8 +205,6 @@ class CoastlineEKF(_CoastlineAdapter):
     name = "coastline_ekf"
 
     def _batch_class(self):
-        from estimators.coastline.ekf import BatchCoastlineEKF
-
         return BatchCoastlineEKF
 
 
@@ -218,6 +215,4 @@ class CoastlineSqrtEKF(_CoastlineAdapter):
     name = "coastline_sqrt_ekf"
 
     def _batch_class(self):
-        from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
-
         return SqrtBatchCoastlineEKF

@@ -12,6 +12,9 @@ kept) and ``diagnostics`` (the mask spelled out).
 
 from __future__ import annotations
 
+from estimators import flags as F
+from estimators.retina import CameraPoseEstimate, RetinaOptions, TemplateOptions, build_mesh
+from estimators.spc import SpcOptions
 from renderlab.contracts.landmark import LandmarkFrame, LandmarkMethodOptions, LandmarkResult
 from renderlab.contracts.reasons import LandmarkReason
 
@@ -24,8 +27,6 @@ _REASON_OF_FLAG = (("off_image", LandmarkReason.OFF_IMAGE), ("facing_away", Land
 
 def result_from_estimator(m) -> LandmarkResult:
     """:class:`estimators.retina.LandmarkMeasurement` → :class:`LandmarkResult`."""
-    from estimators import flags as F
-
     names = {F.NAMES[b] for b in F.NAMES if m.flags & b}
     if m.has_result:
         reason, ds, dl = LandmarkReason.OK, float(m.ds), float(m.dl)
@@ -39,8 +40,6 @@ def result_from_estimator(m) -> LandmarkResult:
 
 
 def _pose(frame: LandmarkFrame):
-    from estimators.retina import CameraPoseEstimate
-
     return CameraPoseEstimate(frame.pose.R_body_from_cam, frame.pose.position_m)
 
 
@@ -57,8 +56,6 @@ class RetinaMethod:
     refine = ""
 
     def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
-        from estimators.retina import RetinaOptions, TemplateOptions
-
         self.options = RetinaOptions(template=TemplateOptions(supersample=options.supersample,
                                                               psf_sigma_px=options.psf_sigma_px,
                                                               L_table=tuple(options.L_table)),
@@ -69,8 +66,6 @@ class RetinaMethod:
         self._meshes: dict[int, tuple] = {}
 
     def _mesh(self, maplet):
-        from estimators.retina import build_mesh
-
         hit = self._meshes.get(id(maplet))
         if hit is None or hit[0] is not maplet:
             hit = (maplet, build_mesh(maplet))
@@ -116,8 +111,6 @@ class SpcMethod:
     name = "spc"
 
     def __init__(self, options: LandmarkMethodOptions = LandmarkMethodOptions()):
-        from estimators.spc import SpcOptions
-
         self.options = SpcOptions(peak=options.peak or "quadric_2d", min_correlation=options.min_correlation,
                                   L_table=tuple(options.L_table))
         self.peak = self.options.peak

@@ -23,6 +23,14 @@ import time
 
 import numpy as np
 
+from estimators.centre_limb import (
+    CentroidOptions,
+    EllipseOptions,
+    HorizonOpNav,
+    HorizonOptions,
+    IntensityCentroid,
+    LimbEllipse,
+)
 from renderlab.contracts.centre_limb import CentreLimbFrame, CentreLimbReason, CentreLimbResult
 
 
@@ -61,8 +69,6 @@ class RawCentroidMethod(_Adapter):
     name = "centroid_raw"
 
     def __init__(self, options=None):
-        from estimators.centre_limb import CentroidOptions, IntensityCentroid
-
         opts = options or CentroidOptions(phase_correction="none", perspective=False)
         super().__init__(IntensityCentroid(opts))
 
@@ -73,8 +79,6 @@ class PhaseCentroidMethod(_Adapter):
     name = "centroid_phase"
 
     def __init__(self, options=None):
-        from estimators.centre_limb import CentroidOptions, IntensityCentroid
-
         super().__init__(IntensityCentroid(options or CentroidOptions()))
 
 
@@ -84,8 +88,6 @@ class LimbEllipseMethod(_Adapter):
     name = "limb_ellipse"
 
     def __init__(self, options=None):
-        from estimators.centre_limb import EllipseOptions, LimbEllipse
-
         super().__init__(LimbEllipse(options or EllipseOptions()))
 
 
@@ -95,8 +97,6 @@ class HorizonOpNavMethod(_Adapter):
     name = "horizon_opnav"
 
     def __init__(self, options=None):
-        from estimators.centre_limb import HorizonOpNav, HorizonOptions
-
         super().__init__(HorizonOpNav(options or HorizonOptions()))
 
 

@@ -59,10 +59,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from renderlab.contracts.landmark import (CameraPose, LandmarkFrame, LandmarkMethod, LandmarkMethodOptions,
-                                          LandmarkResult)
+from estimators.retina import build_mesh
+from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, render_template
+from renderlab import plugins
+from renderlab.contracts.landmark import (
+    CameraPose,
+    LandmarkFrame,
+    LandmarkMethod,
+    LandmarkMethodOptions,
+    LandmarkResult,
+)
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet
+from renderlab.geometry.rotations import look_at
 
 #: the a-priori pose puts every predicted landmark about this far from its true pixel, (Δs, Δl) px
 KNOWN_SHIFT_PX = (0.37, -0.61)
@@ -140,8 +149,6 @@ def _sun(world: Maplet, elevation_deg: float, azimuth_deg: float = 30.0) -> np.n
 
 def _render_image(world_mesh, pose: CameraPose, sun: np.ndarray) -> np.ndarray:
     """DN image of the world maplet at ``pose`` (8 × 8 samples per pixel) on a constant background."""
-    from estimators.retina.predict import CameraPoseEstimate, TemplateOptions, render_template
-
     cam = _CAMERA
     img = np.zeros((cam.height, cam.width))
     tpl = render_template(world_mesh, cam, CameraPoseEstimate(pose.R_body_from_cam, pose.position_m), sun,
@@ -158,8 +165,6 @@ def _render_image(world_mesh, pose: CameraPose, sun: np.ndarray) -> np.ndarray:
 def _poses(world: Maplet, distance_factor: float) -> tuple[CameraPose, CameraPose]:
     """(true, a-priori): the camera above the world maplet looking at its centre; the a-priori pose moved
     sideways so that a point at the world centre's depth moves by :data:`KNOWN_SHIFT_PX`."""
-    from renderlab.geometry.rotations import look_at
-
     centre = np.asarray(world.center_m, float)
     pos = centre + distance_factor * (world.to_body(_CAMERA_IN_WORLD_M) - centre)
     R = look_at(pos, centre, np.asarray(world.R_body_from_maplet, float)[:, 1]).as_matrix()
@@ -180,8 +185,6 @@ def _frame(image, landmarks, pose, sun, index, seed) -> LandmarkFrame:
 
 @functools.lru_cache(maxsize=4)
 def _case_cached(seed: int) -> SyntheticCase:
-    from estimators.retina import build_mesh
-
     world = _world_maplet(np.random.default_rng(seed))
     mesh = build_mesh(world)
     lms = [_sub_maplet(world, lid, di, dj) for lid, di, dj in _LANDMARKS]
@@ -393,6 +396,4 @@ def check_landmark_method_name(name: str, **kwargs) -> list[str]:
     """:func:`check_landmark_method` on the method registered as ``name`` in
     :data:`renderlab.plugins.landmark_methods` (built-ins and entry points; a ``module:attr`` reference is
     accepted too). An unknown name raises :class:`~renderlab.errors.UserError` listing the registered ones."""
-    from renderlab import plugins
-
     return check_landmark_method(plugins.landmark_methods.get(name, allow_reference=True), **kwargs)

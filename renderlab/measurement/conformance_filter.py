@@ -34,6 +34,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.coastline.dynamics import MU_EARTH, propagate_state_stm
+from estimators.coastline.los import los_predict, skew_batch, stacked_measurement_covariance
+from estimators.coastline.sqrt_ekf import tangent_basis
 from renderlab.contracts.navigation import FilterMeasurement, NavigationFilter
 
 __all__ = ["ConformanceCase", "make_case", "measurement", "run_filter", "chi2_band", "score", "check_filter"]
@@ -107,10 +110,6 @@ def make_case(seed: int, n_runs: int = 200, n_images: int = 20, cadence_s: float
     sigma0 : (float, float)
         Per-axis 1σ of the initial position (m) and velocity (m/s) error: P0 = diag.
     """
-    from estimators.coastline.dynamics import MU_EARTH, propagate_state_stm
-    from estimators.coastline.los import los_predict, skew_batch, stacked_measurement_covariance
-    from estimators.coastline.sqrt_ekf import tangent_basis
-
     rng = np.random.default_rng(seed)
     a = R_EARTH_M + 1.0e6
     v = math.sqrt(MU_EARTH / a)

@@ -21,6 +21,7 @@ from dataclasses import fields
 
 import numpy as np
 
+from estimators.descent_nav import DescentEKF, DescentNavOptions
 from renderlab.contracts.navigation import FilterMeasurement, FilterUpdate
 from renderlab.errors import UserError
 
@@ -29,8 +30,6 @@ __all__ = ["DescentNavFilter", "descent_options"]
 
 def descent_options(options):
     """DescentNavOptions from None, a DescentNavOptions or a mapping of its fields (UserError on unknown keys)."""
-    from estimators.descent_nav import DescentNavOptions
-
     if options is None:
         return DescentNavOptions()
     if isinstance(options, DescentNavOptions):
@@ -50,8 +49,6 @@ class DescentNavFilter:
     name = "descent_ekf"
 
     def __init__(self, options=None):
-        from estimators.descent_nav import DescentEKF
-
         self._f = DescentEKF(descent_options(options))
         self.last = None
 

@@ -17,8 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.contracts.image_headers import check_image
+from renderlab.contracts.landmark import CameraPose
+from renderlab.contracts.schemas import LANDMARK_RUNNER, table_from_rows
 from renderlab.errors import UserError
-from renderlab.measurement.apriori import AprioriImage, read_apriori  # noqa: F401  (re-exported)
+from renderlab.inputs import shown
+from renderlab.measurement.apriori import AprioriImage, check_image_sizes, read_apriori  # noqa: F401  (re-exported)
+from renderlab.measurement.runner import make_method, run_method_on_image
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".fits", ".fit", ".fts")
 
@@ -27,9 +32,6 @@ def read_image(path: Path, size: tuple[int, int] | None = None) -> np.ndarray:
     """A grey image as float64 (PNG/TIFF through OpenCV unchanged, FITS through astropy). The header is checked
     first (:func:`renderlab.contracts.image_headers.check_image`: a regular file, sane sizes and, with ``size`` =
     (width, height), the camera's size), so nothing is decoded that the camera cannot have taken."""
-    from renderlab.inputs import shown
-    from renderlab.contracts.image_headers import check_image
-
     path = Path(path)
     hdr = check_image(path, "image", size=size)
     if hdr.kind == "fits":
@@ -62,13 +64,8 @@ def measure_images(apriori_path: Path, maplets: list, method, options, *, allow_
     """The measurement table of the images listed in the a-priori file (truth columns NaN)."""
     from tqdm import tqdm
 
-    from renderlab.contracts.landmark import CameraPose
-    from renderlab.contracts.schemas import LANDMARK_RUNNER, table_from_rows
-    from renderlab.measurement.runner import make_method, run_method_on_image
 
-    from renderlab.measurement.apriori import check_image_sizes
 
-    from renderlab.contracts.image_headers import check_image
 
     camera, adc_max, _, images = read_apriori(apriori_path)
     for im in images:  # headers against the limits and the camera, before any image is decoded

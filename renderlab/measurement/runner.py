@@ -30,7 +30,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from estimators.landmarks.peaks import FINDERS
+from estimators.onboard_photometry import fit_lunar_lambert_L
+from estimators.retina import search_radius_px
+from renderlab import plugins
+from renderlab.contracts.landmark import CameraPose, LandmarkFrame, LandmarkMethod, LandmarkMethodOptions
+from renderlab.contracts.schemas import LANDMARK_RUNNER, table_from_rows
 from renderlab.errors import UserError
+from renderlab.geometry.camera import CameraModel
+from renderlab.geometry.rotations import rotation_from_quat_xyzw
+from renderlab.photometry import make_law
 
 PHOTOMETRY = ("fitted", "fixed")
 
@@ -104,7 +113,6 @@ class MeasureOptions:
         if self.psf_sigma_px < 0:
             raise UserError(f"psf_sigma_px must be >= 0, got {self.psf_sigma_px!r}")
         if self.peak is not None:
-            from estimators.landmarks.peaks import FINDERS
 
             if self.peak not in FINDERS:
                 raise UserError(f"peak must be one of {', '.join(FINDERS)}, got {self.peak!r}")
@@ -122,9 +130,6 @@ class _Frame:
 
 
 def _frame_record(ts, i: int) -> _Frame:
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
-
     rec = ts.frames[i]
     where = f"truth set {ts.path}: frames[{i}]"
     try:
@@ -159,7 +164,6 @@ def body_law(ts):
     None when the manifest names no law (the ground's catalog knowledge for :func:`onboard_photometry`)."""
     import json
 
-    from renderlab.photometry import make_law
 
     path = ts.path / "manifest.json"
     try:
@@ -177,8 +181,6 @@ def body_law(ts):
 
 def onboard_photometry(ts, options: MeasureOptions) -> tuple[tuple, str]:
     """(L_table, label) for the methods' McEwen weight (``MeasureOptions.photometry``)."""
-    from estimators.onboard_photometry import fit_lunar_lambert_L
-
     found = body_law(ts) if options.photometry == "fitted" else None
     if found is None:
         return (), "fixed"
@@ -199,9 +201,6 @@ def draw_apriori(R_true: np.ndarray, pos_true: np.ndarray, options: MeasureOptio
 def make_method(method, options: MeasureOptions, L_table: tuple = (), *, allow_reference: bool = False):
     """A landmark-method object from a registered name (or a user-typed ``module:attr`` with
     ``allow_reference``), an already made method, or a factory; UserError naming the registered ones."""
-    from renderlab import plugins
-    from renderlab.contracts.landmark import LandmarkMethod, LandmarkMethodOptions
-
     if isinstance(method, LandmarkMethod) and not isinstance(method, type):
         return method
     if isinstance(method, str):
@@ -263,9 +262,6 @@ def run_method_on_image(impl, image: np.ndarray, adc_max, cam, apriori, sun_body
     """The landmarks the a-priori pose predicts inside the image, each with its search distance (n σ of the
     projected 6×6 a-priori covariance blocks ``cov_p`` m², ``cov_r`` rad²), measured by ``impl``; returns
     (attempted indices, checked results). The image and its mask reach the method read-only (contract rule 2)."""
-    from estimators.retina import search_radius_px
-    from renderlab.contracts.landmark import LandmarkFrame
-
     attempt = np.flatnonzero(cam.in_image(cam.project(apriori.to_camera(centres))))
     if attempt.size == 0:
         return attempt, []
@@ -293,8 +289,6 @@ def run_method_on_image(impl, image: np.ndarray, adc_max, cam, apriori, sun_body
 
 def _measure_one_frame(ts, i: int, maplets: list, ctx: _RunContext, rng: np.random.Generator) -> list[dict]:
     """Rows of frame ``i``: one a-priori draw, the landmarks predicted inside the image, the method, the truth."""
-    from renderlab.contracts.landmark import CameraPose
-
     options, impl, centres = ctx.options, ctx.impl, ctx.centres
     fr = _frame_record(ts, i)
     R_ap, p_ap, dpos, drot = draw_apriori(fr.R, fr.position, options, rng)
@@ -342,7 +336,6 @@ def measure_truthset(ts, maplets: list, method, options: MeasureOptions = Measur
     """
     from tqdm import tqdm
 
-    from renderlab.contracts.schemas import LANDMARK_RUNNER, table_from_rows
 
     if not maplets:
         raise UserError(f"truth set {ts.path}: the landmark catalog is empty")

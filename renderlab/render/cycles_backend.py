@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.extras import require
 from renderlab.render.mesh_io import mesh_body
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 
@@ -249,7 +250,6 @@ class CyclesBackend:
         if settings.max_depth != 2:
             raise UserError("cycles backend renders direct sunlight only: render.max_depth must be 2, "
                             f"got {settings.max_depth}")
-        from renderlab.extras import require
 
         require("bpy", "cycles", load=False)  # the worker imports it (seconds)
         self.settings = settings

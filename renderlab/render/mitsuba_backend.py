@@ -40,9 +40,14 @@ import os
 
 import numpy as np
 
+from renderlab.errors import UserError
 from renderlab.render.mesh_io import mesh_body
+from renderlab.render.mitsuba_bsdf import bsdf_dict, register_bsdfs
+from renderlab.render.mitsuba_direct import integrator_dict, register_direct_sun
 from renderlab.render.mitsuba_numpy_path import NumpyRayPath, subpixel_offsets  # noqa: F401  (re-exported)
 from renderlab.render.mitsuba_rays import MAX_SAMPLES_PER_PASS, CameraRays, FramePose, aligned_f32, pass_sizes
+from renderlab.render.mitsuba_tiles import TileScenes
+from renderlab.render.mitsuba_two_scene import TileScene, register_ids, two_scene_capable
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 from renderlab.render.variant import init_mitsuba
 
@@ -62,7 +67,6 @@ RAY_PATHS = ("drjit", "drjit_grid", "numpy")
 
 def _check_ray_path(ray_path: str) -> None:
     if ray_path not in RAY_PATHS:
-        from renderlab.errors import UserError
 
         raise UserError(f"Mitsuba ray path (RENDERLAB_MITSUBA_RAYS) must be one of {', '.join(RAY_PATHS)}, "
                         f"got {ray_path!r}")
@@ -96,8 +100,6 @@ class MitsubaBackend(NumpyRayPath):
         mi = init_mitsuba(settings.variant)
         import drjit as dr
 
-        from renderlab.render.mitsuba_bsdf import register_bsdfs
-        from renderlab.render.mitsuba_direct import integrator_dict, register_direct_sun
 
         register_bsdfs(mi)
         register_direct_sun(mi)
@@ -122,8 +124,6 @@ class MitsubaBackend(NumpyRayPath):
         self._load(desc, keys)
         self._tiles = self._two = None
         if scene.tiled:  # the frame's tiles, chosen before each frame (_set_sun)
-            from renderlab.render.mitsuba_tiles import TileScenes
-            from renderlab.render.mitsuba_two_scene import TileScene, two_scene_capable
 
             if two_scene_capable(self):  # a second scene: the static bodies' structure is never rebuilt
                 self._tiles = self._two = TileScene(self, scene.tiled, settings.shadows)
@@ -142,8 +142,6 @@ class MitsubaBackend(NumpyRayPath):
 
     def _register_shapes(self, scene, keys: dict) -> None:
         """Map the registry ids of ``scene``'s shapes (shape key → body id in ``keys``) to body ids."""
-        from renderlab.render.mitsuba_two_scene import register_ids
-
         if self.scalar:  # no pointer registry in scalar mode: number the shapes ourselves
             reg = np.arange(1, len(scene.shapes()) + 1, dtype=np.int64)
             self._scalar_reg = reg
@@ -182,7 +180,6 @@ class MitsubaBackend(NumpyRayPath):
         loaded BSDF) is shared when given — the tiles of one surface share one, so a frame with hundreds of
         tiles traces the BSDF once, not once per tile."""
         mi = self.mi
-        from renderlab.render.mitsuba_bsdf import bsdf_dict
 
         V = np.asarray(body.vertices, np.float64) @ body.R_render_from_body.T + (np.asarray(body.center_m, float) - self.origin)
         F = np.ascontiguousarray(body.faces, dtype=np.uint32)
@@ -209,8 +206,6 @@ class MitsubaBackend(NumpyRayPath):
         return mesh
 
     def _shape_dict(self, body: BodySpec) -> dict:
-        from renderlab.render.mitsuba_bsdf import bsdf_dict
-
         mi = self.mi
         R, c = body.R_render_from_body, np.asarray(body.center_m, float) - self.origin
         if body.shape == "sphere":

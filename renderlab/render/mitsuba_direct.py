@@ -37,6 +37,8 @@ sample and the estimate stays unbiased.
 
 from __future__ import annotations
 
+from renderlab.errors import UserError
+
 NAME = "rl_direct_sun"
 _registered: set[str] = set()
 
@@ -97,7 +99,6 @@ def integrator_dict(max_depth: int, shadows: bool, kind: str = "auto") -> dict:
     if max_depth == 2 and kind in ("direct", "auto"):
         return {"type": NAME, "shadows": bool(shadows)}
     if not shadows:
-        from renderlab.errors import UserError
 
         raise UserError(f"render.shadows = false needs the direct-sun integrator (render.max_depth = 2), "
                         f"got max_depth {max_depth} with integrator {kind!r}")

@@ -23,6 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.render.mitsuba_rays import aligned_f32
+from renderlab.render.scene import BodySpec
+
 #: a surface with no tile in view gets this one degenerate (never hit) triangle
 _EMPTY = (np.zeros((3, 3), np.float32), np.array([0, 1, 2], np.uint32), np.ones(3, np.float32))
 
@@ -61,8 +64,6 @@ class TileArrays:
 
     def body(self, k: int, keys: list):
         """Surface ``k``'s tiles ``keys`` as one trimesh body (render frame − origin; centre at the origin)."""
-        from renderlab.render.scene import BodySpec
-
         surf = self.tiled[k]
         V, F, A = self.merged(k, keys)
         return BodySpec(name=surf.name, body_id=surf.body_id, shape="trimesh", center_m=self.origin,
@@ -94,7 +95,6 @@ class TileScenes:
                 keys[f"tiled{k}"] = surf.body_id
             b._load(desc, keys)
         else:
-            from renderlab.render.mitsuba_rays import aligned_f32
 
             p = b.params
             for k in range(len(self.tiles.tiled)):

@@ -40,6 +40,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.errors import UserError
+from renderlab.render.mitsuba_direct import integrator_dict
 from renderlab.render.mitsuba_rays import aligned_f32
 from renderlab.render.mitsuba_tiles import TileArrays
 
@@ -122,9 +124,6 @@ def two_scene_capable(backend) -> bool:
     """True where the two-scene design applies: the direct-sun integrator on an LLVM variant (on a CUDA variant only
     with ``tile_design = "two"``: OptiX traces one scene per kernel launch in Mitsuba's CUDA back end unless shown
     otherwise on a device), and ``tile_design`` not ``"merged"``."""
-    from renderlab.errors import UserError
-    from renderlab.render.mitsuba_direct import integrator_dict
-
     design = getattr(backend, "tile_design", "auto")
     if design not in ("auto", "two", "merged"):
         raise UserError(f"Mitsuba tile design ($RENDERLAB_MITSUBA_TILE_DESIGN) must be auto, two or merged, "

@@ -16,6 +16,7 @@ import numpy as np
 
 from renderlab.errors import UserError
 from renderlab.inputs import epoch_text, read_json, short, shown
+from renderlab.trajectory_io.ccsds import write_aem, write_oem
 from renderlab.trajectory_io.series import PoseSeries
 from renderlab.trajectory_io.timescales import parse_epoch
 
@@ -126,8 +127,6 @@ def export_truthset(folder, *, oem=None, aem=None, epoch_utc: str | None = None,
     write_oem` / ``write_aem`` (``time_system``, ``creation_date``, ``originator``, …; AEM-only
     ``attitude_dir``/``quaternion_type``).
     """
-    from renderlab.trajectory_io.ccsds import write_aem, write_oem
-
     series = truthset_pose_series(folder, epoch_utc)
     object_name = kvn_text(object_name or series.object_name or "CAMERA", "--object-name")
     center_name = kvn_text(center_name or series.center_name or "ORIGIN", "center name")

@@ -18,7 +18,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from renderlab.errors import UserError
+from renderlab.geometry.rotations import look_at
+from renderlab.trajectory_io.ccsds import read_aem, read_oem, same_frame
 from renderlab.trajectory_io.series import PoseSeries
+from renderlab.trajectory_io.spice import read_spice, read_spice_sun
+from renderlab.trajectory_io.table import read_table
 from renderlab.trajectory_io.timescales import Epoch, parse_epoch
 
 
@@ -66,14 +70,10 @@ def resolve(base_dir, rel: str, key: str) -> Path:
 
 
 def _same(a: str, b: str) -> bool:
-    from renderlab.trajectory_io.ccsds import same_frame
-
     return same_frame(a, b)
 
 
 def _read_ccsds(traj, base_dir) -> tuple[PoseSeries, PoseSeries | None]:
-    from renderlab.trajectory_io.ccsds import read_aem, read_oem
-
     oem = read_oem(resolve(base_dir, traj.oem, "oem"))
     if traj.frame is not None and not _same(traj.frame, oem.frame):
         raise UserError(f"trajectory.frame {traj.frame!r} is not {oem.source}'s REF_FRAME {oem.frame!r}")
@@ -95,7 +95,6 @@ def _read_ccsds(traj, base_dir) -> tuple[PoseSeries, PoseSeries | None]:
 
 def _read_files(traj, base_dir) -> tuple[PoseSeries, PoseSeries | None]:
     if traj.kind == "table":
-        from renderlab.trajectory_io.table import read_table
 
         s = read_table(resolve(base_dir, traj.file, "file"), quaternion_order=traj.quaternion_order,
                        quaternion_direction=traj.quaternion_direction, frame=traj.frame or "SCENE",
@@ -122,8 +121,6 @@ def _offset(series: PoseSeries, start: Epoch | None) -> float:
 
 
 def _spice(traj, base_dir, t: np.ndarray, velocities: bool):
-    from renderlab.trajectory_io.spice import read_spice
-
     kernels = [resolve(base_dir, k, f"kernels.{i}") for i, k in enumerate(traj.kernels)]
     s = read_spice(kernels, observer=traj.observer, center=traj.center, frame=traj.frame,
                    camera_frame=traj.camera_frame if traj.reads_attitude() else None,
@@ -133,8 +130,6 @@ def _spice(traj, base_dir, t: np.ndarray, velocities: bool):
 
 
 def _look_at(traj, positions: np.ndarray) -> Rotation:
-    from renderlab.geometry.rotations import look_at
-
     target = np.asarray(traj.target_m, float)
     rots = []
     for k, p in enumerate(positions):
@@ -191,8 +186,6 @@ def spice_sun(traj, base_dir=None) -> np.ndarray:
     UserError
         Not a ``spice`` trajectory, no SPK with the Sun, and what :func:`frame_poses` refuses.
     """
-    from renderlab.trajectory_io.spice import read_spice_sun
-
     if traj.kind != "spice":
         raise UserError(f"sun.source = \"spice\" needs trajectory.kind = \"spice\", got {traj.kind!r}")
     kernels = [resolve(base_dir, k, f"kernels.{i}") for i, k in enumerate(traj.kernels)]
@@ -209,7 +202,6 @@ def source_names(traj, base_dir=None) -> dict[str, str]:
     names = {"frame": traj.frame, "center": traj.center if traj.kind != "table" else None,
              "object": traj.observer if traj.kind != "table" else None}
     if traj.kind == "ccsds":
-        from renderlab.trajectory_io.ccsds import read_oem
 
         oem = read_oem(resolve(base_dir, traj.oem, "oem"))
         names = {"frame": oem.frame, "center": oem.center_name, "object": oem.object_name}

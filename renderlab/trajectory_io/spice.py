@@ -38,8 +38,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from renderlab.errors import UserError
+from renderlab.extras import require
 from renderlab.trajectory_io.series import PoseSeries
-from renderlab.trajectory_io.timescales import Epoch
+from renderlab.trajectory_io.timescales import Epoch, naif_lsk_text
 
 
 def _one_line(err) -> str:
@@ -175,7 +176,6 @@ def _furnished(kernels):
     import spiceypy as sp
     from spiceypy.utils.exceptions import SpiceyError
 
-    from renderlab.trajectory_io.timescales import naif_lsk_text
 
     paths = [Path(k) for k in kernels]
     for p in paths:
@@ -246,8 +246,6 @@ def read_spice(kernels, *, observer: str, center: str, frame: str, camera_frame:
         Missing kernel, unknown body or frame, a missing PCK, an epoch outside the kernels' coverage (names the
         epoch and the coverage).
     """
-    from renderlab.extras import require
-
     require("spiceypy", "spice")
     if aberration not in ABERRATIONS:
         raise UserError(f"trajectory.aberration must be one of {', '.join(ABERRATIONS)}, got {aberration!r}")
@@ -280,8 +278,6 @@ def read_spice_sun(kernels, *, observer: str, center: str, frame: str, epoch_utc
     UserError
         No SPK with the Sun (or a gap), a missing PCK, and everything :func:`read_spice` refuses.
     """
-    from renderlab.extras import require
-
     require("spiceypy", "spice")
     from spiceypy.utils.exceptions import SpiceyError
 

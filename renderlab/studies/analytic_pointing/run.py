@@ -29,8 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.perturb import draw_perturbation, perturb_pose, perturb_scenario_dict
+from renderlab.campaign.scoring import dn_variance, registration_crlb
 from renderlab.contracts.reasons import LandmarkReason as R
+from renderlab.contracts.schemas import LANDMARK_CORE, table_from_rows
 from renderlab.errors import UserError
+from renderlab.geometry.camera import CameraModel
+from renderlab.scenario import scenario_from_dict
+from renderlab.sensor import SensorOptions, expected_dn
+from renderlab.truthset import TruthSet
+from renderlab.worlds.base import frame_specs
 
 METHODS = ("centroid", "ellipse")
 
@@ -141,9 +150,6 @@ def _truth_scenario(sc_dict: dict, position, R, seed: int) -> dict:
 
 def _frame_truth(fr, body_id: int, center, sun_dir, win_sl, half: int, opts):
     """Truth-only columns of a frame: shadow fraction, albedo contrast, CRLB in the window."""
-    from renderlab.campaign.scoring import dn_variance, registration_crlb
-    from renderlab.sensor import expected_dn
-
     is_t = fr.id == body_id
     lit = np.einsum("hwk,k->hw", np.nan_to_num(fr.normal), sun_dir) > 0
     shadow = float(np.mean(~lit[is_t])) if is_t.any() else math.nan
@@ -181,13 +187,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     import pyarrow as pa
     from scipy.spatial.transform import Rotation
 
-    from renderlab.campaign.cache import cached_truthset
-    from renderlab.campaign.perturb import draw_perturbation, perturb_pose, perturb_scenario_dict
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.worlds.base import frame_specs
-    from renderlab.scenario import scenario_from_dict
-    from renderlab.sensor import SensorOptions
-    from renderlab.truthset import TruthSet
 
     if scenario.world.kind != "analytic":
         raise UserError(f"study analytic_pointing needs world.kind 'analytic', got '{scenario.world.kind}'")
@@ -238,7 +237,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
                 "albedo_contrast": float(contrast), "crlb_s": float(crlb_s), "crlb_l": float(crlb_l),
                 "centre_of_light_s": light[0], "centre_of_light_l": light[1], "target_radius_px": radius_px,
             })
-    from renderlab.contracts.schemas import LANDMARK_CORE, table_from_rows
 
     meas = table_from_rows(rows, LANDMARK_CORE, "landmark")
     prow = {"campaign": scenario.name, "run": int(run_index), **draw.to_row()}

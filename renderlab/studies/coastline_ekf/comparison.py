@@ -26,7 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
+from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import table as html_table
+from renderlab.studies.coastline_ekf.report_section import _render
+from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary
 
 __all__ = ["is_comparison_table", "modes", "mode_summary", "plot_comparison", "report_sections"]
 
@@ -50,8 +53,6 @@ def modes(tables: dict) -> list[tuple[str, object, object]]:
 
 def mode_summary(label: str, table, frames=None) -> tuple[dict, object]:
     """One row of ``comparison.csv`` and the per-time summary of one mode's filter table."""
-    from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary
-
     core = table.drop([c for c in ("campaign", "has_result", "reason") if c in table.column_names])
     s = per_time_summary(core)
     n = int(s["n_runs"].to_numpy()[0])
@@ -117,9 +118,6 @@ def plot_comparison(summaries: dict, stem: Path) -> list[str]:
 
 def report_sections(tables: dict, stage: Path) -> list[tuple[str, str]]:
     """The comparison section (``comparison.csv``, ``comparison.{png,svg}``) when ``geometric_filter`` is present."""
-    from renderlab.report.csvio import write_csv
-    from renderlab.studies.coastline_ekf.report_section import _render
-
     if "geometric_filter" not in tables or "coastline_filter" not in tables:
         return []
     rows, summaries = [], {}

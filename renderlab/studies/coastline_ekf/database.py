@@ -17,6 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from renderlab.worlds.earth import wgs84
+from renderlab.worlds.earth.gshhg import load_gshhg
+
 _LOCK = threading.Lock()
 _CACHE: dict[float, "CoastlinePoints"] = {}
 
@@ -49,8 +52,6 @@ def coastline_points(spacing_m: float = 2000.0) -> CoastlinePoints:
             import shapely
             from scipy.spatial import cKDTree
 
-            from renderlab.worlds.earth import wgs84
-            from renderlab.worlds.earth.gshhg import load_gshhg
 
             lonlat = shapely.get_coordinates(load_gshhg().coast)
             xyz = wgs84.geodetic_to_ecef(np.radians(lonlat[:, 1]), np.radians(lonlat[:, 0]))

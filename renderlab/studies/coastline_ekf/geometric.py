@@ -32,7 +32,14 @@ from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
+from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
+from estimators.coastline.los import los_predict, perturb_unit_vectors, small_rotation_matrices
+from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
+from renderlab.dynamics.orbits import MU_EARTH, nadir_attitude, state_from_elements
+from renderlab.dynamics.truth_orbit import propagate_for  # RK4 two-body/J2, or zonal_dop853 if asked
 from renderlab.errors import UserError
+
+from .database import coastline_points
 
 __all__ = ["CoastlineGeometricOptions", "Geometry", "PAPER_ORBITS", "paper_orbit", "truth_geometry",
            "draws_for_runs", "measurements", "run_batch", "run", "ric_axes", "FILTER_COLUMNS"]
@@ -111,8 +118,6 @@ class CoastlineGeometricOptions:
 
     @property
     def period_s(self) -> float:
-        from renderlab.dynamics.orbits import MU_EARTH
-
         a = R_EARTH_M + self.altitude_m
         return 2.0 * math.pi * math.sqrt(a**3 / MU_EARTH)
 
@@ -171,10 +176,6 @@ def truth_geometry(options: CoastlineGeometricOptions) -> Geometry:
 
 @functools.lru_cache(maxsize=8)
 def _truth_geometry_cached(o: CoastlineGeometricOptions) -> Geometry:
-    from renderlab.dynamics.orbits import nadir_attitude, state_from_elements
-    from renderlab.dynamics.truth_orbit import propagate_for          # RK4 two-body/J2, or zonal_dop853 if asked
-
-    from .database import coastline_points
 
     duration = o.period_s if o.duration_s is None else o.duration_s
     K = int(math.floor(duration / o.cadence_s + 1e-9)) + 1
@@ -245,8 +246,6 @@ def measurements(geo: Geometry, k: int, z_los_k: np.ndarray, z_att_k: np.ndarray
     The camera truly points with ``geo.T_cam_from_eci[k]``; the LOS to each matched point from the true position
     is tilted by σ_los (eq. 18); the star tracker reports exp([σ_att z×]) T_true.
     """
-    from estimators.coastline.los import los_predict, perturb_unit_vectors, small_rotation_matrices
-
     pts = geo.points_eci[k]
     m, N = len(pts), len(z_los_k)
     e_true, _, _ = los_predict(geo.x_true[k:k + 1, :3], pts, geo.T_cam_from_eci[k])
@@ -257,9 +256,6 @@ def measurements(geo: Geometry, k: int, z_los_k: np.ndarray, z_att_k: np.ndarray
 
 def _make_filter(o: CoastlineGeometricOptions, x0_hat: np.ndarray, P0: np.ndarray):
     """The batch filter of ``o.filter_form`` started at x̂0 (N, 6), P0 (6, 6), and its NEES of errors (N, 6)."""
-    from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
-    from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
-
     filt = SqrtBatchCoastlineEKF if o.filter_form == "sqrt" else BatchCoastlineEKF
     ekf = filt(x0_hat, P0, EKFOptions(sigma_theta_rad=o.sigma_theta_rad, sigma_attitude_rad=o.sigma_star_tracker_rad,
                                       q_acc_m2_s3=o.q_acc_m2_s3, max_step_s=o.filter_step_s))

@@ -31,7 +31,22 @@ from pathlib import Path
 
 import numpy as np
 
+from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions, nees
+from estimators.coastline.extract import ExtractOptions, extract_coastline
+from estimators.coastline.los import small_rotation_matrices
+from estimators.coastline.match import MatchOptions, match_coastline
+from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
+from renderlab.geometry.camera import CameraModel
+from renderlab.scenario import scenario_from_dict
+from renderlab.sensor import SensorOptions
+from renderlab.studies.coastline_ekf.config import check_perturbations
+from renderlab.studies.coastline_ekf.geometric import FILTER_COLUMNS, filter_status, ric_axes
+from renderlab.truthset import TruthSet
+from renderlab.worlds.earth.coast_db import CoastDBOptions, build_coast_db
+from renderlab.worlds.earth.gshhg import load_gshhg
+from renderlab.worlds.earth.plan import EarthPlan
 
 __all__ = ["render_scenario_dict", "run_image_study"]
 
@@ -50,8 +65,6 @@ def _database(bounds: tuple, tolerance_m: float, error_m: float, scale_m: float,
     """Onboard database ECEF points (n, 3) of one map-error realisation over a lon/lat box."""
     import shapely
 
-    from renderlab.worlds.earth.coast_db import CoastDBOptions, build_coast_db
-    from renderlab.worlds.earth.gshhg import load_gshhg
 
     cols = build_coast_db(load_gshhg(), shapely.box(*bounds), CoastDBOptions(tolerance_m, error_m, scale_m, seed))
     return np.stack([cols["x_ecef_m"], cols["y_ecef_m"], cols["z_ecef_m"]], -1)
@@ -59,8 +72,6 @@ def _database(bounds: tuple, tolerance_m: float, error_m: float, scale_m: float,
 
 def _prior_truth(scenario) -> np.ndarray:
     """True ECI state at the prior time ``trajectory.start_s`` (the Earth world's own orbit code)."""
-    from renderlab.worlds.earth.plan import EarthPlan
-
     d = scenario.model_copy(update={"trajectory": scenario.trajectory.model_copy(update={"frames": 1})})
     st = EarthPlan.from_scenario(d).states[0]
     return np.concatenate([st["r_eci"], st["v_eci"]])
@@ -87,8 +98,6 @@ def _draw_run(seed_sequence, K: int) -> _RunDraws:
 
 def _check_image_mode(scenario) -> None:
     """Refuse what image mode cannot do (one-line UserErrors)."""
-    from renderlab.studies.coastline_ekf.config import check_perturbations
-
     check_perturbations(scenario.perturbations)
     if scenario.coastline.duration_s is not None:
         raise UserError("coastline.duration_s applies to mode 'geometric'; image mode renders trajectory.frames")
@@ -98,10 +107,6 @@ def _check_image_mode(scenario) -> None:
 
 def _truth_set(scenario, base_dir, workdir):
     """The run's truth render (:func:`render_scenario_dict`) from the campaign's truth cache."""
-    from renderlab.campaign.cache import cached_truthset
-    from renderlab.scenario import scenario_from_dict
-    from renderlab.truthset import TruthSet
-
     truth_sc = scenario_from_dict(render_scenario_dict(scenario), "coastline image scenario")
     path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
     return TruthSet.open(path)
@@ -147,7 +152,6 @@ def _image_attitudes(sc_meta: dict, sig_att: float, z_att_k: np.ndarray):
     """R_ecef_from_eci, R_ecef_from_cam and the star tracker's cam_from_eci (the true one rotated by σ_att z)."""
     from scipy.spatial.transform import Rotation
 
-    from estimators.coastline.los import small_rotation_matrices
 
     R_ef = np.asarray(sc_meta["R_ecef_from_eci"])
     R_ecef_cam = Rotation.from_quat(sc_meta["quat_ecef_from_cam_xyzw"]).as_matrix()
@@ -175,10 +179,6 @@ def _frame_row(k: int, t_k: float, ex, mt, m: int, los_err: float, t0: float, t1
 
 def _update_with_image(fr, k: int, ekf, ctx: _ImageContext) -> tuple[dict, float, int]:
     """Extract, match and (with ≥ 1 match) update the filter with frame k → (frames row, NIS, matched points)."""
-    from estimators.coastline.extract import extract_coastline
-    from estimators.coastline.match import match_coastline
-    from renderlab.geometry.camera import CameraModel
-
     sc_meta = fr.meta["spacecraft"]
     R_ef, R_ecef_cam, T_hat = _image_attitudes(sc_meta, ctx.sig_att, ctx.z_att[k])
     camera = CameraModel.from_dict(fr.meta["camera"])
@@ -201,8 +201,6 @@ def _filter_table(h: _History, run_index: int):
     """The ``coastline_filter`` table (the geometric mode's columns) of a run's history."""
     import pyarrow as pa
 
-    from estimators.coastline.ekf import nees
-    from renderlab.studies.coastline_ekf.geometric import FILTER_COLUMNS, filter_status, ric_axes
 
     xs, Ps, x_tr = np.array(h.x), np.array(h.P), np.array(h.x_true)
     err = xs - x_tr
@@ -223,11 +221,6 @@ def run_image_study(scenario, base_dir, run_index: int, seed_sequence, workdir) 
     """One image-in-the-loop run → ``{"coastline_filter": table, "coastline_frames": table}``."""
     import pyarrow as pa
 
-    from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions
-    from estimators.coastline.extract import ExtractOptions
-    from estimators.coastline.match import MatchOptions
-    from renderlab.campaign.reexpose import ReexposedTruthSet
-    from renderlab.sensor import SensorOptions
 
     c = scenario.coastline
     tr, w, p = scenario.trajectory, scenario.world, scenario.perturbations

@@ -21,6 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.errors import UserError
+from renderlab.report.campaign_report import make_report
+from renderlab.studies.coastline_ekf.geometric import PAPER_ORBITS, paper_orbit, run_batch, truth_geometry
+from renderlab.studies.coastline_ekf.published import PAPER_TABLE1, orbit_tables, write_folder
+from renderlab.studies.coastline_ekf.scoring import pcrb_ric_sigma, per_time_summary
+from renderlab.studies.coastline_ekf.truth_options import with_truth
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m renderlab.studies.coastline_ekf.publish", description=__doc__.split("\n")[0])
@@ -42,17 +49,12 @@ def _parser() -> argparse.ArgumentParser:
 
 def publish_orbit(case: str, args) -> dict:
     """Run one orbit's Monte Carlo → its published tables (:func:`.published.orbit_tables`)."""
-    from renderlab.studies.coastline_ekf.geometric import paper_orbit, run_batch, truth_geometry
-    from renderlab.studies.coastline_ekf.published import PAPER_TABLE1, orbit_tables
-    from renderlab.studies.coastline_ekf.scoring import pcrb_ric_sigma, per_time_summary
-
     import pyarrow as pa
 
     o = paper_orbit(case, cadence_s=args.cadence_s, sigma_theta_rad=args.sigma_theta_mrad * 1e-3,
                     points_per_image=args.points_per_image)
     o = replace(o, duration_s=args.revolutions * o.period_s).validate()
     if getattr(args, "truth_model", "j2_rk4") != "j2_rk4":
-        from renderlab.studies.coastline_ekf.truth_options import with_truth
 
         o = with_truth(o, truth_model=args.truth_model, zonal_degree=args.zonal_degree)
     t0 = time.perf_counter()
@@ -82,10 +84,6 @@ def _plan(args, cases: list[str]) -> dict:
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    from renderlab.errors import UserError
-    from renderlab.report.campaign_report import make_report
-    from renderlab.studies.coastline_ekf.geometric import PAPER_ORBITS
-    from renderlab.studies.coastline_ekf.published import write_folder
 
     cases = list(PAPER_ORBITS) if args.orbits == "all" else [c.strip() for c in args.orbits.split(",")]
     bad = [c for c in cases if c not in PAPER_ORBITS]
@@ -104,7 +102,6 @@ def run_module(entry, argv=None) -> int:
     """``python -m`` entry: a :class:`~renderlab.errors.UserError` is one line on stderr and exit code 2."""
     import sys
 
-    from renderlab.errors import UserError
 
     try:
         return entry(argv)

@@ -30,6 +30,16 @@ import shutil
 from dataclasses import replace
 from pathlib import Path
 
+from renderlab.campaign import store
+from renderlab.campaign.plan import make_plan, run_seed_sequence
+from renderlab.campaign.publish import is_published, publish_campaign
+from renderlab.campaign.runner import run_campaign_file
+from renderlab.errors import UserError
+from renderlab.report.campaign_report import make_report
+from renderlab.scenario import load_scenario
+from renderlab.studies.coastline_ekf.geometric import run_batch
+from renderlab.studies.coastline_ekf.study import geometric_options
+
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m renderlab.studies.coastline_ekf.publish_image",
@@ -56,11 +66,6 @@ def _write_table(table, path: Path) -> None:
 
 def _geometric(args) -> object:
     """The scenario in geometric mode with the campaign's seeds → its filter table."""
-    from renderlab.campaign.plan import run_seed_sequence
-    from renderlab.scenario import load_scenario
-    from renderlab.studies.coastline_ekf.geometric import run_batch
-    from renderlab.studies.coastline_ekf.study import geometric_options
-
     sc, _ = load_scenario(args.scenario, args.overrides)
     tr = sc.trajectory
     geo_sc = sc.model_copy(update={"coastline": sc.coastline.model_copy(update={"mode": "geometric"})})
@@ -69,19 +74,11 @@ def _geometric(args) -> object:
 
 
 def main(argv=None) -> int:
-    from renderlab.campaign import store
-    from renderlab.campaign.publish import is_published, publish_campaign
-    from renderlab.campaign.runner import run_campaign_file
-    from renderlab.errors import UserError
-    from renderlab.report.campaign_report import make_report
-
     args = _parser().parse_args(argv)
     if args.variant is not None and not (args.variant.isidentifier() and is_published(args.out)):
         raise UserError(f"--variant {args.variant!r} needs an identifier and an already published --out folder "
                         "(publish the main campaign there first)")
     if args.truth_cache is not None and not (args.work / store.MANIFEST).is_file():
-        from renderlab.campaign.plan import make_plan
-        from renderlab.scenario import load_scenario
 
         sc0, base0 = load_scenario(args.scenario, args.overrides)
         store.open_campaign(args.work, make_plan(sc0, base0, args.runs), resume=False)

@@ -31,6 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign import store
+from renderlab.report.csvio import write_csv
+from renderlab.studies.coastline_ekf.figures import time_unit
+from renderlab.studies.coastline_ekf.report_section import _render, summary_blocks
+from renderlab.studies.coastline_ekf.scoring import ERR, _columns, nis_band_test, per_time_summary
+
 __all__ = ["TABLES", "orbit_tables", "sample_table", "write_folder", "is_geometric", "report_sections", "PAPER_TABLE1"]
 
 TABLES = ("coastline_orbits", "coastline_timeseries", "coastline_run_totals", "coastline_sample_runs",
@@ -72,7 +78,6 @@ def orbit_tables(case: str, options, geometry, runs_table, summary, seconds: dic
     """
     import pyarrow as pa
 
-    from renderlab.studies.coastline_ekf.scoring import _columns
 
     c, N, K = _columns(runs_table.select(["run", "t_s", "nees", "nis", "n_meas"]))
     totals = pa.table({"run": c["run"][:, 0], "nis_sum": np.nansum(c["nis"], axis=1),
@@ -100,7 +105,6 @@ def write_folder(out: Path, parts: list[dict], plan: dict) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from renderlab.campaign import store
 
     names = [n for n in TABLES if any(n in p for p in parts)]
     with store.staged_folder(Path(out), "the published study") as stage:
@@ -127,7 +131,6 @@ def sample_table(runs_table):
     first :data:`N_SAMPLE` runs."""
     import pyarrow as pa
 
-    from renderlab.studies.coastline_ekf.scoring import ERR
 
     t = _first_runs(runs_table.select(["run", "t_s", *ERR]))
     for name in ERR:
@@ -151,9 +154,6 @@ def _case(table, case: str):
 
 def _orbit_report(case: str, tables: dict, stage: Path, unit) -> tuple[dict, list[dict]]:
     """Steady-state row and report blocks of one orbit, from its published tables."""
-    from renderlab.studies.coastline_ekf.report_section import summary_blocks
-    from renderlab.studies.coastline_ekf.scoring import nis_band_test, per_time_summary
-
     orbit = _case(tables["coastline_orbits"], case).to_pylist()[0]
     summary = _case(tables["coastline_timeseries"], case)
     if "coastline_runs" in tables:  # every run's rows: the summary is recomputed from them, the PCRB σ kept
@@ -194,10 +194,6 @@ def table1_markdown(rows: list[dict]) -> str:
 def report_sections(tables: dict, stage: Path) -> list[tuple[str, str]]:
     """``renderlab report`` sections of a published geometric folder: one per orbit (Figs. 5-9, consistency),
     and ``summary.csv`` (one row per orbit) and ``table1.md`` written into ``stage``."""
-    from renderlab.report.csvio import write_csv
-    from renderlab.studies.coastline_ekf.figures import time_unit
-    from renderlab.studies.coastline_ekf.report_section import _render
-
     cases = list(dict.fromkeys(tables["coastline_orbits"]["case"].to_pylist()))
     unit = time_unit(tables["coastline_timeseries"]["t_s"].to_numpy())       # one time unit for the whole report
     rows, sections = [], []

@@ -18,7 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
+from renderlab.report.campaign_report import render_blocks
 from renderlab.report.html_table import table as html_table
+from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors, time_unit
+from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary, steady_state
 
 __all__ = ["is_coastline_table", "coastline_section", "summary_blocks"]
 
@@ -46,8 +49,6 @@ def is_coastline_table(table) -> bool:
 
 
 def _render(blocks: list[dict]) -> str:
-    from renderlab.report.campaign_report import render_blocks
-
     return render_blocks(blocks)
 
 
@@ -157,8 +158,6 @@ def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | No
     (str, str)
         Section title and HTML body.
     """
-    from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary
-
     runs, t = table["run"].to_numpy(), table["t_s"].to_numpy()
     n_runs = len(np.unique(runs))
     title = f"Coastline EKF (Straub & Christian Figs. 5-9): {name}"
@@ -202,9 +201,6 @@ def summary_blocks(name: str, summary, sample, nis: dict, stage: Path, figure_ti
         :func:`~renderlab.studies.coastline_ekf.scoring.steady_state` plus ``runs``, the NIS and ANEES verdicts;
         the blocks.
     """
-    from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors, time_unit
-    from renderlab.studies.coastline_ekf.scoring import steady_state
-
     n_runs = int(summary["n_runs"].to_numpy()[0])
     pcrb = "pcrb_sig_r_m" in summary.column_names
     div, tname = unit if unit is not None else time_unit(summary["t_s"].to_numpy())

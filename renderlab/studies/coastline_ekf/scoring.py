@@ -23,6 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from estimators.coastline.dynamics import propagate_state_stm, white_acceleration_qd
+from estimators.coastline.los import los_jacobian_position, los_predict, skew_batch
+from renderlab.studies.coastline_ekf.geometric import ric_axes
+
 __all__ = ["AXES", "chi2_band", "per_time_summary", "pcrb_ric_sigma", "steady_state", "nis_total_test",
            "nis_band_test"]
 
@@ -100,10 +104,6 @@ def nis_band_test(total: float, dof: float, p: float = 0.99) -> dict:
 
 def pcrb_ric_sigma(geometry, options) -> np.ndarray:
     """Posterior Cramér–Rao bound σ per RIC axis (K, 6) for the study's truth and matched points."""
-    from estimators.coastline.dynamics import propagate_state_stm, white_acceleration_qd
-    from estimators.coastline.los import los_jacobian_position, los_predict, skew_batch
-
-    from renderlab.studies.coastline_ekf.geometric import ric_axes
 
     x, t, T = geometry.x_true, geometry.t_s, geometry.T_cam_from_eci
     K = len(t)

@@ -28,8 +28,17 @@ from __future__ import annotations
 
 import math
 
-
+from renderlab.builtin import scene_path
+from renderlab.campaign.runner import run_campaign_file
 from renderlab.errors import UserError
+from renderlab.report.campaign_report import make_report
+from renderlab.studies.coastline_ekf import comparison, published
+from renderlab.studies.coastline_ekf.config import CoastlineStudyConfig
+from renderlab.studies.coastline_ekf.geometric import CoastlineGeometricOptions, run_batch
+from renderlab.studies.coastline_ekf.image import run_image_study
+from renderlab.studies.coastline_ekf.report_section import coastline_section, is_coastline_table
+from renderlab.studies.coastline_ekf.truth_options import TRUTH_FIELDS, with_truth
+from renderlab.worlds.earth import wgs84
 
 __all__ = ["geometric_options", "run", "check_perturbations"]
 
@@ -37,8 +46,6 @@ from renderlab.studies.coastline_ekf.config import SUPPORTED_PERTURBATIONS, chec
 
 
 def _section(scenario):
-    from renderlab.studies.coastline_ekf.config import CoastlineStudyConfig
-
     if scenario.world.kind != "earth" or scenario.trajectory.kind != "leo":
         raise UserError(f"study coastline_ekf needs world.kind = 'earth' and trajectory.kind = 'leo', got "
                         f"'{scenario.world.kind}' / '{scenario.trajectory.kind}'")
@@ -55,15 +62,11 @@ def fov_rad(scenario) -> float:
 
 def gmst_at_epoch(epoch_utc: str) -> float:
     """Earth rotation angle (rad) at the scenario's epoch (the Earth world's ECI → ECEF is R3(GMST))."""
-    from renderlab.worlds.earth import wgs84
-
     return float(wgs84.gmst_rad(wgs84.julian_date(wgs84.parse_epoch(epoch_utc), 0.0)))
 
 
 def geometric_options(scenario):
     """:class:`CoastlineGeometricOptions` of a validated scenario (UserError on what the study cannot do)."""
-    from renderlab.studies.coastline_ekf.geometric import CoastlineGeometricOptions
-
     c = _section(scenario)
     tr, p = scenario.trajectory, scenario.perturbations
     check_perturbations(p)
@@ -81,7 +84,6 @@ def geometric_options(scenario):
         q_acc_m2_s3=c.process_noise_m2_s3, filter_step_s=c.filter_step_s, t0_s=tr.start_s).validate()
     if getattr(tr, "truth_model", "j2_rk4") == "j2_rk4":
         return opts
-    from renderlab.studies.coastline_ekf.truth_options import TRUTH_FIELDS, with_truth
 
     return with_truth(opts, **{k: getattr(tr, k) for k in TRUTH_FIELDS})
 
@@ -90,10 +92,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """Campaign-engine entry point: one run → ``{"coastline_filter": table, ...}`` (module docstring)."""
     c = _section(scenario)
     if c.mode == "image":
-        from renderlab.studies.coastline_ekf.image import run_image_study
 
         return run_image_study(scenario, base_dir, run_index, seed_sequence, workdir)
-    from renderlab.studies.coastline_ekf.geometric import run_batch
 
     o = geometric_options(scenario)
     return {"coastline_filter": run_batch(o, [seed_sequence], [run_index])["table"]}
@@ -106,8 +106,6 @@ def report_sections(tables: dict, stage) -> list[tuple[str, str]]:
     table the comparison of its modes (:mod:`.comparison`)."""
     from pathlib import Path
 
-    from renderlab.studies.coastline_ekf import comparison, published
-    from renderlab.studies.coastline_ekf.report_section import coastline_section, is_coastline_table
 
     if published.is_geometric(tables):
         return published.report_sections(tables, Path(stage))
@@ -125,11 +123,8 @@ def run_demo_coastline(out, progress: bool = True, runs: int = 16) -> dict:
     import csv
     from pathlib import Path
 
-    from renderlab.campaign.runner import run_campaign_file
-    from renderlab.report.campaign_report import make_report
 
     out = Path(out)
-    from renderlab.builtin import scene_path
 
     scene = scene_path("coastline_ekf.toml")
     camp = out / "coastline_campaign"

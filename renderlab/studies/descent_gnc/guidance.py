@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from estimators.gnc import Waypoint, ZemZevGuidance, ZemZevOptions
 from renderlab.contracts.guidance import GuidanceOptions
 from renderlab.errors import UserError
 
@@ -21,8 +22,6 @@ class ZemZevLaw:
     name = "zem_zev"
 
     def __init__(self, options: GuidanceOptions):
-        from estimators.gnc import Waypoint, ZemZevGuidance, ZemZevOptions
-
         unknown = sorted(set(options.params) - set(_PARAMS))
         if unknown:
             raise UserError(f"guidance 'zem_zev': unknown parameter(s) {', '.join(unknown)} (known: "

@@ -31,7 +31,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from estimators.descent_nav import pixel_covariance
+from renderlab import plugins
+from renderlab.contracts.landmark import CameraPose
+from renderlab.contracts.navigation import FilterMeasurement
 from renderlab.errors import UserError
+from renderlab.geometry.rotations import look_at
+from renderlab.measurement.runner import MeasureOptions, make_method, run_method_on_image
 
 
 @dataclass(frozen=True)
@@ -82,9 +88,6 @@ class ImageNavigation:
     """The descent EKF fed by rendered images at the camera times (module docstring)."""
 
     def __init__(self, renderer, method, opts: ClosedLoopOptions, t0_s: float, x0, seed: int, look_at_m):
-        from renderlab import plugins
-        from renderlab.measurement.runner import MeasureOptions, make_method
-
         self.r, self.opts, self.look_at_m = renderer, opts, np.asarray(look_at_m, float)
         self.mopts = MeasureOptions(n_sigma=opts.n_sigma, min_search_px=opts.min_search_px,
                                     max_search_px=opts.max_search_px, campaign="descent_gnc", run=int(seed))
@@ -123,7 +126,6 @@ class ImageNavigation:
     def _image(self, t: float, x_true: np.ndarray) -> None:
         from scipy.spatial.transform import Rotation
 
-        from renderlab.geometry.rotations import look_at
 
         up = np.array([0.0, 0.0, 1.0])
         bore = self.look_at_m - x_true[:3]
@@ -145,11 +147,6 @@ class ImageNavigation:
         self.n_img += 1
 
     def _update(self, t: float, dn, spec, R_star, rec: dict) -> None:
-        from estimators.descent_nav import pixel_covariance
-        from renderlab.contracts.landmark import CameraPose
-        from renderlab.contracts.navigation import FilterMeasurement
-        from renderlab.measurement.runner import run_method_on_image
-
         cam, x, P = spec.camera, self.filt.x, self.filt.P
         pose = CameraPose(R_star, x[:3])
         sel = _select(cam, pose, self.centres, self.spacing, self.opts)

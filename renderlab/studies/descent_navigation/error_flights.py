@@ -54,8 +54,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.descent_nav import pixel_covariance
+from renderlab import plugins
+from renderlab.campaign.plan import run_seed_sequence
 from renderlab.contracts.error_model import LandmarkErrorModel
+from renderlab.contracts.landmark import CameraPose
+from renderlab.contracts.navigation import FilterMeasurement
 from renderlab.errors import UserError
+from renderlab.scenario import load_scenario
+from renderlab.studies.descent_navigation.run import check, filter_options, section
+from renderlab.studies.descent_navigation.sources import select_landmarks
+from renderlab.studies.descent_navigation.truth import planned_descent
 
 #: the method whose declared σ the floor's filter uses (as the rendered campaign's Retina runs)
 FLOOR_FILTER_METHOD = "retina"
@@ -83,9 +92,6 @@ def descent_geometry(scenario_path) -> Geometry:
     :func:`renderlab.studies.descent_navigation.truth.planned_descent`)."""
     from pathlib import Path
 
-    from renderlab.scenario import load_scenario
-    from renderlab.studies.descent_navigation.run import check, section
-    from renderlab.studies.descent_navigation.truth import planned_descent
 
     scenario, base = load_scenario(Path(scenario_path))
     check(scenario)
@@ -101,7 +107,6 @@ def run_draws(geom: Geometry, run: int) -> dict:
     """Run ``run``'s initial estimate, star tracker and accelerometer, drawn as the descent study draws them."""
     from scipy.spatial.transform import Rotation
 
-    from renderlab.campaign.plan import run_seed_sequence
 
     cfg = geom.cfg
     _, ss_x0, ss_st, ss_acc = run_seed_sequence(geom.campaign_seed, run).spawn(4)
@@ -135,13 +140,6 @@ def fly(geom: Geometry, draws: dict, model: LandmarkErrorModel | None, beta: np.
     """One descent of the filter with eq. N1's measurements (``model`` None: no landmark error) → the
     touchdown-proxy row: error and 1σ at the last image (site east, north, up), NEES there, ANEES over the
     images, landmarks kept, track loss (``track_loss_frames`` images in a row without a kept landmark)."""
-    from estimators.descent_nav import pixel_covariance
-    from renderlab import plugins
-    from renderlab.contracts.landmark import CameraPose
-    from renderlab.contracts.navigation import FilterMeasurement
-    from renderlab.studies.descent_navigation.sources import select_landmarks
-    from renderlab.studies.descent_navigation.run import filter_options
-
     cfg, cam = geom.cfg, geom.camera
     filt = plugins.filters.get("descent_ekf")(filter_options(cfg, geom.truth.omega_rad_s))
     filt.initialize(float(geom.times[0]), draws["x0"], draws["P0"])

@@ -30,6 +30,8 @@ from collections import defaultdict
 
 import numpy as np
 
+from renderlab.studies.descent_navigation.scoring import chi2_band_sum, columns, tracked
+
 WHITE = tuple(f"white_{k}" for k in range(6))
 
 
@@ -87,7 +89,6 @@ def tracked_landmarks(ftab, ltab):
     """The landmark rows of the (method, run) pairs that kept track (as the filter scores: :func:`.scoring.tracked`)."""
     import pyarrow as pa
 
-    from renderlab.studies.descent_navigation.scoring import tracked
 
     ok = set(zip(tracked(ftab).column("method").to_pylist(), tracked(ftab).column("run").to_pylist()))
     keys = zip(ltab.column("method").to_pylist(), ltab.column("run").to_pylist())
@@ -97,8 +98,6 @@ def tracked_landmarks(ftab, ltab):
 def independence_rows(ftab, ltab, ts_rows: list[dict]) -> list[dict]:
     """One row per method and image: ρ (eq. I1), ρ_ν (I2), the landmark shares, N_eff (I3) and the effective bands
     beside the plain ones of ``ts_rows`` (:func:`renderlab.studies.descent_navigation.scoring.timeseries`)."""
-    from renderlab.studies.descent_navigation.scoring import chi2_band_sum, columns, tracked
-
     c = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof", *WHITE))
     lt = tracked_landmarks(ftab, ltab) if ltab is not None else None
     names = ("method", "frame", "item", "kept", "err_s", "err_l", "meas_s", "meas_l", "pred_s", "pred_l")
@@ -164,8 +163,6 @@ def pattern_rows(ftab, ltab) -> list[dict]:
     the landmarks' centroid: ``scale`` a (a range error of −a·range to first order for a nadir view),
     ``rotation`` b (rad) and the shift (px). An error of this form shared by every landmark of an image cannot
     average out over landmarks or runs."""
-    from renderlab.studies.descent_navigation.scoring import columns
-
     c = columns(tracked_landmarks(ftab, ltab), ("method", "frame", "kept", "err_s", "err_l", "truth_s", "truth_l"))
     out = []
     for m in sorted(set(c["method"].tolist())):

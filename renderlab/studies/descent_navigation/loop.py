@@ -21,6 +21,7 @@ import numpy as np
 
 from renderlab.contracts.landmark import CameraPose
 from renderlab.errors import UserError
+from renderlab.geometry.rotations import quat_xyzw
 from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
 
 
@@ -97,7 +98,6 @@ def _prior_cols(filt, R_star) -> dict:
     """The a-priori pose the method gets (body frame) and the filter's largest position σ at that time."""
     from scipy.spatial.transform import Rotation
 
-    from renderlab.geometry.rotations import quat_xyzw
 
     q = quat_xyzw(Rotation.from_matrix(R_star))
     return {**{f"apriori_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])},

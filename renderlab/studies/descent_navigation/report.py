@@ -14,7 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.studies.descent_navigation.scoring import POS, VEL, columns, method_summary, timeseries
+from renderlab.report.axes import note_outside, typical_limit
+from renderlab.report.style import badge, fmt, method_colors, plt, save
+from renderlab.studies.descent_navigation.report_independence import independence_section
+from renderlab.studies.descent_navigation.report_sources import sources_section
+from renderlab.studies.descent_navigation.scoring import POS, VEL, columns, method_summary, timeseries, tracked
 
 
 def _write_csv(rows: list[dict], path: Path) -> None:
@@ -30,10 +34,6 @@ def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
     axis (rows); the runs that lost track are counted in the title, not drawn (their errors reach 10–300 m). Each
     panel's range is robust (:func:`renderlab.report.axes.typical_limit`: what holds 98 % of the errors at 80 % of
     the times, at least 1.1 × the median ±3σ) and the samples left outside are counted in the panel."""
-    from renderlab.report.axes import note_outside, typical_limit
-    from renderlab.report.style import method_colors, plt, save
-    from renderlab.studies.descent_navigation.scoring import tracked
-
     cols, unit = (POS, "m") if kind == "position" else (VEL, "m/s")
     sig = [c.replace("err_", "sig_") for c in cols]
     every = columns(ftab, ("run", "method"))
@@ -71,8 +71,6 @@ def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
 
 def consistency_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
     """ANEES/6 and ANIS/dof vs time per method, the 95 % bands shaded, inside (●) / outside (✕)."""
-    from renderlab.report.style import method_colors, plt, save
-
     methods = sorted({r["method"] for r in ts_rows})
     colors = method_colors(methods)
     pyplot = plt()
@@ -103,8 +101,6 @@ def consistency_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
 
 
 def _html_table(summary: list[dict]) -> str:
-    from renderlab.report.style import badge, fmt
-
     head = ("method", "runs", "ANEES/6 [95 % CI]", "times in NEES band", "ANIS/dof [95 % CI]", "times in NIS band",
             "at 50 m (last image) |δr| median / p95 (m)", "at 50 m 3σ (m)", "track lost (runs)",
             "kept bias s, l (px)", "gated / flagged")
@@ -165,12 +161,10 @@ def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
         + consistency_figure(ts_rows, out_dir)
     extra = ""
     if "white_0" in ftab.column_names:             # campaigns that wrote the whitened errors (map-state study)
-        from renderlab.studies.descent_navigation.report_independence import independence_section
 
         extra, more = independence_section(ftab, tables.get("descent_landmarks"), ts_rows, out_dir, _write_csv)
         figs += more
     if "src_kind" in ftab.column_names:            # campaigns with injected-error sources (.sources)
-        from renderlab.studies.descent_navigation.report_sources import sources_section
 
         more_html, more = sources_section(ftab, summary, out_dir, _write_csv)
         extra += more_html

@@ -11,12 +11,20 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.report.style import fmt, method_colors, plt, save
+from renderlab.stats.bootstrap import cluster_bootstrap
+from renderlab.studies.descent_navigation.independence import (
+    band_summary,
+    independence_rows,
+    pattern_rows,
+    tracked_landmarks,
+)
+from renderlab.studies.descent_navigation.scoring import columns
+
 
 def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
     """Per method (columns): ANEES/6 and ANIS/dof with the plain (shaded) and effective (dashed) 95 % bands, PASS ●
     / FAIL ✕ against the plain band, and ρ (state), ρ_ν (innovations) vs time."""
-    from renderlab.report.style import method_colors, plt, save
-
     methods = sorted({r["method"] for r in rows})
     colors = method_colors(methods)
     pyplot = plt()
@@ -60,10 +68,6 @@ def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
 def bias_by_tier(ftab, ltab) -> list[dict]:
     """Per method and maplet tier (spacing): bias of the kept landmarks per axis with a 95 % cluster-bootstrap
     interval over runs, and their rms error, in px and on the ground (px × GSD); runs that kept track."""
-    from renderlab.stats.bootstrap import cluster_bootstrap
-    from renderlab.studies.descent_navigation.independence import tracked_landmarks
-    from renderlab.studies.descent_navigation.scoring import columns
-
     c = columns(tracked_landmarks(ftab, ltab), ("run", "method", "kept", "err_s", "err_l", "gsd_m", "spacing_m"))
     out = []
     for m in sorted(set(c["method"].tolist())):
@@ -85,15 +89,11 @@ def bias_by_tier(ftab, ltab) -> list[dict]:
 
 def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path, write_csv) -> tuple[str, list[str]]:
     """(HTML table, figure files) of the independence piece; writes its two CSVs."""
-    from renderlab.report.style import fmt
-    from renderlab.studies.descent_navigation.independence import band_summary, independence_rows
-
     rows = independence_rows(ftab, ltab, ts_rows)
     bands = band_summary(rows)
     write_csv(rows, out_dir / "descent_independence.csv")
     write_csv(bands, out_dir / "descent_bands.csv")
     if ltab is not None and "spacing_m" in ltab.column_names:
-        from renderlab.studies.descent_navigation.independence import pattern_rows
 
         write_csv(bias_by_tier(ftab, ltab), out_dir / "descent_bias_by_tier.csv")
         write_csv(pattern_rows(ftab, ltab), out_dir / "descent_pattern.csv")

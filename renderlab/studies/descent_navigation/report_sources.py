@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.report.style import OKABE_ITO, badge, fmt, plt, save
 from renderlab.studies.descent_navigation.scoring import POS, chi2_band_sum, columns, tracked
 
 INJ = ("inj_bias_s_px", "inj_bias_l_px", "inj_sigma_bias_px", "inj_scale", "inj_sigma_noise_px",
@@ -76,8 +77,6 @@ def source_rows(ftab, summary: list[dict]) -> list[dict]:
 def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
     """ANEES/6 (run mean with its bootstrap interval; last image with its χ² band) and the touchdown error (median,
     RMS, p95, filter 3σ) against the common bias μ; the other sources as dotted reference lines."""
-    from renderlab.report.style import OKABE_ITO, plt, save
-
     sweep = sorted((r for r in rows if _bias_only(r)), key=lambda r: r["inj_bias_s_px"])
     others = [r for r in rows if not _bias_only(r)]
     pyplot = plt()
@@ -127,8 +126,6 @@ def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
 
 def sources_section(ftab, summary: list[dict], out_dir: Path, write_csv) -> tuple[str, list[str]]:
     """(HTML, figure names) of the injected-error sources; ``write_csv(rows, path)`` the report's CSV writer."""
-    from renderlab.report.style import badge, fmt
-
     rows = source_rows(ftab, summary)
     if not rows:
         return "", []

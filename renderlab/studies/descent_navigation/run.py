@@ -21,22 +21,31 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab import plugins
+from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.maplets import respaced_maplets
+from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
+from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
+from renderlab.scenario import scenario_from_dict, truth_dict
+from renderlab.sensor import SensorOptions
+from renderlab.studies.descent_navigation.config import DescentNavigationConfig
+from renderlab.studies.descent_navigation.loop import RunInputs, run_method
+from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
+from renderlab.studies.descent_navigation.truth import planned_descent, true_descent, truthset_frames
+from renderlab.truthset import TruthSet
+from renderlab.worlds.ev5.catalog import read_catalog
 
 TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
 
 
 def section(scenario):
     """The scenario's ``[descent_navigation]`` section (defaults when absent)."""
-    from renderlab.studies.descent_navigation.config import DescentNavigationConfig
-
     return getattr(scenario, "descent_navigation", None) or DescentNavigationConfig()
 
 
 def check(scenario) -> None:
     """Refuse what the study cannot run, before any output: world, trajectory, truth perturbations, names."""
-    from renderlab import plugins
-
     if scenario.world.kind != "ev5" or scenario.trajectory.kind != "ev5_descent":
         raise UserError(f"study descent_navigation needs world.kind 'ev5' with an 'ev5_descent' trajectory, got "
                         f"'{scenario.world.kind}'")
@@ -84,7 +93,6 @@ def run_inputs(ts, frames, truth, maplets, cfg, scenario, run_index, ss) -> obje
     re-exposed truth set (None when no source needs images)."""
     from scipy.spatial.transform import Rotation
 
-    from renderlab.studies.descent_navigation.loop import RunInputs
 
     ss_x0, ss_st, ss_acc = ss
     times, R_true = frames["times"], frames["R_true"]
@@ -103,15 +111,6 @@ def run_inputs(ts, frames, truth, maplets, cfg, scenario, run_index, ss) -> obje
 
 def _rendered_inputs(scenario, base_dir, workdir, cfg, ss_noise, ss_map):
     """(re-exposed truth set, frames, truth, maplets, onboard L table) of the rendered path (module docstring)."""
-    from renderlab.campaign.cache import cached_truthset
-    from renderlab.campaign.reexpose import ReexposedTruthSet
-    from renderlab.measurement.runner import onboard_photometry
-    from renderlab.scenario import scenario_from_dict, truth_dict
-    from renderlab.sensor import SensorOptions
-    from renderlab.studies.descent_navigation.truth import true_descent, truthset_frames
-    from renderlab.truthset import TruthSet
-    from renderlab.worlds.ev5.catalog import read_catalog
-
     truth_sc = scenario_from_dict(truth_dict(scenario.to_dict()), "descent_navigation truth scenario")
     path, _ = cached_truthset(truth_sc, Path(base_dir), Path(workdir) / "truth_cache")
     ts0 = TruthSet.open(path)
@@ -119,7 +118,6 @@ def _rendered_inputs(scenario, base_dir, workdir, cfg, ss_noise, ss_map):
     ts = ReexposedTruthSet(ts0, SensorOptions(**scenario.sensor.options_dict()), noise_seeds, cache=True)
     maplets = read_catalog(path)
     if cfg.map_realisation == "per_run":
-        from renderlab.campaign.maplets import respaced_maplets
 
         maplets = respaced_maplets(maplets, scenario.world, base_dir, 1.0, np.random.default_rng(ss_map))
     return ts, truthset_frames(ts0), true_descent(ts0, scenario, cfg), maplets, ts0
@@ -129,12 +127,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """One run of ``descent_navigation`` → ``{"descent_filter": table, "descent_landmarks": table}``. Without a
     source that needs images (only geometric ``sources``) nothing is rendered: the frames come from the world's plan.
     """
-    from renderlab import plugins
-    from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
-    from renderlab.studies.descent_navigation.loop import run_method
-    from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
-    from renderlab.studies.descent_navigation.truth import planned_descent
-
     check(scenario)
     cfg = section(scenario)
     # the first five children as before the geometric sources; the sixth draws their injected errors

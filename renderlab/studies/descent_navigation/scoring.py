@@ -17,6 +17,8 @@ import math
 
 import numpy as np
 
+from renderlab.stats.bootstrap import cluster_bootstrap
+
 POS = ("err_e_m", "err_n_m", "err_u_m")
 VEL = ("err_ve_mps", "err_vn_mps", "err_vu_mps")
 
@@ -109,8 +111,6 @@ def _consistency(c, m) -> tuple[np.ndarray, np.ndarray]:
 def method_summary(ftab, ltab, ts_rows) -> list[dict]:
     """One row per method (module docstring): consistency and landmark statistics over the runs that kept track
     (``*_all``: every run), errors at the last image over every run."""
-    from renderlab.stats.bootstrap import cluster_bootstrap
-
     keep = columns(tracked(ftab), ("run", "method", "frame", "nees", "nis", "dof"))
     c = columns(ftab, ("run", "method", "frame", "nees", "nis", "dof", "track_lost", "n_gated", "n_flagged",
                        "n_results", "n_kept", *POS, *VEL))

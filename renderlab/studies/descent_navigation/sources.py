@@ -48,8 +48,10 @@ import math
 
 import numpy as np
 
+from estimators.descent_nav import pixel_covariance
 from renderlab.contracts.landmark import CameraPose, LandmarkResult
 from renderlab.contracts.navigation import FilterMeasurement
+from renderlab.measurement.runner import _frame_record, run_method_on_image
 
 
 def select_landmarks(cam, pose, centres, spacing, cfg) -> np.ndarray:
@@ -84,8 +86,6 @@ def declared_sigma(cfg, name: str, spacing, gsd) -> np.ndarray:
 
 def _filter_measurement(inp, k, cfg, name, sel_ok, z, x, cam, flagged) -> FilterMeasurement:
     """The FilterMeasurement of the landmarks ``sel_ok`` measured at ``z`` (k, 2): R of eq. M3 with the declared σ."""
-    from estimators.descent_nav import pixel_covariance
-
     pts = inp.centres[sel_ok]
     gsd = ((pts - x[:3]) @ inp.R_star[k])[:, 2] / cam.fx
     sig = declared_sigma(cfg, name, inp.spacing[sel_ok], gsd)
@@ -113,8 +113,6 @@ class LandmarkMethodSource:
 
     def measure(self, inp, k, filt):
         """(selected, results, FilterMeasurement or None) of image k at the filter's a-priori pose."""
-        from renderlab.measurement.runner import _frame_record, run_method_on_image
-
         fr = _frame_record(inp.ts, k)
         x, P = filt.x, filt.P
         pose = CameraPose(inp.R_star[k], x[:3])

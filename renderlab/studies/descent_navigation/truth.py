@@ -23,6 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from renderlab.geometry.camera import CameraModel
+from renderlab.geometry.rotations import rotation_from_quat_xyzw
+from renderlab.worlds.base import make_plan
+from renderlab.worlds.ev5.descent import DescentProfile
+
 
 @dataclass(frozen=True)
 class TrueDescent:
@@ -97,8 +102,6 @@ def site_frame(ts) -> tuple[np.ndarray, np.ndarray]:
 def true_descent(ts, scenario, cfg) -> TrueDescent:
     """The :class:`TrueDescent` of an EV5 descent truth set: the site and spin as rendered (``site.json``, the
     frames' ``ev5.spin``), the profile of ``scenario.trajectory``, the truth gravity of ``cfg``."""
-    from renderlab.worlds.ev5.descent import DescentProfile
-
     origin, R = site_frame(ts)
     period = float(ts.frames[0]["ev5"]["spin"]["period_s"])
     return TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / period, origin, R[:, 2],
@@ -116,9 +119,6 @@ def planned_descent(scenario, base_dir, cfg) -> tuple[dict, TrueDescent, list]:
     import json
     from pathlib import Path
 
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.worlds.base import make_plan
-    from renderlab.worlds.ev5.descent import DescentProfile
 
     key = (json.dumps(scenario.to_dict(), sort_keys=True, default=str), str(Path(base_dir).resolve()))
     if key not in _PLANNED:
@@ -141,9 +141,6 @@ def planned_descent(scenario, base_dir, cfg) -> tuple[dict, TrueDescent, list]:
 
 def truthset_frames(ts) -> dict:
     """The ``frames`` of :func:`planned_descent` from a truth set's manifest and ``site.json``."""
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
-
     return {"times": np.array([float(rec["time_s"]) for rec in ts.frames]),
             "R_true": np.stack([rotation_from_quat_xyzw(rec["pose"]["quat_render_from_cam_xyzw"]).as_matrix()
                                 for rec in ts.frames]),

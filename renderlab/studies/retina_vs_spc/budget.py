@@ -56,19 +56,30 @@ import sys
 import time
 from pathlib import Path
 
+from renderlab import plugins
+from renderlab.campaign.plan import run_seed_sequence
 from renderlab.errors import UserError
-from renderlab.studies.retina_vs_spc.budget_plan import (METHODS, OFF, SOURCES, _get, _set,  # noqa: F401
-                                                         budget_configs, stochastic, with_section)
+from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
+from renderlab.studies.retina_vs_spc import budget_shadows as SH
+from renderlab.studies.retina_vs_spc.budget_plan import (  # noqa: F401
+    METHODS,
+    OFF,
+    SOURCES,
+    _get,
+    _set,
+    budget_configs,
+    stochastic,
+    with_section,
+)
+from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_table
+from renderlab.studies.retina_vs_spc.budget_report import write_report
+from renderlab.studies.retina_vs_spc.budget_tables import TABLES, merge_tables, read_tables, write_tables
+from renderlab.studies.retina_vs_spc.run import run, section
 
 
 def _one_run(task):
     """Worker: one run of one configuration → (config, run, measurements, perturbations, seconds)."""
     import pyarrow as pa
-
-    from renderlab.campaign.plan import run_seed_sequence
-    from renderlab.scenario import scenario_from_dict
-    from renderlab.studies.retina_vs_spc.run import run
-
     import pyarrow.parquet as pq
 
     name, sc_dict, base_dir, index, seed, workdir = task
@@ -77,8 +88,6 @@ def _one_run(task):
     if all(p.is_file() for p in done):  # finished by an earlier, interrupted call (same scenario, seed, run)
         return name, index, pq.read_table(done[0]), pq.read_table(done[1]), 0.0
     scenario = scenario_from_dict(sc_dict, f"error budget configuration {name}")
-    from renderlab.studies.retina_vs_spc import budget_shadows as SH
-    from renderlab.studies.retina_vs_spc.run import section
 
     methods = SH.factories(section(scenario).methods) if name == SH.CONFIG else None
     out = run(scenario, Path(base_dir), index, run_seed_sequence(seed, index), Path(workdir), methods=methods)
@@ -105,8 +114,6 @@ def _done_paths(task) -> tuple[Path, Path]:
 
 def _tasks(configs, base_dir, runs, seed, workdir) -> tuple[list, list]:
     """(first tasks: one per distinct truth, rest): no two workers render the same truth at once."""
-    from renderlab.scenario import truth_dict
-
     first, rest, seen = [], [], set()
     for c in configs:
         n = runs if stochastic(c["scenario"]) else 1
@@ -129,8 +136,6 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
 
     import pyarrow as pa
 
-    from renderlab.scenario import load_scenario
-    from renderlab.studies.retina_vs_spc.budget_tables import write_tables
 
     if runs < 2:
         raise UserError(f"--runs must be >= 2 (noise needs repeated runs), got {runs}")
@@ -145,7 +150,6 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
                             f"{', '.join(c['config'] for c in configs)})")
         configs = [c for c in configs if c["config"] in only]
     if only or methods:
-        from renderlab.studies.retina_vs_spc.budget_tables import read_tables
 
         read_tables(out)  # an existing budget folder to merge into, before anything runs
     first, rest = _tasks(configs, base_dir, runs, seed, workdir)
@@ -163,20 +167,16 @@ def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir:
                 "wall_s": round(time.perf_counter() - t0, 1), "workers": workers}
     m, p = pa.concat_tables(meas, promote_options="default"), pa.concat_tables(pert, promote_options="default")
     if only or methods:
-        from renderlab.studies.retina_vs_spc.budget_tables import merge_tables
 
         merge_tables(out, configs, m, p, manifest, methods)
     else:
         write_tables(out, configs, m, p, manifest)
-    from renderlab.studies.retina_vs_spc.budget_report import write_report
 
     write_report(out)
 
 
 def _known_methods(methods: list[str]) -> list[str]:
     """``methods`` if each is a registered landmark method, listed once; else UserError."""
-    from renderlab import plugins
-
     if len(set(methods)) != len(methods):
         raise UserError(f"--methods: a method is named twice ({' '.join(methods)})")
     for name in methods:
@@ -215,10 +215,6 @@ def run_probe(folder: Path, scenario_path: Path, workdir: Path) -> None:
     """Measure the probe's rows (:func:`.budget_probe.probe_table`) into ``folder/tables``, then the report."""
     import pyarrow.parquet as pq
 
-    from renderlab.scenario import load_scenario
-    from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_table
-    from renderlab.studies.retina_vs_spc.budget_report import write_report
-    from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
 
     read_tables(folder)  # a budget folder first
     scenario, base_dir = load_scenario(scenario_path)
@@ -241,7 +237,6 @@ def main(argv: list[str] | None = None) -> int:
         elif args.command == "probe":
             run_probe(args.folder, args.scenario, args.workdir)
         else:
-            from renderlab.studies.retina_vs_spc.budget_report import write_report
 
             out = write_report(args.folder)
             print(f"renderlab: wrote {out} (budget_summary.csv, budget_terms.csv, budget_table.md, "

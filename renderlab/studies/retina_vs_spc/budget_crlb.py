@@ -47,7 +47,21 @@ from pathlib import Path
 
 import numpy as np
 
+from estimators.retina import CameraPoseEstimate, TemplateOptions, build_mesh, render_template
+from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.reexpose import frame_sensor_options
+from renderlab.campaign.scoring import dn_variance, image_gradients, registration_crlb, template_shift_covariance
 from renderlab.errors import UserError
+from renderlab.geometry.camera import CameraModel
+from renderlab.geometry.rotations import rotation_from_quat_xyzw
+from renderlab.measurement.runner import MeasureOptions, onboard_photometry
+from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
+from renderlab.sensor import SensorOptions, expected_dn
+from renderlab.studies.retina_vs_spc import budget_stats as S
+from renderlab.studies.retina_vs_spc.budget_plan import budget_configs
+from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
+from renderlab.truthset import TruthSet
+from renderlab.worlds.ev5.catalog import read_catalog
 
 TABLE = "budget_crlb"
 ESTIMATES = ("budget", "second", "cross", "high_a", "high_b", "clean", "footprint", "template")
@@ -63,8 +77,6 @@ class CrlbProbeOptions:
 
 
 def _truth_scenario(all_off: dict, spp: int | None, seed: int):
-    from renderlab.scenario import scenario_from_dict, truth_dict
-
     d = truth_dict(copy.deepcopy(all_off))
     if spp is not None:
         d["render"]["spp"] = int(spp)
@@ -96,8 +108,6 @@ def windows(ts, maplets) -> dict:
 def window_noise(low_a: np.ndarray, low_b: np.ndarray, clean: np.ndarray, variance: np.ndarray) -> tuple:
     """(render-noise sd of one low-spp render, from the difference of two: rms(a − b)/√2; sensor noise sd,
     rms of √variance; rms of the clean image's gradient per axis, the stencil's) over a window, DN."""
-    from renderlab.campaign.scoring import image_gradients
-
     gs, gl = image_gradients(np.asarray(clean, float))
     g = np.concatenate([gs[np.isfinite(gs)], gl[np.isfinite(gl)]])
     d = np.asarray(low_a, float) - np.asarray(low_b, float)
@@ -107,19 +117,12 @@ def window_noise(low_a: np.ndarray, low_b: np.ndarray, clean: np.ndarray, varian
 
 def onboard_L_table(ts) -> tuple:
     """The onboard McEwen L(α) fitted to the truth set's law (what the budget's methods use)."""
-    from renderlab.measurement.runner import MeasureOptions, onboard_photometry
-
     return onboard_photometry(ts, MeasureOptions())[0]
 
 
 def template_match(ts, k: int, maplet, clean: np.ndarray, variance: np.ndarray, L_table: tuple) -> dict:
     """:func:`renderlab.campaign.scoring.template_shift_covariance` of Retina's template of ``maplet`` (exact
     maplet, true camera, pose and Sun of frame ``k``, k = 3 samples per pixel) against the ``clean`` image."""
-    from estimators.retina import CameraPoseEstimate, TemplateOptions, build_mesh, render_template
-    from renderlab.campaign.scoring import template_shift_covariance
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.geometry.rotations import rotation_from_quat_xyzw
-
     rec = ts.frames[k]
     R = rotation_from_quat_xyzw(rec["pose"]["quat_render_from_cam_xyzw"], "pose").as_matrix()
     sun = np.asarray(rec["sun"]["direction_render"], float)
@@ -140,13 +143,6 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, opts: CrlbProbeOpt
     """Render the all-off truth four times (module docstring) and return the per-landmark-frame estimates."""
     import pyarrow as pa
 
-    from renderlab.campaign.cache import cached_truthset
-    from renderlab.campaign.reexpose import frame_sensor_options
-    from renderlab.campaign.scoring import dn_variance, registration_crlb
-    from renderlab.scenario import scenario_from_dict
-    from renderlab.sensor import SensorOptions, expected_dn
-    from renderlab.truthset import TruthSet
-    from renderlab.worlds.ev5.catalog import read_catalog
 
     sc = scenario_from_dict(all_off, "error budget all_off")
     seed, spp = int(sc.render.seed), int(sc.render.spp)
@@ -247,8 +243,6 @@ def report_rows(meas, configs, probe, gross_px: float = 1.0, n_boot: int = 1000,
     """Rows of ``report/budget_crlb.csv``: the CRLB ratios (:func:`_ratio_rows`) and, per method and GSD band,
     the sensor-noise-alone rms noise sd / CRLB with the budget's bound (the table's columns) and with each probe
     estimate (interval: resampling the per landmark-frame-axis ratios, as in :func:`.budget_stats.summary_row`)."""
-    from renderlab.studies.retina_vs_spc import budget_stats as S
-
     bounds = _bounds(probe)
     out = _ratio_rows(bounds) + [_noise_row(probe)]
     runs = dict(zip(configs.column("config").to_pylist(), configs.column("runs").to_pylist()))
@@ -284,7 +278,6 @@ def read_probe(folder: Path):
     """The probe table of a budget folder, or None when it has none."""
     import pyarrow.parquet as pq
 
-    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 
     p = Path(folder) / TABLES / f"{TABLE}.parquet"
     return pq.read_table(p) if p.is_file() else None
@@ -327,9 +320,6 @@ def main(argv: list[str] | None = None) -> int:
     try:
         import pyarrow.parquet as pq
 
-        from renderlab.scenario import load_scenario
-        from renderlab.studies.retina_vs_spc.budget_plan import budget_configs
-        from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
 
         read_tables(args.folder)  # a budget folder, before anything renders
         if min(args.high_spp) < 1:

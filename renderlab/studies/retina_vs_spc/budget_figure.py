@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.report import style
 from renderlab.studies.retina_vs_spc.budget_stats import TERMS_ORDER
 
 PANELS = (("robust_sigma", "robust σ of the error"), ("bias_rms", "per-landmark bias rms"),
@@ -17,8 +18,6 @@ PANELS = (("robust_sigma", "robust σ of the error"), ("bias_rms", "per-landmark
 
 def budget_figure(summary: list[dict], terms: list[dict], stem: Path) -> list[str]:
     """Draw the figure into ``stem``.png/.svg (subset all, both axes pooled); returns the file names."""
-    from renderlab.report import style
-
     rows = [r for r in terms if r["subset"] == "all" and r["axis"] == "both"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
     labels = [t for t in TERMS_ORDER if any(r["term"] == t for r in rows)]

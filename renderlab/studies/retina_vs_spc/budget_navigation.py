@@ -58,6 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.studies.retina_vs_spc import budget_stats as S
 
 MAPPINGS = ("altitude", "ground", "pixel")
 NONE_CONFIG, NONE_METHOD = "no_landmark_error", "none"
@@ -124,8 +125,6 @@ def _axis_stats(e: np.ndarray, cluster: np.ndarray, runs: int) -> tuple[float, f
 
 def error_models(meas, configs, fx: float, gsd_range: tuple, mapping: str, gross_px: float = 1.0) -> list:
     """The :class:`ErrorModel` of every configuration × method of a budget's tables under ``mapping``."""
-    from renderlab.studies.retina_vs_spc import budget_stats as S
-
     if mapping not in MAPPINGS:
         raise UserError(f"navigation budget: mapping must be one of {', '.join(MAPPINGS)}, got {mapping!r}")
     cols = S.columns(meas)

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.report import style
 from renderlab.studies.retina_vs_spc.budget_navigation import term_order
 
 PRIMARY = "altitude"
@@ -79,8 +80,6 @@ def _validation(ax, val, methods, colors):
 
 def navigation_figure(terms: list[dict], val: list[dict], stem: Path) -> list[str]:
     """Draw the figure into ``stem``.png/.svg (statistic rms_3d); returns the file names."""
-    from renderlab.report import style
-
     rows = [r for r in terms if r["statistic"] == "rms_3d"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
     labels = [t for t in term_order(rows) if t != "sum_over_all_on"]

@@ -23,6 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.studies.retina_vs_spc.budget_navigation import NONE_CONFIG, NONE_METHOD, RENDERED, TABLE, term_order
+from renderlab.studies.retina_vs_spc.budget_navigation_figure import navigation_figure
+from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 
 N_BOOT, SEED, TOL = 1000, 21, 0.2
 SHADOW_CONFIG = "no_shadows"  # .budget_shadows.CONFIG: its term is at all off, like the peak step
@@ -194,8 +196,6 @@ def write(folder: Path, stage: Path, sources: list[str], csv_writer) -> str:
     ``folder/tables``; returns the markdown section ("" when the folder has no navigation table)."""
     import pyarrow.parquet as pq
 
-    from renderlab.studies.retina_vs_spc.budget_navigation_figure import navigation_figure
-    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 
     p, q = Path(folder) / TABLES / f"{TABLE}.parquet", Path(folder) / TABLES / f"{RENDERED}.parquet"
     if not p.is_file():

@@ -16,6 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.perturb import draw_perturbation
+from renderlab.measurement.runner import MeasureOptions, measure_truthset
+from renderlab.scenario import scenario_from_dict, truth_dict
+from renderlab.sensor import SensorOptions
+from renderlab.stats.bootstrap import cluster_bootstrap
+from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
+from renderlab.truthset import TruthSet
+from renderlab.worlds.ev5.catalog import read_catalog
+
 SUPERSAMPLE = (1, 3, 6)
 PROBE = "budget_supersample"
 
@@ -24,14 +34,6 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, methods=("retina",
     """Rows of every method and k of :data:`SUPERSAMPLE` on the all-off truth set (module docstring)."""
     import pyarrow as pa
 
-    from renderlab.campaign.cache import cached_truthset
-    from renderlab.campaign.perturb import draw_perturbation
-    from renderlab.measurement.runner import MeasureOptions, measure_truthset
-    from renderlab.scenario import scenario_from_dict, truth_dict
-    from renderlab.sensor import SensorOptions
-    from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
-    from renderlab.truthset import TruthSet
-    from renderlab.worlds.ev5.catalog import read_catalog
 
     sc = scenario_from_dict(all_off, "error budget all_off")
     truth_sc = scenario_from_dict(truth_dict(sc.to_dict()), "error budget all_off truth")
@@ -55,8 +57,6 @@ def probe_table(all_off: dict, base_dir: Path, workdir: Path, methods=("retina",
 def probe_rows(table, n_boot: int = 1000, seed: int = 20) -> list[dict]:
     """Per method and k: results, per-landmark bias rms (both axes; all-off rows are deterministic, so the
     error of each landmark-frame is its bias) with a 95 % cluster-bootstrap interval over landmark-frames."""
-    from renderlab.stats.bootstrap import cluster_bootstrap
-
     d = {c: np.asarray(table.column(c).to_pylist()) for c in table.column_names}
     out = []
     for m in dict.fromkeys(d["method"]):

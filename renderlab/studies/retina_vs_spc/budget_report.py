@@ -27,9 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign import store
 from renderlab.errors import UserError
-
+from renderlab.studies.retina_vs_spc import budget_crlb as BC
+from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
+from renderlab.studies.retina_vs_spc import budget_stats as S
+from renderlab.studies.retina_vs_spc.budget_figure import budget_figure
+from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_rows
 from renderlab.studies.retina_vs_spc.budget_stats import TERMS_ORDER
+from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
+from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+from renderlab.studies.retina_vs_spc.report import well_measured_mask
 
 N_BOOT_SUMMARY, N_BOOT_JOINT, SEED = 1000, 500, 20
 SHADOW_CONFIG = "no_shadows"  # renderlab.studies.retina_vs_spc.budget_shadows.CONFIG
@@ -37,9 +45,6 @@ BANDS = (("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf
 
 
 def _subsets(table, cols) -> dict:
-    from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
-    from renderlab.studies.retina_vs_spc.report import well_measured_mask
-
     return {"all": np.ones(table.num_rows, bool), "well_measured": well_measured_mask(table, RetinaVsSpcConfig())}
 
 
@@ -54,8 +59,6 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 
 def compute(meas, configs, gross_px: float = 1.0) -> tuple[list, list, list]:
     """(summary rows, term rows, breakdown rows) of a budget's tables (module docstring)."""
-    from renderlab.studies.retina_vs_spc import budget_stats as S
-
     cols = S.columns(meas)
     runs = dict(zip(configs.column("config").to_pylist(), configs.column("runs").to_pylist()))
     sources = [s for s in configs.column("source").to_pylist() if s]
@@ -169,8 +172,6 @@ def _probe(folder: Path) -> list[dict]:
     """The template-sampling probe's rows (:mod:`.budget_probe`), or [] when the folder has no probe table."""
     import pyarrow.parquet as pq
 
-    from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_rows
-    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
 
     p = Path(folder) / TABLES / f"{PROBE}.parquet"
     return probe_rows(pq.read_table(p)) if p.is_file() else []
@@ -187,10 +188,6 @@ def _probe_markdown(rows: list[dict]) -> str:
 def write_report(folder: Path, out_dir: Path | None = None) -> Path:
     """Write ``out_dir`` (default ``folder/report/``) from ``folder/tables/`` alone (staged: all or nothing);
     returns the report folder."""
-    from renderlab.campaign import store
-    from renderlab.studies.retina_vs_spc.budget_figure import budget_figure
-    from renderlab.studies.retina_vs_spc.budget_tables import read_tables
-
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder}: no such folder")
@@ -206,14 +203,12 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
         if probe:
             _write_csv(stage / "budget_supersample.csv", probe)
             md += _probe_markdown(probe)
-        from renderlab.studies.retina_vs_spc import budget_crlb as BC
 
         crlb_probe = BC.read_probe(folder)
         if crlb_probe is not None:
             crlb_rows = BC.report_rows(meas, configs, crlb_probe)
             _write_csv(stage / "budget_crlb.csv", crlb_rows)
             md += "\n" + BC.markdown(crlb_rows)
-        from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
 
         sources = [s for s in configs.column("source").to_pylist() if s]
         nav = NR.write(folder, stage, sources, _write_csv)

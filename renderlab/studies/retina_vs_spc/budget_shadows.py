@@ -28,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 
+from renderlab import plugins
 from renderlab.errors import UserError
 
 CONFIG = "no_shadows"
@@ -55,8 +56,6 @@ def without_cast_shadows(obj):
 
 
 def _make(name: str, mopts):
-    from renderlab import plugins
-
     return without_cast_shadows(plugins.landmark_methods.get(name, where="error budget: ")(mopts))
 
 

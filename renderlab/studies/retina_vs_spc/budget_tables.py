@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from renderlab.campaign import store
 from renderlab.errors import UserError
 
 TABLES = "tables"
@@ -28,7 +29,6 @@ def write_tables(out: Path, configs: list[dict], measurements, perturbations, ma
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from renderlab.campaign import store
 
     missing = [c for c in COLUMNS if c not in measurements.column_names]
     if missing:

@@ -12,7 +12,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from renderlab import plugins
+from renderlab.campaign.runner import run_campaign_file
 from renderlab.errors import UserError
+from renderlab.report.campaign_report import make_report
 
 DEMO_RUNS = 40
 
@@ -80,8 +83,6 @@ seed = 7
 def demo_methods_section() -> str:
     """``[retina_vs_spc] methods``: Retina, SPC and the NCC baseline plug-in when it is installed (``setup.sh``
     installs ``examples/ncc_baseline``; a plain wheel install has only the lab's own two methods)."""
-    from renderlab import plugins
-
     methods = ["retina", "spc"] + (["ncc_baseline"] if "ncc_baseline" in plugins.landmark_methods else [])
     return "\n[retina_vs_spc]\nmethods = [" + ", ".join(f'"{m}"' for m in methods) + "]\n"
 
@@ -99,9 +100,6 @@ def run_demo_campaign(out_dir, progress: bool = True, runs: int = DEMO_RUNS) -> 
     UserError
         ``out_dir`` is a file, or holds a campaign of a different plan.
     """
-    from renderlab.campaign.runner import run_campaign_file
-    from renderlab.report.campaign_report import make_report
-
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out} exists and is not a directory")

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+
 
 def _config(scenario_dict: dict):
-    from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
-
     return RetinaVsSpcConfig.model_validate(scenario_dict.get("retina_vs_spc") or {})
 
 

@@ -40,14 +40,23 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab import plugins
 from renderlab.campaign.maplets import respaced_maplets
+from renderlab.campaign.perturb import draw_perturbation, perturb_camera, perturb_sun
 from renderlab.campaign.reexpose import ReexposedTruthSet
+from renderlab.campaign.scoring import dn_variance, registration_crlb
 from renderlab.errors import UserError
+from renderlab.measurement.runner import MeasureOptions, measure_truthset
+from renderlab.scenario import scenario_from_dict, truth_dict
+from renderlab.sensor import SensorOptions, expected_dn
+from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+from renderlab.studies.retina_vs_spc.truth import run_truthset
+from renderlab.truthset import TruthSet
+from renderlab.worlds.ev5.catalog import read_catalog
+
 
 def truth_scenario_dict(sc_dict: dict) -> dict:
     """The nominal scenario (what is rendered): the campaign-only sections removed."""
-    from renderlab.scenario import truth_dict
-
     return truth_dict(sc_dict)
 
 
@@ -60,8 +69,6 @@ def apriori_sigmas(p) -> tuple[tuple, tuple]:
 
 def believed_record(rec: dict, draw) -> dict:
     """A frame record as the onboard system believes it: the run's camera and Sun-direction knowledge errors."""
-    from renderlab.campaign.perturb import perturb_camera, perturb_sun
-
     r = dict(rec)
     r["camera"] = perturb_camera(rec["camera"], draw)
     r["sun"] = {**rec["sun"], "direction_render": [float(v) for v in perturb_sun(rec["sun"]["direction_render"], draw)]}
@@ -88,7 +95,6 @@ class BelievedTruthSet(ReexposedTruthSet):
             return super().load(i)
         import dataclasses
 
-        from renderlab.sensor import expected_dn
 
         fr = self._ts.load(i)
         if fr.radiance is None:
@@ -99,9 +105,6 @@ class BelievedTruthSet(ReexposedTruthSet):
 
 def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict) -> dict:
     """{(frame, landmark_id): (range_m, albedo_contrast, crlb_s, crlb_l)} from the truth images."""
-    from renderlab.campaign.scoring import dn_variance, registration_crlb
-    from renderlab.sensor import expected_dn
-
     by_id = {int(m.landmark_id): m for m in maplets}
     out, pos_of, img = {}, {}, {}
     index_of = {int(rec["index"]): k for k, rec in enumerate(ts.frames)}
@@ -133,15 +136,11 @@ def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict) -> dic
 
 def section(scenario):
     """The scenario's ``[retina_vs_spc]`` section (defaults when absent)."""
-    from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
-
     return getattr(scenario, "retina_vs_spc", None) or RetinaVsSpcConfig()
 
 
 def check(scenario) -> None:
     """Validate before anything runs: world kind, every method name registered."""
-    from renderlab import plugins
-
     if scenario.world.kind != "ev5":
         raise UserError(f"study retina_vs_spc needs world.kind 'ev5', got '{scenario.world.kind}'")
     for name in section(scenario).methods:
@@ -154,13 +153,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir, methods=None
     section's names (the error budget's shadow-free onboard variants, :mod:`.budget_shadows`)."""
     import pyarrow as pa
 
-    from renderlab.campaign.perturb import draw_perturbation
-    from renderlab.measurement.runner import MeasureOptions, measure_truthset
-    from renderlab.scenario import scenario_from_dict
-    from renderlab.sensor import SensorOptions
-    from renderlab.studies.retina_vs_spc.truth import run_truthset
-    from renderlab.truthset import TruthSet
-    from renderlab.worlds.ev5.catalog import read_catalog
 
     check(scenario)
     p = scenario.perturbations

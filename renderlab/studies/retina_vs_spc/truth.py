@@ -27,6 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.cache import cached_frames_truthset, cached_truthset, loaded_world
+from renderlab.campaign.perturb import perturb_pose
+
 #: the perturbations that change what is rendered
 TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
 
@@ -39,8 +42,6 @@ def perturbs_truth(p) -> bool:
 def perturbed_specs(specs: list, draw) -> list:
     """The frame specs at the run's true poses (module docstring): position offset δp + δv·(t_k − t_0),
     pointing error R·Exp(δθ); camera, Sun and times unchanged."""
-    from renderlab.campaign.perturb import perturb_pose
-
     t0 = float(specs[0].pose.time_s)
     out = []
     for s in specs:
@@ -60,8 +61,6 @@ def truth_note(draw) -> dict:
 def run_truthset(truth_scenario, base_dir, cache_root: Path, perturbations, draw) -> tuple[Path, bool]:
     """(path, cache hit) of the truth set this run measures: the nominal one when ``perturbations`` leave
     the truth alone, else the run's own render at :func:`perturbed_specs` of the nominal frames."""
-    from renderlab.campaign.cache import cached_frames_truthset, cached_truthset, loaded_world
-
     if not perturbs_truth(perturbations):
         return cached_truthset(truth_scenario, Path(base_dir), Path(cache_root))
     world = loaded_world(truth_scenario, Path(base_dir))

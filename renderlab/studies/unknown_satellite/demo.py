@@ -11,6 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from renderlab.campaign.runner import run_campaign_file
+from renderlab.campaign.store import load_tables
+from renderlab.report.campaign_report import make_report
+
 DEMO_RUNS = 4
 
 DEMO_SCENARIO = """# renderlab demo: unknown tumbling microsatellite (renderlab.studies.unknown_satellite.demo)
@@ -73,9 +77,6 @@ def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEM
     """
     import numpy as np
 
-    from renderlab.campaign.runner import run_campaign_file
-    from renderlab.campaign.store import load_tables
-    from renderlab.report.campaign_report import make_report
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

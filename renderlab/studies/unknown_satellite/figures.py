@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
+from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
 #: scores summarised across runs: column → (score id in the unit of the summary, label, scale, unit, group)
 SCORES = {
@@ -88,7 +89,6 @@ def score_summary(scores) -> list[dict]:
         rows.append({"score": sid, "label": label, "unit": unit, "runs": len(v), "mean": float(v.mean()),
                      "std": float(v.std(ddof=1)) if len(v) > 1 else float("nan"), "median": float(med),
                      "p10": float(p10), "p90": float(p90)})
-    from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
     for name, on in run_flags(scores).items():
         rows.append({"score": f"flag_{name}", "label": RUN_FLAGS[name], "unit": "runs", "runs": len(on),
@@ -99,8 +99,6 @@ def score_summary(scores) -> list[dict]:
 def run_flags(scores) -> dict[str, np.ndarray]:
     """Flag name → bool per run, from the ``flag_<name>`` columns or, in tables published before them, from the
     comma-separated ``flag_names`` column."""
-    from renderlab.studies.unknown_satellite.config import RUN_FLAGS
-
     names = scores.column_names
     if any(f"flag_{n}" in names for n in RUN_FLAGS):
         return {n: _np(scores, f"flag_{n}", bool) for n in RUN_FLAGS if f"flag_{n}" in names}

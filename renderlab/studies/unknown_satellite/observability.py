@@ -23,7 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from estimators.pose import EstimationError, MeasurementDatabase, Stage1Options, Stage1Problem
 from renderlab.errors import UserError
+from renderlab.geometry.camera import CameraModel
+from renderlab.geometry.rotations import skew
+from renderlab.scenario import apply_overrides, load_scenario, scenario_from_dict
+from renderlab.worlds.microsat.model import build_parts
+from renderlab.worlds.microsat.plan import separation_truth
 
 
 @dataclass(frozen=True)
@@ -93,8 +99,6 @@ def visibility(truth, tips, camera, world, shadows: bool = True) -> tuple[np.nda
 def synthetic_database(vis: np.ndarray, sl: np.ndarray, tracks: str = "segments", min_track_frames: int = 5):
     """A :class:`estimators.pose.MeasurementDatabase` of the true pixel positions and, per database point,
     the knob it belongs to."""
-    from estimators.pose import MeasurementDatabase
-
     if tracks not in ("segments", "ideal"):
         raise UserError(f"tracks must be 'segments' or 'ideal', got {tracks!r}")
     frame, point, z, knob = [], [], [], []
@@ -120,11 +124,6 @@ def arc_information(scenario, case: ArcCase, *, sigma_px: float = 0.3, range_pri
     """Cramér–Rao σ of the inertia ratios (and ω0, r0, points) for one arc of ``scenario``."""
     from scipy.spatial.transform import Rotation
 
-    from estimators.pose import EstimationError, Stage1Options, Stage1Problem
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.scenario import apply_overrides, scenario_from_dict
-    from renderlab.worlds.microsat.model import build_parts
-    from renderlab.worlds.microsat.plan import separation_truth
 
     data = apply_overrides(scenario.to_dict(), [f"trajectory.frames={case.frames}",
                                                  f"trajectory.dt_s={case.dt_s}", *case.sets])
@@ -161,7 +160,6 @@ def arc_information(scenario, case: ArcCase, *, sigma_px: float = 0.3, range_pri
     Jn = J / norms
     cov = np.linalg.pinv(Jn.T @ Jn, rcond=1e-15) / np.outer(norms, norms)
     sig = np.sqrt(np.clip(np.diag(cov), 0, None))
-    from renderlab.geometry.rotations import skew
 
     G = np.hstack([-R0 @ skew(truth.omega_body[0]), R0])      # ω_lvlh = R_ref exp([δφ]×) ω0 at δφ = 0
     cov_w = G @ cov[6:12, 6:12] @ G.T
@@ -214,7 +212,6 @@ def main(argv=None) -> int:
 
     import pyarrow.parquet as pq
 
-    from renderlab.scenario import load_scenario
 
     ap = argparse.ArgumentParser(prog="python -m renderlab.studies.unknown_satellite.observability",
                                  description="Cramér–Rao σ of the inertia ratios against arc length (eq. 7)")

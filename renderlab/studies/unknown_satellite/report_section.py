@@ -18,9 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.report.campaign_report import write_csv
+from renderlab.report.campaign_report import render_blocks, write_csv
 from renderlab.report.html_table import table as html_table
 from renderlab.studies.unknown_satellite.figures import SCORES, campaign_figures, same_pairs, score_summary
+from renderlab.studies.unknown_satellite.observability_report import observability_blocks
 
 __all__ = ["study_section", "attitude_note"]
 
@@ -133,11 +134,8 @@ def _flag_table(rows: list[dict]) -> list[dict]:
 def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     """The section (title, HTML) of a campaign's tables; writes ``unknown_satellite_summary.csv`` (and
     ``summary.csv`` where the generic report wrote none) and the figures into ``out_dir``."""
-    from renderlab.report.campaign_report import render_blocks
-
     if "scores" not in tables:
         return []
-    from renderlab.studies.unknown_satellite.observability_report import observability_blocks
 
     scores = tables["scores"]
     rows = score_summary(scores)

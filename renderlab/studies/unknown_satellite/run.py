@@ -27,9 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
-
-from renderlab.studies.unknown_satellite.config import RUN_FLAGS
+from renderlab.scenario import scenario_from_dict, truth_dict
+from renderlab.sensor import SensorOptions
+from renderlab.studies.unknown_satellite.config import RUN_FLAGS, UnknownSatelliteStudyConfig
+from renderlab.studies.unknown_satellite.report_section import study_section
+from renderlab.studies.unknown_satellite.sequence import PriorOptions, StudyOptions, analyse_truthset
+from renderlab.truthset import TruthSet
 
 #: generic [perturbations] keys this study uses; any other non-zero one is refused
 USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", "apriori_attitude_sigma_deg",
@@ -38,8 +44,6 @@ USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", 
 
 def study_config(scenario):
     """The ``[unknown_satellite]`` section (defaults when absent)."""
-    from renderlab.studies.unknown_satellite.config import UnknownSatelliteStudyConfig
-
     return getattr(scenario, "unknown_satellite", None) or UnknownSatelliteStudyConfig()
 
 
@@ -68,7 +72,6 @@ def truth_scenario_dict(scenario, draw: dict) -> dict:
     (only where its σ is non-zero, so every run of a noise-only campaign has the same cache key)."""
     from scipy.spatial.transform import Rotation
 
-    from renderlab.scenario import truth_dict
 
     d = truth_dict(scenario.to_dict())
     cfg, p, tr = study_config(scenario), scenario.perturbations, d["trajectory"]
@@ -132,12 +135,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """One run of ``unknown_satellite`` → ``{"scores", "stage2", "points", "stage1_history", "perturbations"}``."""
     import pyarrow as pa
 
-    from renderlab.campaign.cache import cached_truthset
-    from renderlab.campaign.reexpose import ReexposedTruthSet
-    from renderlab.scenario import scenario_from_dict
-    from renderlab.sensor import SensorOptions
-    from renderlab.studies.unknown_satellite.sequence import PriorOptions, StudyOptions, analyse_truthset
-    from renderlab.truthset import TruthSet
 
     if scenario.world.kind != "microsat":
         raise UserError(f"study unknown_satellite needs world.kind 'microsat', got '{scenario.world.kind}'")
@@ -170,6 +167,4 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 def report_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
     """Report hook: the score tables, run flags and figures like Figs 5-7 and 13-14 over the campaign (one HTML
     section, :mod:`renderlab.studies.unknown_satellite.report_section`; it reports ``stage2`` itself)."""
-    from renderlab.studies.unknown_satellite.report_section import study_section
-
     return study_section(tables, Path(out_dir))

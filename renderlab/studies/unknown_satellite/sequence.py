@@ -23,7 +23,28 @@ from pathlib import Path
 
 import numpy as np
 
+from estimators.pose import (
+    DetectOptions,
+    EstimationError,
+    Stage1Options,
+    Stage1Problem,
+    Stage2Options,
+    TrackOptions,
+    build_database,
+    detect_points,
+    observability,
+    run_stage2,
+    track_points,
+    with_full_inertia,
+)
+from estimators.pose.gauge import gauge_free
+from estimators.pose.onboard_model import exp_so3, log_so3
+from estimators.pose.rigidity import solve_rigid
+from estimators.pose.stage2 import FLAG_NAMES
 from renderlab.errors import UserError
+from renderlab.geometry.camera import CameraModel
+from renderlab.pipeline import render_truthset
+from renderlab.truthset import TruthSet
 
 
 @dataclass(frozen=True)
@@ -62,8 +83,6 @@ class SequenceResult:
 
 def _stage2_text(flags: int) -> str:
     """Stage 2's per-frame flag bits (:data:`estimators.pose.stage2.FLAG_NAMES`) as text."""
-    from estimators.pose.stage2 import FLAG_NAMES
-
     return ",".join(n for b, n in FLAG_NAMES.items() if flags & b)
 
 
@@ -88,7 +107,6 @@ def axis_relabelling(R_est0: np.ndarray, R_true0: np.ndarray) -> np.ndarray:
     """
     import itertools
 
-    from estimators.pose.onboard_model import log_so3
 
     best, best_P = np.inf, np.eye(3)
     for perm in itertools.permutations(range(3)):
@@ -139,8 +157,6 @@ def _truth(recs: list) -> _Truth:
 
 def _apriori(t: _Truth, d: np.ndarray, p: PriorOptions, rng: np.random.Generator) -> tuple:
     """The seeded a-priori guess (R_ref, r0, v0, ω0, ratios, range prior), drawn in this order."""
-    from estimators.pose.onboard_model import exp_so3
-
     R_ref = t.R0 @ exp_so3(rng.normal(0, np.radians(p.sigma_att_deg), 3))
     r0g = t.tr["r_lvlh_m"][0] + rng.normal(0, p.sigma_r0_m, 3)
     v0g = t.tr["v_lvlh_mps"][0] + rng.normal(0, p.sigma_v0_mps, 3)
@@ -152,9 +168,6 @@ def _apriori(t: _Truth, d: np.ndarray, p: PriorOptions, rng: np.random.Generator
 
 def _solve_stage1(sq: _Sequence, db, apriori: tuple, opts: StudyOptions, ts_path):
     """Stage 1 (range prior, rigidity test, solve) from the a-priori guess → (solution, problem, rigidity result)."""
-    from estimators.pose import EstimationError, Stage1Options, Stage1Problem
-    from estimators.pose.rigidity import solve_rigid
-
     R_ref, r0g, v0g, w0g, ratios_g, range_prior = apriori
     s1opts = Stage1Options(sigma_px=opts.sigma_px, range_prior_sigma_m=opts.prior.range_sigma_m, max_nfev=opts.max_nfev)
     try:
@@ -218,8 +231,6 @@ def _history_rows(s1, problem, fid, truth_pts, t: _Truth, run: int):
 
 def _stage2_rows(s2, t: _Truth, times, P, run: int):
     """Stage-2 table columns and errors: attitude (deg), r, v, ω (deg/s), attitude and ω also with relabelled axes."""
-    from estimators.pose.onboard_model import log_so3
-
     tr, frames = t.tr, np.arange(len(times))
     e_att = np.array([np.degrees(np.linalg.norm(log_so3(a @ b.T))) for a, b in zip(s2.R, t.R)])
     e_r, e_v, e_w = s2.r - tr["r_lvlh_m"], s2.v - tr["v_lvlh_mps"], np.degrees(s2.w - tr["omega_body_rad_s"])
@@ -247,8 +258,6 @@ def _stage2_rows(s2, t: _Truth, times, P, run: int):
 
 def _stage1_scores(s1, gf, obs, t: _Truth, truth_pts, fid, err, shape_err, ok_any) -> dict:
     """Summary scores of stage 1 against the truth (body frame and gauge-free), its CRLB σ and the FIM rank."""
-    from estimators.pose.onboard_model import log_so3
-
     tr, R_true0, ratios_true, ok = t.tr, t.R0, t.ratios, fid >= 0
     return {
         "point_err_rms_m": float(np.sqrt(np.mean(err[ok] ** 2) * 3)) if ok.any() else np.nan,
@@ -283,8 +292,6 @@ def _stage1_scores(s1, gf, obs, t: _Truth, truth_pts, fid, err, shape_err, ok_an
 
 def _stage2_scores(s2, e2: tuple, s1, P, truth_pts, fid, R_true0) -> dict:
     """Summary scores of stage 2, then of both stages with the principal axes relabelled to the truth's (P)."""
-    from estimators.pose.onboard_model import log_so3
-
     e_att, e_r, e_v, e_w, e_att_al, e_w_al = e2
     mom = np.abs(P) @ np.r_[s1.inertia_ratios, 1.0]
     err_al = np.array([P @ s1.points_body[k] - truth_pts[j] for k, j in enumerate(fid) if j >= 0]).reshape(-1, 3)
@@ -310,11 +317,6 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     import pyarrow as pa
     from tqdm import tqdm
 
-    from estimators.pose import (DetectOptions, Stage2Options, TrackOptions, build_database, detect_points,
-                                 observability, run_stage2, track_points, with_full_inertia)
-    from estimators.pose.gauge import gauge_free
-    from renderlab.geometry.camera import CameraModel
-    from renderlab.truthset import TruthSet
 
     ts = ts_path if hasattr(ts_path, "load") else TruthSet.open(ts_path)
     ts_path = getattr(ts, "path", ts_path)
@@ -378,7 +380,6 @@ def run_sequence(scenario, base_dir, out_dir, seed: int = 0, opts: StudyOptions 
 
     import pyarrow.parquet as pq
 
-    from renderlab.pipeline import render_truthset
 
     if scenario.world.kind != "microsat":
         raise UserError(f"the unknown-satellite study needs world.kind 'microsat', got '{scenario.world.kind}'")
