@@ -44,6 +44,15 @@ def captured(monkeypatch):
         figs.append(fig)
         return [Path(stem).with_suffix(".png").name, Path(stem).with_suffix(".svg").name]
 
+    import sys
+
+    import renderlab.studies.descent_navigation.report  # noqa: F401  (bound names patched below)
+    import renderlab.studies.unknown_satellite.figures  # noqa: F401
+
+    original = style.save
+    for mod in [m for name, m in sys.modules.items() if name.startswith("renderlab.")]:
+        if getattr(mod, "save", None) is original:  # modules that imported the name itself
+            monkeypatch.setattr(mod, "save", keep)
     monkeypatch.setattr(style, "save", keep)
     yield figs
     style.plt().close("all")
