@@ -29,10 +29,13 @@ import os
 from importlib import metadata
 from pathlib import Path
 
-import numpy as np
-
 from renderlab.errors import UserError
-
+from renderlab.geometry.rotations import quat_xyzw
+from renderlab.inputs import LIMITS, sha256
+from renderlab.pipeline import render_truthset, write_frames
+from renderlab.pipeline.frame_api import Renderer
+from renderlab.render.mitsuba_backend import MitsubaBackend
+from renderlab.truthset import FORMAT
 
 _TRUTH_PACKAGES = ("render", "worlds", "geometry", "dynamics", "scenario", "pipeline")
 _TRUTH_MODULES = ("sensor.py", "sensor_noise.py", "photometry.py", "truthset.py", "imageio.py", "config_types.py")
@@ -88,8 +91,6 @@ def referenced_files(data, where: str = "") -> list[tuple[str, str]]:
 
 def file_sha256(path: Path) -> str:
     """``sha256:<hex>`` of a file's content (read in 1 MiB blocks), or ``missing``/``unreadable``."""
-    from renderlab.inputs import LIMITS, sha256
-
     if not os.path.lexists(path):
         return "missing"
     return sha256(path, "scenario file", LIMITS["hashed"])  # a regular file (no FIFO, no device), else UserError
@@ -106,8 +107,6 @@ def render_path_options() -> dict:
     (``MitsubaBackend.ray_path``, e.g. ``$RENDERLAB_MITSUBA_RAYS=drjit_grid``; ``MitsubaBackend.integrator``),
     where they differ from the defaults: part of :func:`truth_key`, so a truth set rendered with another ray path
     or integrator is never served from the cache for the default one (keys of default renders are unchanged)."""
-    from renderlab.render.mitsuba_backend import MitsubaBackend
-
     out = {}
     if MitsubaBackend.ray_path != "drjit":
         out["mitsuba_ray_path"] = MitsubaBackend.ray_path
@@ -122,8 +121,6 @@ def truth_key(scenario_dict: dict, frames: int | None = None, files: dict | None
     count, the truth-set format, :func:`truth_code_fingerprint`, :func:`render_path_options`, the content hashes
     of the files the scenario references (``files``, from :func:`file_hashes`; left out when there are none), and, for a
     render of given frames (:func:`cached_frames_truthset`), their :func:`frame_record` contents."""
-    from renderlab.truthset import FORMAT
-
     key = {"format": FORMAT, "scenario": scenario_dict, "frames": frames, "code": truth_code_fingerprint()}
     key.update(render_path_options())
     if files:
@@ -140,8 +137,6 @@ def _complete(path: Path) -> bool:
 
 def cached_truthset(scenario, base_dir: Path, cache_root: Path, *, frames: int | None = None) -> tuple[Path, bool]:
     """Path of the truth set of ``scenario`` (rendered now if not cached) and whether it was a hit."""
-    from renderlab.pipeline import render_truthset
-
     data = scenario.to_dict()
     key = truth_key(data, frames, file_hashes(data, base_dir))
     path = Path(cache_root) / key
@@ -159,8 +154,6 @@ def cached_truthset(scenario, base_dir: Path, cache_root: Path, *, frames: int |
 # ------------------------------------------------------------------ renders of given frame specs (perturbed truth)
 def frame_record(spec) -> dict:
     """The content of one frame spec (what the renderer sees of it), JSON-able with exact floats."""
-    from renderlab.geometry.rotations import quat_xyzw
-
     return {"index": int(spec.index), "time_s": float(spec.pose.time_s),
             "position_m": [float(v) for v in spec.pose.position_m],
             "quat_render_from_cam_xyzw": [float(v) for v in quat_xyzw(spec.pose.rotation)],
@@ -170,8 +163,6 @@ def frame_record(spec) -> dict:
 def LoadedWorld(scenario, base_dir: Path):
     """A scenario's world plan, built once, and the renderer of its current scene, loaded once and reused for every
     frame spec rendered from it: the warm frame API's :class:`~renderlab.pipeline.frame_api.Renderer`."""
-    from renderlab.pipeline.frame_api import Renderer
-
     return Renderer(scenario, Path(base_dir))
 
 
@@ -213,8 +204,6 @@ def render_frames(world, out_dir: Path, specs: list, *, note: dict | None = None
     :func:`renderlab.pipeline.render_truthset` (:func:`renderlab.pipeline.write_frames`: same seeds,
     auto-exposure on the first frame, sensor, files, the plan's metadata and truth tables) with the world's
     loaded renderer."""
-    from renderlab.pipeline import write_frames
-
     sc, plan = world.scenario, world.plan
     head = {"scenario": sc.to_dict(), "seed": int(sc.render.seed), "render_frame": plan.render_frame,
             "frame_specs_note": note or {}}

@@ -24,13 +24,18 @@ import time
 import traceback
 from pathlib import Path
 
+from renderlab import plugins
+from renderlab.campaign import store
+from renderlab.contracts.schemas import CORE, TIMING_COLUMNS, table_kind
 from renderlab.errors import UserError
+from renderlab.extras import require
+from renderlab.scenario import scenario_from_dict
+from renderlab.signals import ignored_in_children
 
 
 def _validate_tables(tables, task) -> dict:
     import pyarrow as pa
 
-    from renderlab.contracts.schemas import CORE, table_kind
 
     if not isinstance(tables, dict) or not tables:
         raise TypeError(f"study {task.study} returned {type(tables).__name__}, expected a non-empty dict of tables")
@@ -124,7 +129,6 @@ def split_timings(tables: dict) -> tuple[dict, "object | None"]:
     (``table``, ``row`` and the columns), or None when no table has one (``--timings separate``)."""
     import pyarrow as pa
 
-    from renderlab.contracts.schemas import TIMING_COLUMNS
 
     out, parts = {}, []
     for name, t in sorted(tables.items()):
@@ -146,10 +150,6 @@ def execute_run(task, timings: str = "inline") -> dict:
     ``timings.parquet`` (so the same seed gives byte-identical result tables). A failure to store the run
     (a full or read-only disk) is returned, not raised, with ``env_errno`` set.
     """
-    from renderlab.campaign import store
-    from renderlab import plugins
-    from renderlab.scenario import scenario_from_dict
-
     apply_thread_limit()
     t0 = time.perf_counter()
     status = {"run": task.index, "status": "ok", "error": "", "seconds": 0.0}
@@ -337,7 +337,6 @@ class DaskExecutor:
 
         from distributed import Client, LocalCluster
 
-        from renderlab.signals import ignored_in_children
 
         logging.getLogger("distributed").setLevel(logging.CRITICAL)
         if self.scheduler:
@@ -394,7 +393,6 @@ def make_executor(workers: int | None = None, scheduler: str | None = None, conn
     or the cluster at ``scheduler``, tls:// with ``security``)."""
     if workers == 0 and scheduler is None:
         return InProcessExecutor()
-    from renderlab.extras import require
 
     require("distributed", "cluster", hint="--workers 0 runs the campaign in this process")
     return DaskExecutor(workers=workers, scheduler=scheduler, connect_timeout_s=connect_timeout_s, security=security)

@@ -15,21 +15,20 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.geometry.maplet import Maplet
+from renderlab.worlds.ev5 import build_model
+from renderlab.worlds.ev5.config import EV5World
+from renderlab.worlds.ev5.landmarks import cell_means, correlated_error
+
 
 @functools.lru_cache(maxsize=2)
 def _site(world_json: str, base_dir: str):
-    from renderlab.worlds.ev5 import build_model
-    from renderlab.worlds.ev5.config import EV5World
-
     return build_model(EV5World.model_validate_json(world_json), Path(base_dir)).site
 
 
 def respaced_maplets(maplets, world, base_dir, scale: float, rng: np.random.Generator) -> list:
     """The catalogue rebuilt at ``spacing·scale`` from the site DEM (same centres/frames, fresh mapping and albedo
     error from ``rng``); ``scale = 1`` is a fresh map realisation at the catalogue's own spacing."""
-    from renderlab.geometry.maplet import Maplet
-    from renderlab.worlds.ev5.landmarks import cell_means, correlated_error
-
     site = _site(world.model_dump_json(), str(Path(base_dir).resolve()))
     out = []
     for m in maplets:

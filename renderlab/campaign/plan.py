@@ -14,6 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab import plugins
+from renderlab import plugins as registry
+from renderlab.campaign.cache import file_hashes
 from renderlab.contracts.file_models import MAX_RUNS  # noqa: F401  (the plan's bound, written once)
 from renderlab.errors import UserError
 from renderlab.inputs import short
@@ -60,8 +63,6 @@ class CampaignPlan:
         """The part of the manifest that must match for ``--resume``: study, runs, seed, scenario and the
         content hash of every file the scenario references (``files``, when it references any), so a changed
         albedo map or mesh under the same name is a different plan."""
-        from renderlab.campaign.cache import file_hashes
-
         scenario = self.scenario.to_dict()
         out = {"study": self.study, "runs": self.runs,
                "seed": {"entropy": self.seed, "run_seed": "SeedSequence(entropy, spawn_key=(run,))"},
@@ -91,8 +92,6 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
     UserError
         ``--runs`` out of range, negative seed, or an unknown study / one that does not fit the world.
     """
-    from renderlab import plugins as registry
-
     if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= MAX_RUNS:
         raise UserError(f"--runs must be an integer in 1..{MAX_RUNS}, got {short(runs)}")
     seed = scenario.campaign.seed if seed is None else seed
@@ -112,8 +111,6 @@ def make_plan(scenario, base_dir: Path, runs: int, seed: int | None = None, stud
 
 def study_for(scenario) -> str:
     """The study named by ``scenario.campaign.study`` or the default of its world kind."""
-    from renderlab import plugins
-
     if scenario.campaign.study:
         return scenario.campaign.study
     kind = scenario.world.kind

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.sensor import expose
 
 __all__ = ["ReexposedTruthSet", "frame_sensor_options", "reexposed_dn"]
 
@@ -61,8 +62,6 @@ def reexposed_dn(ts, i: int, sensor_options, seed, *, frame=None, rgb_fallback: 
     numpy.ndarray
         The frame's new DN image.
     """
-    from renderlab.sensor import expose
-
     fr = ts.load(i) if frame is None else frame
     lum = _luminance(fr, rgb_fallback)
     if lum is None:

@@ -16,8 +16,12 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from renderlab.campaign import store
+from renderlab.campaign.executors import InProcessExecutor, execute_run, make_executor
+from renderlab.campaign.plan import make_plan
 from renderlab.errors import UserError
-from renderlab.signals import raise_pending
+from renderlab.scenario import load_scenario
+from renderlab.signals import raise_pending, sweep_campaign
 
 
 @dataclass(frozen=True)
@@ -68,9 +72,6 @@ def run_campaign(plan, out_dir: Path, *, executor=None, resume: bool = False, pr
     """
     from tqdm import tqdm
 
-    from renderlab.campaign import store
-    from renderlab.campaign.executors import InProcessExecutor, execute_run
-    from renderlab.signals import sweep_campaign
 
     if timings not in ("inline", "separate"):
         raise UserError(f"--timings must be 'inline' or 'separate', got {timings!r}")
@@ -128,10 +129,6 @@ def run_campaign_file(scenario_path, out_dir, runs: int, *, overrides=None, work
                       scheduler: str | None = None, resume: bool = False, seed: int | None = None,
                       progress: bool = True) -> CampaignResult:
     """Load a scenario file and run its campaign (what ``renderlab campaign`` and the demo call)."""
-    from renderlab.campaign.executors import make_executor
-    from renderlab.campaign.plan import make_plan
-    from renderlab.scenario import load_scenario
-
     scenario, base = load_scenario(scenario_path, overrides or [])
     plan = make_plan(scenario, base, runs, seed=seed)
     return run_campaign(plan, out_dir, executor=make_executor(workers, scheduler), resume=resume, progress=progress)

@@ -29,13 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from renderlab.contracts.schemas import table_kind as kind
+from renderlab.sensor import mean_electrons
+
 BREAKDOWNS = ("phase_deg", "gsd_ratio", "shadow_fraction", "albedo_contrast", "range_m")
 
 
 def table_kind(table) -> str:
     """``"landmark"``, ``"filter"``, ``"pose"`` or ``"other"`` (:func:`renderlab.contracts.schemas.table_kind`)."""
-    from renderlab.contracts.schemas import table_kind as kind
-
     return kind(table)
 
 
@@ -164,8 +165,6 @@ def breakdown(table, column: str, bins: int = 4, confidence: float = 0.95) -> li
 # ----------------------------------------------------------------------------- CRLB
 def dn_variance(radiance: np.ndarray, options) -> np.ndarray:
     """Per-pixel DN noise variance of :func:`renderlab.sensor.expose`: (μₑ + σ_read²)/g² + 1/12."""
-    from renderlab.sensor import mean_electrons
-
     mu = np.minimum(mean_electrons(np.asarray(radiance, float), options), float(options.full_well_e))
     return (mu + float(options.read_noise_e) ** 2) / float(options.gain_e_per_dn) ** 2 + 1.0 / 12.0
 

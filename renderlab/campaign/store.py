@@ -23,8 +23,11 @@ import secrets
 import shutil
 from pathlib import Path
 
-from renderlab.inputs import shown
+from renderlab import plugins
+from renderlab.contracts.file_models import CampaignManifest, RunStatus, RunStatuses
+from renderlab.contracts.schemas import check_campaign_table, expected_kind, read_parquet
 from renderlab.errors import UserError
+from renderlab.inputs import read_checked, shown
 
 FORMAT = "renderlab.campaign/1"
 MANIFEST = "campaign.json"
@@ -55,9 +58,6 @@ def _write_json_atomic(path: Path, data: dict) -> None:
 
 def read_manifest(campaign_dir: Path) -> dict:
     """``campaign.json``, validated (:class:`renderlab.contracts.file_models.CampaignManifest`)."""
-    from renderlab.contracts.file_models import CampaignManifest
-    from renderlab.inputs import read_checked
-
     p = Path(campaign_dir) / MANIFEST
     if not os.path.lexists(p):
         raise UserError(f"{shown(campaign_dir)} is not a campaign folder (no {MANIFEST})")
@@ -107,9 +107,6 @@ def open_campaign(campaign_dir: Path, plan, *, resume: bool) -> dict:
 def run_status(campaign_dir: Path, index: int, *, strict: bool = True) -> dict | None:
     """A run's ``status.json``, validated (:class:`renderlab.contracts.file_models.RunStatus`), or None when the run
     has none. An invalid one is a UserError (``strict``) or None (a run to redo on ``--resume``)."""
-    from renderlab.contracts.file_models import RunStatus
-    from renderlab.inputs import read_checked
-
     p = run_dir(campaign_dir, index) / "status.json"
     if not os.path.lexists(p):
         return None
@@ -180,8 +177,6 @@ def load_tables(campaign_dir: Path) -> dict:
 def own_tables(manifest: dict) -> tuple[str, ...]:
     """The tables the campaign's study reports itself (``Study.own_tables``; its own schema, read by its own code),
     or none when the study is not registered here."""
-    from renderlab import plugins
-
     study = manifest["plan"]["study"]
     return tuple(getattr(plugins.studies.get(study), "own_tables", ()) or ()) if study in plugins.studies else ()
 
@@ -190,8 +185,6 @@ def read_run_table(path: Path, name: str, own: tuple = ()):
     """One campaign table file, read with its boundaries and (unless the study reports it itself: ``own``) the
     schema of its kind checked (:func:`renderlab.contracts.schemas.read_parquet`,
     :func:`~renderlab.contracts.schemas.check_campaign_table`)."""
-    from renderlab.contracts.schemas import check_campaign_table, read_parquet
-
     where = f"table {shown(path)}"
     table = read_parquet(path, where)
     if name in own:
@@ -250,9 +243,6 @@ def load_published_tables(folder: Path, own: tuple = ()) -> dict:
 
 def published_statuses(folder: Path) -> list[dict]:
     """``runs.json``, validated (:data:`renderlab.contracts.file_models.RunStatuses`: each run once)."""
-    from renderlab.contracts.file_models import RunStatuses
-    from renderlab.inputs import read_checked
-
     p = Path(folder) / STATUSES
     data = read_checked(p, RunStatuses, "run statuses")
     runs = [s["run"] for s in data]
@@ -264,8 +254,6 @@ def published_statuses(folder: Path) -> list[dict]:
 def finished_campaign(campaign_dir: Path, purpose: str) -> tuple[dict, dict, list[dict]]:
     """(manifest, tables, run statuses) of a campaign or published study folder that has finished runs;
     UserError (``no finished runs to <purpose>``) otherwise."""
-    from renderlab.contracts.schemas import expected_kind
-
     manifest = read_manifest(campaign_dir)
     tables = load_tables(campaign_dir)
     if not tables:

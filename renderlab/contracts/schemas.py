@@ -43,6 +43,8 @@ from __future__ import annotations
 import pyarrow as pa
 
 from renderlab.contracts.reasons import reason_values
+from renderlab.errors import UserError
+from renderlab.inputs import LIMITS, open_regular
 
 F64, I64, STR, BOOL = pa.float64(), pa.int64(), pa.string(), pa.bool_()
 REASON = pa.dictionary(pa.int32(), pa.string())
@@ -214,8 +216,6 @@ def read_parquet(path, where: str, *, schema: pa.Schema | None = None, limit: in
 
     import pyarrow.parquet as pq
 
-    from renderlab.inputs import LIMITS, open_regular
-    from renderlab.errors import UserError
 
     limit = LIMITS["table"] if limit is None else limit
     fd, _ = open_regular(path, "table", limit)  # a regular file of bounded size (then read by name: pyarrow's I/O)

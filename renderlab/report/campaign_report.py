@@ -13,8 +13,13 @@ import html
 import os
 from pathlib import Path
 
+from renderlab import plugins
+from renderlab.campaign import scoring, store
+from renderlab.campaign.publish import is_published
 from renderlab.report.csvio import write_csv  # noqa: F401  (re-exported for studies)
+from renderlab.report.filter_section import filter_section
 from renderlab.report.html_table import table as html_table
+from renderlab.report.landmark_section import landmark_section
 from renderlab.report.style import ci
 
 TEMPLATE_DIR = Path(__file__).parent / "templates"
@@ -24,8 +29,6 @@ LEAD_TITLE = "What this campaign measures"
 
 def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) -> Path:
     """Write the report of ``campaign_dir`` into ``out_dir``; return the HTML page's path."""
-    from renderlab.campaign import store
-
     campaign_dir, out_dir = Path(campaign_dir), Path(out_dir)
     manifest, tables, statuses = store.finished_campaign(campaign_dir, "report")
     with store.staged_folder(out_dir, "the report") as stage:
@@ -48,8 +51,6 @@ def make_report(campaign_dir: Path, out_dir: Path, *, confidence: float = 0.95) 
 
 def _regenerate_command(campaign_dir: Path, out_dir: Path) -> str:
     """The command that remakes this report: a published study folder's default report needs only the folder."""
-    from renderlab.campaign.publish import is_published
-
     if is_published(campaign_dir) and out_dir.resolve() == (campaign_dir / "report").resolve():
         return f"renderlab report {campaign_dir.as_posix()}"
     return f"renderlab report {_rel(campaign_dir, out_dir)} --out {out_dir.name}"
@@ -73,8 +74,6 @@ def _rel(campaign_dir: Path, out_dir: Path) -> str:
 
 
 def _study(name: str):
-    from renderlab import plugins
-
     return plugins.studies.get(name) if name in plugins.studies else None
 
 
@@ -94,10 +93,6 @@ def _study_sections(study: str, tables, stage: Path) -> list[dict]:
 
 def _write_all(tables, stage: Path, manifest: dict, confidence) -> tuple[list[dict], list[dict], str]:
     """Sections of every landmark and filter table, the summary rows and the headline."""
-    from renderlab.campaign import scoring
-    from renderlab.report.filter_section import filter_section
-    from renderlab.report.landmark_section import landmark_section
-
     sections, summary_all, headline = [], [], ""
     found = _study(manifest["plan"]["study"])
     scenario = manifest["plan"].get("scenario") or {}

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign import scoring
 from renderlab.report import style
+from renderlab.report.conclusions import filter_sentence
 from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import table as html_table
 
@@ -50,8 +52,6 @@ def errors_figure(t, stem: Path) -> list[str]:
 
 def filter_section(name: str, t, stage: Path, *, confidence: float = 0.95) -> tuple[dict, list[dict]]:
     """The section of filter table ``name`` and its summary rows."""
-    from renderlab.campaign import scoring
-
     rows = scoring.score_filter(t, confidence=confidence)
     write_csv(stage / f"{name}_filter_summary.csv", rows)
     fig = errors_figure(t, stage / f"{name}_errors")
@@ -74,7 +74,6 @@ def filter_section(name: str, t, stage: Path, *, confidence: float = 0.95) -> tu
             raw=("badge",))})
         blocks.append({"kind": "text", "html": "ANEES/ANIS: mean NEES/NIS over all runs and times; the band is the "
                                                "two-sided χ² interval for N runs × d dof, divided by N."})
-    from renderlab.report.conclusions import filter_sentence
 
     sentence = filter_sentence(rows)
     if sentence:
