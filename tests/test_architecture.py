@@ -183,3 +183,24 @@ def test_no_issue_tracker_numbers_in_code():
             + sorted((REPO / "benchmarks").glob("*.py")) for k, line in enumerate(p.read_text().splitlines(), 1)
             if re.search(r"\bissues? [0-9]+\b", line) and p.name != "test_architecture.py"]
     assert hits == []
+
+
+def test_at_most_a_quarter_of_internal_imports_are_inside_functions():
+    """Lazy imports are for heavy third-party packages (``renderlab --help`` stays instant); imports of the lab's own
+    modules sit at module level unless that would load something heavy at ``--help`` or make a cycle."""
+    _, top, inner = import_graph(REPO)
+    assert inner / (top + inner) <= 0.25, (top, inner)
+
+
+def test_help_loads_no_heavy_package():
+    import subprocess
+    import sys
+
+    code = ("import sys, contextlib, io\nfrom renderlab.cli import main\ntry:\n"
+            "    with contextlib.redirect_stdout(io.StringIO()):\n        main(['--help'])\nexcept SystemExit:\n    pass\n"
+            "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+    loaded = set(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                                cwd=REPO).stdout.split())
+    heavy = {"numpy", "scipy", "pydantic", "pyarrow", "matplotlib", "mitsuba", "drjit", "bpy", "dask", "numba",
+             "cv2", "astropy", "trimesh", "jinja2"}
+    assert "renderlab" in loaded and loaded & heavy == set()
