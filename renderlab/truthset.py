@@ -25,12 +25,6 @@ import numpy as np
 from renderlab.contracts.file_models import TruthManifest
 from renderlab.contracts.schemas import TRUTH_TABLES, read_parquet
 from renderlab.errors import UserError
-from renderlab.inputs import read_checked, short, shown
-
-FORMAT = "renderlab.truthset/1"
-MANIFEST = "manifest.json"
-AOV_CHANNELS = ("P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z", "range", "id")
-RGB_CHANNELS = ("R", "G", "B")
 from renderlab.imageio import (  # noqa: F401
     _MAX_EXACT_ID,
     decode_ids,
@@ -42,6 +36,12 @@ from renderlab.imageio import (  # noqa: F401
     write_dn_preview,
     write_exr,
 )
+from renderlab.inputs import read_checked, short, shown
+
+FORMAT = "renderlab.truthset/1"
+MANIFEST = "manifest.json"
+AOV_CHANNELS = ("P.X", "P.Y", "P.Z", "N.X", "N.Y", "N.Z", "range", "id")
+RGB_CHANNELS = ("R", "G", "B")
 
 
 # ------------------------------------------------------------------------------------ metadata

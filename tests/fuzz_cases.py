@@ -11,7 +11,6 @@ import types
 import typing
 from pathlib import Path
 
-
 REPO = Path(__file__).resolve().parents[1]
 PREFIX = "renderlab: error: "
 CASE_SECONDS = 20.0

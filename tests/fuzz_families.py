@@ -68,7 +68,7 @@ def bad_values(field) -> list[tuple[str, object]]:
     base = {typing.get_origin(t) or t for t in ts}
     metas = _metas(field)
     bounds = {k: getattr(m, k) for m in metas for k in ("gt", "ge", "lt", "le") if getattr(m, k, None) is not None}
-    maxlen = next((getattr(m, "max_length") for m in metas if getattr(m, "max_length", None)), None)
+    maxlen = next((m.max_length for m in metas if getattr(m, "max_length", None)), None)
     out: list = []
     if typing.Any in base:
         return out

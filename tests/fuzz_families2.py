@@ -6,8 +6,20 @@ import json
 import math
 import tomllib
 
-from fuzz_files import (CASE, LAB, REPO, W, H, _json_value, alias_bomb, apriori_data, fits_header, png_header,
-                        tiff_header, tiny_scene_text)
+from fuzz_files import (
+    CASE,
+    LAB,
+    REPO,
+    H,
+    W,
+    _json_value,
+    alias_bomb,
+    apriori_data,
+    fits_header,
+    png_header,
+    tiff_header,
+    tiny_scene_text,
+)
 
 SCENES = sorted((REPO / "scenes").glob("*.toml"))
 RENDER_CMDS = ("render", "campaign", "crosscheck")
@@ -100,7 +112,7 @@ def _epoch_cases() -> list:
     out, k = [], 0
     for scene in SCENES:
         data = tomllib.loads(scene.read_text(encoding="utf-8"))
-        for path, value in _leaves(data):
+        for path, _value in _leaves(data):
             if "epoch" not in path[-1]:
                 continue
             key = ".".join(path)

@@ -11,11 +11,11 @@ import shutil
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from test_measure import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
+from test_measure_images import _write_inputs
 
 from renderlab.cli import main
 from renderlab.measurement import apriori
-from test_measure import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
-from test_measure_images import _write_inputs
 
 
 def test_committed_reference_is_fresh_and_its_example_reads():

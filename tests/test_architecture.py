@@ -204,3 +204,13 @@ def test_help_loads_no_heavy_package():
     heavy = {"numpy", "scipy", "pydantic", "pyarrow", "matplotlib", "mitsuba", "drjit", "bpy", "dask", "numba",
              "cv2", "astropy", "trimesh", "jinja2"}
     assert "renderlab" in loaded and loaded & heavy == set()
+
+
+def test_ruff_is_clean():
+    """The rule set of ``[tool.ruff]`` in pyproject.toml (pycodestyle, pyflakes, import order, bugbear)."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "renderlab", "estimators", "tests"],
+                       cwd=REPO, capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-1000:]

@@ -5,11 +5,12 @@ truth, the χ² distribution, the geometry of a uniform image shift and direct n
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from pathlib import Path
 from scipy import stats
 
 from renderlab.cli import main
@@ -180,7 +181,9 @@ def test_navigation_command_writes_tables_and_report_and_only_reproduces_rows(tm
     assert first.num_rows == 2 * (1 + n_cfg * n_methods)
     assert main(args + ["--only", "all_on"]) == 0
     again = pq.read_table(folder / "tables" / "budget_navigation.parquet")
-    key = lambda t: sorted(zip(*[t.column(c).to_pylist() for c in ("mapping", "config", "method", "run", "err_norm_m")]))
+    def key(t):
+        return sorted(zip(*[t.column(c).to_pylist() for c in ("mapping", "config", "method", "run", "err_norm_m")]))
+
     assert key(again) == key(first)
     assert main(args + ["--only", "all_on", "--methods", "retina_ml"]) == 0   # one method of one configuration
     assert key(pq.read_table(folder / "tables" / "budget_navigation.parquet")) == key(first)

@@ -131,7 +131,7 @@ def test_opencv_jacobians_match_central_differences(n):
         cam = _opencv_camera(rng, n)
         u = rng.uniform(-0.7, 0.7, (400, 2))
         J = distortion_jacobian("opencv", cam.distortion, u)
-        Jn = _central_jacobian(lambda v: distort("opencv", cam.distortion, v), u, 1e-6)
+        Jn = _central_jacobian(lambda v, cam=cam: distort("opencv", cam.distortion, v), u, 1e-6)
         np.testing.assert_allclose(J, Jn, atol=2e-9)
         pts = _rays_in_view(cam, rng, 400)
         Jp = cam.project_jacobian(pts)

@@ -3,12 +3,13 @@ excluded) to each other and to the in-process executor, for the same seed."""
 
 from __future__ import annotations
 
+from test_campaign_engine import SCENE, TINY, tables_equal
+
 from renderlab.campaign import store
 from renderlab.campaign.executors import DaskExecutor, InProcessExecutor
 from renderlab.campaign.plan import make_plan
 from renderlab.campaign.runner import run_campaign
 from renderlab.scenario import load_scenario
-from test_campaign_engine import SCENE, TINY, tables_equal
 
 
 def test_local_cluster_1_and_2_workers_identical(tmp_path):

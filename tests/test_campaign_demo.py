@@ -7,8 +7,8 @@ FIM rank deficient by the inertia scale only)."""
 from __future__ import annotations
 
 import csv
-from pathlib import Path
 import re
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq

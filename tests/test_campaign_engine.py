@@ -8,7 +8,6 @@ a run replayed alone gives the campaign's tables; the cache serves a re-run with
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,15 +15,15 @@ import pyarrow.parquet as pq
 import pytest
 
 from renderlab.campaign import store
-from renderlab.scenario.campaign import PerturbationConfig
 from renderlab.campaign.executors import InProcessExecutor, execute_run
 from renderlab.campaign.perturb import draw_perturbation, perturb_camera
 from renderlab.campaign.plan import make_plan, run_seed_sequence
 from renderlab.campaign.runner import run_campaign
-from renderlab.contracts.schemas import TIMING_COLUMNS
 from renderlab.cli import main
+from renderlab.contracts.schemas import TIMING_COLUMNS
 from renderlab.errors import UserError
 from renderlab.scenario import load_scenario
+from renderlab.scenario.campaign import PerturbationConfig
 
 REPO = Path(__file__).resolve().parents[1]
 SCENE = REPO / "scenes" / "analytic_sphere_box.toml"

@@ -65,7 +65,7 @@ def _standard_aem(path, version="2.0", extra_meta="", attitude_type="QUATERNION/
     """A 504.0-B-2 AEM as its annex G example lays it out: two segments, Q1 Q2 Q3 QC (+ ANGVEL_X..Z)."""
     lines = [f"CCSDS_AEM_VERS = {version}", "COMMENT written from CCSDS 504.0-B-2 table 4-4",
              "CREATION_DATE = 2024-06-21T00:00:00", "ORIGINATOR = HAND", "MESSAGE_ID = T-0001", ""]
-    for seg, idx in ((0, [0, 1]), (1, [1, 2])):
+    for _seg, idx in ((0, [0, 1]), (1, [1, 2])):
         lines += ["META_START", "OBJECT_NAME = NAVCAM SAT", "OBJECT_ID = 2024-001A", "CENTER_NAME = EARTH",
                   "REF_FRAME_A = GCRF", "REF_FRAME_B = SC_BODY_1", "TIME_SYSTEM = UTC",
                   f"START_TIME = {EPOCHS[idx[0]]}", f"USEABLE_START_TIME = {EPOCHS[idx[0]]}",

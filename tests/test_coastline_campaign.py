@@ -9,8 +9,8 @@ band for the inconsistency a J2 truth causes in a two-body filter without proces
 from __future__ import annotations
 
 import math
-from pathlib import Path
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -57,7 +57,7 @@ def test_scenario_maps_onto_the_earth_worlds_orbit(repo):
     import astropy.units as u
     from astropy.coordinates import GCRS, ITRS, CartesianRepresentation
 
-    from renderlab.studies.coastline_ekf.geometric import OMEGA_EARTH, _R3, truth_geometry
+    from renderlab.studies.coastline_ekf.geometric import _R3, OMEGA_EARTH, truth_geometry
     from renderlab.studies.coastline_ekf.study import geometric_options
     from renderlab.worlds.earth import orientation, wgs84
     from renderlab.worlds.earth.plan import EarthPlan
@@ -120,8 +120,8 @@ def test_truth_j2_option(repo):
     """``truth_j2``: the truth's node drifts at Vallado's secular J2 rate; the two-body filter (q = 0) then
     fails its χ² test, which is what the option is for."""
     from renderlab.dynamics.orbits import OrbitElements, j2_nodal_rate, raan_of
-    from renderlab.studies.coastline_ekf.scoring import chi2_band
     from renderlab.studies.coastline_ekf.geometric import R_EARTH_M, paper_orbit, run_batch, truth_geometry
+    from renderlab.studies.coastline_ekf.scoring import chi2_band
 
     o = paper_orbit("i45_h1000", cadence_s=60.0)
     o = replace(o, truth_j2=True, duration_s=3 * o.period_s).validate()

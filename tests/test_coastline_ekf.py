@@ -180,8 +180,8 @@ def test_noise_free_stream_converges_to_truth(polar_1000):
 def test_anees_and_anis_inside_99_percent_chi2_band(polar_1000):
     """200 seeded runs, one orbit: ANEES at four times inside [χ²₀.₀₀₅(6N)/N, χ²₀.₉₉₅(6N)/N] and the summed
     NIS of all images inside the 99 % band of χ²(N Σ 2mₖ); the MC RMS does not beat the PCRB."""
-    from renderlab.studies.coastline_ekf.scoring import chi2_band, nis_total_test, pcrb_ric_sigma, per_time_summary
     from renderlab.studies.coastline_ekf.geometric import run_batch
+    from renderlab.studies.coastline_ekf.scoring import chi2_band, nis_total_test, pcrb_ric_sigma, per_time_summary
 
     o, geo = polar_1000
     N = 200

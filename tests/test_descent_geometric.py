@@ -17,7 +17,6 @@ import cv2
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
-import pytest
 from scipy.stats import chi2
 
 from renderlab.campaign.plan import run_seed_sequence
@@ -73,8 +72,8 @@ def test_planned_frames_are_the_rendered_truth_sets():
 
 def test_the_source_injects_eq_g1(tmp_path):
     """Noise off: the measurement minus OpenCV's true pixel is μ, κ (p − c), or one constant per landmark (σ_b)."""
-    from renderlab.studies.descent_navigation.truth import planned_descent
     from renderlab.studies.descent_navigation.run import section
+    from renderlab.studies.descent_navigation.truth import planned_descent
 
     srcs = [{"name": "mu", "bias_px": [0.1, -0.05], "sigma_noise_px": 0.0},
             {"name": "kappa", "scale": 1e-3, "sigma_noise_px": 0.0},

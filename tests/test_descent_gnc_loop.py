@@ -5,9 +5,9 @@ trajectories (the vehicle flies on its estimate)."""
 
 from __future__ import annotations
 
+import gnc_fixtures as fx
 import numpy as np
 
-import gnc_fixtures as fx
 from estimators.gnc import ThrusterModel, ThrusterOptions
 from renderlab.studies.descent_gnc import TruthPlusNoise, fly
 

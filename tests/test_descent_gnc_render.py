@@ -10,7 +10,6 @@ import math
 
 import numpy as np
 import pytest
-
 from tiny_ev5 import TINY_EV5_WORLD
 
 SCENE = 'name = "gnc_render"\n' + TINY_EV5_WORLD + """

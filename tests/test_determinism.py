@@ -111,10 +111,10 @@ def test_truthset_round_trip_matches_backend(sets):
     """Re-render each frame alone (pipeline seed derivation) and compare with what was read back."""
     from renderlab.geometry.camera import CameraModel
     from renderlab.geometry.rotations import rotation_from_quat_xyzw
+    from renderlab.imageio import read_exr
     from renderlab.pipeline import frame_specs, make_backend
     from renderlab.scenario import load_scenario
     from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
-    from renderlab.imageio import read_exr
     from renderlab.truthset import AOV_CHANNELS, TruthSet
     from renderlab.worlds.analytic import build_scene
 

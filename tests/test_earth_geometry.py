@@ -27,7 +27,9 @@ def test_ray_ellipsoid_matches_root_finding():
         t = wgs84.ray_ellipsoid(o, d)
         if not np.isfinite(t):
             continue
-        f = lambda s: (((o + s * d) / [wgs84.A, wgs84.A, wgs84.B]) ** 2).sum() - 1  # noqa: E731
+        def f(s, o=o, d=d):
+            return (((o + s * d) / [wgs84.A, wgs84.A, wgs84.B]) ** 2).sum() - 1
+
         assert abs(t - brentq(f, 0, t * 1.0000001 + 1)) < 1e-3 or abs(t - brentq(f, 0, t + 1e-3)) < 1e-3
 
 
@@ -105,7 +107,9 @@ def test_footprint_exact_on_the_ellipsoid_at_45_deg_latitude_500_km():
         pts = footprint.footprint_points(pos, R, dirs)[0]
         d_ecef = dirs @ R[0].T
         for p, d in zip(pts, d_ecef):
-            f = lambda s: (((pos[0] + s * d) / [wgs84.A, wgs84.A, wgs84.B]) ** 2).sum() - 1  # noqa: E731
+            def f(s, d=d):
+                return (((pos[0] + s * d) / [wgs84.A, wgs84.A, wgs84.B]) ** 2).sum() - 1
+
             t_ref = brentq(f, 0.0, np.linalg.norm(p - pos[0]) * 1.01)    # f > 0 at the camera, < 0 inside
             assert abs(np.linalg.norm(p - pos[0]) - t_ref) < 1e-3
         # edge midpoints (indices 2, 6, 10, 14 of the 16-point loop): opposite pairs span the footprint

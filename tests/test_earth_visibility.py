@@ -16,10 +16,10 @@ import earth_fixtures
 import numpy as np
 import pytest
 
+from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, nadir_track, visibility_sweep, visible_images
 from renderlab.worlds.earth import wgs84
 from renderlab.worlds.earth.clouds import CloudField
 from renderlab.worlds.earth.sun import sun_eci
-from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, nadir_track, visibility_sweep, visible_images
 
 gshhg = earth_fixtures.gshhg
 OPT = VisibilityOptions(hours=4.0, cadence_s=60.0, epoch_utc="2024-06-21T10:00:00Z")   # 240 images

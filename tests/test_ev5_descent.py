@@ -134,7 +134,9 @@ def test_descent_geometry_and_truth_angles(truthset):
         f = frames[lt["frame"][i]]
         sun = np.asarray(f["sun"]["direction_render"])
         to_cam = np.asarray(f["pose"]["position_m"]) - c
-        ang = lambda a, b: np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+        def ang(a, b):
+            return np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+
         assert lt["range_m"][i] == pytest.approx(np.linalg.norm(to_cam), rel=1e-12)
         assert lt["incidence_deg"][i] == pytest.approx(ang(n, sun), abs=1e-6)
         assert lt["emission_deg"][i] == pytest.approx(ang(n, to_cam), abs=1e-6)
@@ -152,10 +154,10 @@ def test_descent_geometry_and_truth_angles(truthset):
 def test_occluded_landmarks_flagged_like_an_independent_line_of_sight_oracle():
     """A low, grazing view across the target boulder: landmarks behind it are flagged occluded exactly
     where a ray march against the site DEM (scipy bilinear interpolation) finds the line of sight blocked."""
-    from renderlab.pipeline import make_backend
-    from renderlab.render.scene import FrameSpec
     from renderlab.dynamics.camera_paths import CameraPose
     from renderlab.geometry.rotations import look_at
+    from renderlab.pipeline import make_backend
+    from renderlab.render.scene import FrameSpec
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.ev5 import make_plan
 

@@ -118,11 +118,19 @@ def test_boulder_and_crater_sizes_follow_the_power_law():
         expected = density * area * (lo - hi)
         assert abs(len(d) - expected) < 4 * np.sqrt(expected), (len(d), expected)
         assert d.min() >= d_min and d.max() <= d_max
-        p = stats.kstest(d, lambda x: (lo - np.clip(x, d_min, d_max) ** -slope) / (lo - hi)).pvalue
+
+        def cdf(x, lo=lo, hi=hi, d_min=d_min, d_max=d_max, slope=slope):
+            return (lo - np.clip(x, d_min, d_max) ** -slope) / (lo - hi)
+
+        p = stats.kstest(d, cdf).pvalue
         assert p > 1e-3, p
         # and not the wrong slope: the same sample against α + 0.3 is rejected
         lo2, hi2 = d_min ** -(slope + 0.3), d_max ** -(slope + 0.3)
-        assert stats.kstest(d, lambda x: (lo2 - np.clip(x, d_min, d_max) ** -(slope + 0.3)) / (lo2 - hi2)).pvalue < 1e-6
+
+        def wrong(x, lo2=lo2, hi2=hi2, d_min=d_min, d_max=d_max, slope=slope):
+            return (lo2 - np.clip(x, d_min, d_max) ** -(slope + 0.3)) / (lo2 - hi2)
+
+        assert stats.kstest(d, wrong).pvalue < 1e-6
 
 
 def test_site_meets_global_and_global_stays_below(model):
@@ -279,8 +287,8 @@ def _gaskell_icq(path, q, semi_axes_km):
 def test_user_shape_models_replace_the_procedural_body(tmp_path):
     """OBJ, binary and ASCII PLY and Gaskell ICQ models load (km → m) as closed meshes with outward faces,
     the volume of the ellipsoid they sample (to 3 %), and carry a site and a catalog."""
-    from renderlab.worlds.ev5.shape import icosphere, load_shape_file
     from renderlab.worlds.ev5 import build_model
+    from renderlab.worlds.ev5.shape import icosphere, load_shape_file
 
     u, f = icosphere(6)
     v_km = u * np.array([0.21, 0.2, 0.19])

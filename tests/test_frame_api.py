@@ -14,9 +14,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from scipy.spatial.transform import Rotation
+from tiny_ev5 import TINY_EV5_WORLD
 
 from renderlab.errors import UserError
-from tiny_ev5 import TINY_EV5_WORLD
 
 REPO = Path(__file__).resolve().parents[1]
 ANALYTIC = REPO / "scenes" / "analytic_sphere_box.toml"

@@ -34,7 +34,7 @@ from pathlib import Path
 import pytest
 
 # re-exported: the fresh-interpreter run imports this module and uses them
-from fuzz_cases import A, CASE_SECONDS, CASES, PREFIX, REPO, build_inputs, cases  # noqa: F401
+from fuzz_cases import CASE_SECONDS, CASES, PREFIX, REPO, A, build_inputs, cases  # noqa: F401
 
 
 # ------------------------------------------------------------------------------------------- running

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import math
 
+import gnc_fixtures as fx
 import numpy as np
 import pytest
 
-import gnc_fixtures as fx
 from estimators.gnc import ThrusterModel, ThrusterOptions, Waypoint, ZemZevGuidance, ZemZevOptions
 from renderlab.errors import UserError
 

@@ -8,7 +8,6 @@ import math
 import numpy as np
 import pyarrow as pa
 import pytest
-
 from test_retina_render import CAMERA, SUN, make_maplets, render_dn, terrain_dem, true_pose
 
 from renderlab.contracts.schemas import LANDMARK_RUNNER

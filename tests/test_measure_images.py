@@ -8,9 +8,9 @@ import json
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from test_measure import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
 
 from renderlab.cli import main
-from test_measure import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
 
 SHIFT = (2, 1)  # imposed (sample, line) shift, px
 

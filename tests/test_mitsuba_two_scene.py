@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from tiny_ev5 import TINY_EV5_WORLD
 
 SCENARIO = 'name = "two_scene"\n' + TINY_EV5_WORLD.replace("[world.site]\n", "[world.site]\nlod = true\ntile_cells = 32\n", 1) + """

@@ -5,8 +5,16 @@ from __future__ import annotations
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from renderlab.dynamics.orbits import (MU_EARTH, OrbitElements, derivative, j2_nodal_rate, nadir_attitude, propagate,
-                                       raan_of, star_tracker_attitude)
+from renderlab.dynamics.orbits import (
+    MU_EARTH,
+    OrbitElements,
+    derivative,
+    j2_nodal_rate,
+    nadir_attitude,
+    propagate,
+    raan_of,
+    star_tracker_attitude,
+)
 
 
 def _ivp(x0, t, j2=False):

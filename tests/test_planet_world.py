@@ -177,10 +177,9 @@ def test_presets_shapes_and_one_line_errors():
 
 
 def test_render_origin_moves_where_the_camera_looks_in_low_orbit():
+    from renderlab import Renderer
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.base import make_plan
-
-    from renderlab import Renderer
     from renderlab.worlds.planet.path import float32_bound_px
 
     low = {"kind": "planet_approach", "range_start_m": 6378137.0 + 4.0e5, "phase_start_deg": 30.0}

@@ -21,11 +21,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.stats import chi2
-
-from estimators.pose import (EstimationError, Stage1Options, Stage1Problem, TrackOptions, build_database,
-                             observability, solve_stage1, track_points, with_full_inertia)
-from estimators.pose.onboard_model import exp_so3
 from test_pose_stage2 import CAM, PTS, _synthetic_sequence
+
+from estimators.pose import (
+    EstimationError,
+    Stage1Options,
+    Stage1Problem,
+    TrackOptions,
+    build_database,
+    observability,
+    solve_stage1,
+    track_points,
+    with_full_inertia,
+)
+from estimators.pose.onboard_model import exp_so3
 
 SIGMA = 0.3
 

@@ -6,9 +6,9 @@ from __future__ import annotations
 import shutil
 
 import pyarrow.parquet as pq
+from test_campaign_engine import SCENE, TINY
 
 from renderlab.cli import main
-from test_campaign_engine import SCENE, TINY
 
 
 def test_publish_then_report_from_tables_alone(tmp_path, capsys):

@@ -92,5 +92,7 @@ def test_the_map_state_companion_differs_only_in_its_map_states():
     cols = ["run", "method", "frame", "err_e_m", "err_n_m", "err_u_m"]
     ta = pq.read_table(folder / "tables" / "descent_filter.parquet", columns=cols).to_pydict()
     tb = pq.read_table(folder / "map_states_off" / "tables" / "descent_filter.parquet", columns=cols).to_pydict()
-    prior = lambda t: {(r, m): (e, n, u) for r, m, f, e, n, u in zip(*(t[c] for c in cols)) if f == -1}
+    def prior(t):
+        return {(r, m): (e, n, u) for r, m, f, e, n, u in zip(*(t[c] for c in cols)) if f == -1}
+
     assert prior(ta) == prior(tb)

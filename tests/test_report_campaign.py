@@ -10,9 +10,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy import stats
+from test_campaign_engine import SCENE, TINY
 
 from renderlab.cli import main
-from test_campaign_engine import SCENE, TINY
 
 
 def test_report_from_tables(tmp_path, capsys):

@@ -69,8 +69,9 @@ def test_lambert_photocentre_against_integration():
 
 @pytest.fixture(scope="module")
 def analytic_report(tmp_path_factory):
-    from renderlab.cli import main
     from test_campaign_engine import SCENE
+
+    from renderlab.cli import main
 
     d = tmp_path_factory.mktemp("concl")
     tiny = ["camera.width=128", "camera.height=96", "camera.fx=131", "camera.fy=129", "camera.cx=65.6",

@@ -113,7 +113,6 @@ def test_inertia_panel_has_no_crlb_bar_across_it(captured, tmp_path):
     """On the 30 s arc the inertia ratios are not observable (CRLB σ ≈ 1.4 on a panel 1.4 wide): such bars would
     cross the whole panel; they are left out and counted instead."""
     import pyarrow.parquet as pq
-
     from matplotlib.collections import LineCollection
 
     from renderlab.studies.unknown_satellite.figures import fig6_inertia

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from browser import check_report, find_chromium, screenshot
-from renderlab.cli import main
 from test_campaign_engine import SCENE, TINY
+
+from renderlab.cli import main
 
 ARTIFACTS = Path(__file__).resolve().parent / "artifacts"
 

@@ -10,8 +10,16 @@ import pytest
 from scipy.ndimage import gaussian_filter
 
 from estimators import flags as F
-from estimators.retina import (CameraPoseEstimate, RetinaOptions, build_mesh, final_output_phase, measure_frame,
-                               measure_landmark, project_point, render_template)
+from estimators.retina import (
+    CameraPoseEstimate,
+    RetinaOptions,
+    build_mesh,
+    final_output_phase,
+    measure_frame,
+    measure_landmark,
+    project_point,
+    render_template,
+)
 from estimators.retina.landmarks import LandmarkMeasurement
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet

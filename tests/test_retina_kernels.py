@@ -15,9 +15,9 @@ import cv2
 import numpy as np
 import pytest
 
+from estimators.landmarks.correlation import correlation_surface, correlation_surface_direct, correlation_surface_numpy
 from estimators.onboard_photometry import mcewen_relative
 from estimators.retina import CameraPoseEstimate, build_mesh, pixel_covariance, project_point
-from estimators.landmarks.correlation import correlation_surface, correlation_surface_direct, correlation_surface_numpy
 from estimators.retina.raytrace import trace_rays
 from estimators.retina.raytrace_numpy import trace_bruteforce
 from renderlab.geometry.camera import CameraModel

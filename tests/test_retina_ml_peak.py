@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from estimators.landmarks.correlation import correlation_surface
+from estimators.landmarks.peaks import locate_peak
 from estimators.retina.ml_shift import MlShiftOptions, ml_shift
 from estimators.retina.peak_step import estimates, noise_sigma, texture_case
-from estimators.landmarks.peaks import locate_peak
 
 
 def _ml(case, image):
@@ -87,9 +87,8 @@ def test_rendered_crlb_is_reached_and_agrees_with_interior_finite_differences():
     spread of the ML shift over 40 seeded draws is 0.8–1.35× the Fisher bound (measured 1.11 / 1.17 over 100)."""
     from scipy.ndimage import binary_erosion
 
-    from renderlab.campaign.scoring import registration_crlb
-
     from estimators.retina.peak_step import rendered_crlb
+    from renderlab.campaign.scoring import registration_crlb
 
     item, c = _plain_case((0.2, -0.1))
     sig = noise_sigma(c, 50.0)

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from estimators.retina import CameraPoseEstimate, RetinaOptions, build_mesh, measure_landmark, project_point
 from estimators.landmarks.peaks import FINDERS, locate_peak, pixel_locking_curve
+from estimators.retina import CameraPoseEstimate, RetinaOptions, build_mesh, measure_landmark, project_point
 from estimators.retina.predict import render_template
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet

@@ -12,8 +12,14 @@ import pytest
 from scipy.ndimage import binary_dilation, gaussian_filter
 
 from estimators.onboard_photometry import beta_of_phase, fit_lunar_lambert_L, mcewen_relative
-from estimators.retina import (CameraPoseEstimate, RetinaOptions, TemplateOptions, build_mesh, measure_landmark,
-                               render_template)
+from estimators.retina import (
+    CameraPoseEstimate,
+    RetinaOptions,
+    TemplateOptions,
+    build_mesh,
+    measure_landmark,
+    render_template,
+)
 from estimators.retina.raster import shadow_gap_grid
 from estimators.retina.raytrace import trace_rays
 from renderlab.geometry.camera import CameraModel
@@ -148,7 +154,7 @@ def test_fitted_L_describes_hapke_better_than_fixed_alpha0():
         mu0, mu = np.cos(i[ok]), np.cos(e[ok])
         r = law.radiance_factor(mu0, mu, np.full(mu0.shape, g), 0.085)
 
-        def resid(L_table):
+        def resid(L_table, mu0=mu0, mu=mu, g=g, r=r):
             m = mcewen_relative(mu0, mu, np.full(mu0.shape, g), 1.0, L_table=L_table)
             return np.sqrt(np.mean((r - m * (m @ r) / (m @ m)) ** 2)) / r.mean()
 

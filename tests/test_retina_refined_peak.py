@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.ndimage import fourier_shift
 
-from estimators.retina.peak_step import estimates, noise_sigma, texture_case
 from estimators.landmarks.peaks import locate_peak, shifted_texture
+from estimators.retina.peak_step import estimates, noise_sigma, texture_case
 from estimators.retina.recentre import moved_template
 
 Y, X = np.mgrid[-4:5, -4:5].astype(float)

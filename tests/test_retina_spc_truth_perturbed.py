@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from tiny_ev5 import TINY_EV5_WORLD
 
 from renderlab.cli import main
-from tiny_ev5 import TINY_EV5_WORLD
 
 TINY = f"""name = "ev5_tiny_perturbed"
 {TINY_EV5_WORLD}[trajectory]

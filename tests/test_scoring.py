@@ -75,7 +75,7 @@ def test_crlb_closed_form_and_mle_reaches_it():
     est = []
     for _ in range(400):
         obs = img + rng.normal(0, sigma, shape)
-        fit = optimize.least_squares(lambda p: (_blob(shape, p[0], p[1], amp, width, bg) - obs).ravel(),
+        fit = optimize.least_squares(lambda p, obs=obs: (_blob(shape, p[0], p[1], amp, width, bg) - obs).ravel(),
                                      x0=[c[0] + 0.2, c[1] - 0.2])
         est.append(fit.x)
     est = np.array(est) - c

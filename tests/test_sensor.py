@@ -10,8 +10,7 @@ from scipy import stats
 
 from renderlab import sensor
 from renderlab.errors import UserError
-from renderlab.sensor import (SensorOptions, expected_dn, expose, exposure_for_peak,
-                              mean_electrons)
+from renderlab.sensor import SensorOptions, expected_dn, expose, exposure_for_peak, mean_electrons
 
 REPO = Path(__file__).resolve().parents[1]
 

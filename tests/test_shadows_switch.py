@@ -21,7 +21,6 @@ from conftest import REPO, scenario_dict
 from oracles import camera_rays, hit_box, hit_plane_z0, hit_sphere
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
-
 from test_backend_conformance import RENDERERS
 
 SCENE = REPO / "scenes" / "analytic_sphere_box.toml"

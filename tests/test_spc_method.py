@@ -92,7 +92,8 @@ def test_spc_shading_follows_a_tabulated_L_against_the_lab_mcewen_law():
     from renderlab.photometry import mcewen
 
     m = _maplet()
-    sun = np.array([0.5, 0.2, 0.84]); sun /= np.linalg.norm(sun)
+    sun = np.array([0.5, 0.2, 0.84])
+    sun /= np.linalg.norm(sun)
     to_cam = np.array([-0.3, 0.1, 1.0]) * 40.0
     grid = np.linspace(0.0, math.pi, 181)
     opts = spc.SpcOptions(L_table=tuple(np.exp(-grid / math.radians(30.0))))

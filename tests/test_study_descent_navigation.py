@@ -23,9 +23,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 from scipy.spatial.transform import Rotation
+from tiny_ev5 import TINY_EV5_WORLD
 
 from renderlab.cli import main
-from tiny_ev5 import TINY_EV5_WORLD
 
 TINY = 'name = "ev5_descent_nav_tiny"\n' + TINY_EV5_WORLD + """[trajectory]
 kind = "ev5_descent"

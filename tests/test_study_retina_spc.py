@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from tiny_ev5 import TINY_EV5_WORLD
 
 from renderlab.cli import main
-from tiny_ev5 import TINY_EV5_WORLD
 
 TINY = 'name = "ev5_tiny_campaign"\n' + TINY_EV5_WORLD + """[trajectory]
 kind = "ev5_descent"
@@ -127,9 +127,9 @@ def test_prediction_uses_believed_camera_and_apriori_pose_opencv(campaign):
 
 def test_spacing_knowledge_scales_gsd_ratio_and_noise_is_redrawn(campaign):
     from renderlab.campaign.perturb import PerturbationDraw
-    from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
     from renderlab.scenario import load_scenario
     from renderlab.sensor import SensorOptions, expected_dn
+    from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
 
     d, meas, pert = campaign
     ts = _truth_set(d)

@@ -22,8 +22,15 @@ from renderlab.cli import main  # noqa: E402
 from renderlab.errors import UserError  # noqa: E402
 from renderlab.geometry.rotations import look_at  # noqa: E402
 from renderlab.scenario import load_scenario  # noqa: E402
-from renderlab.trajectory_io import (PoseSeries, export_truthset, parse_epoch, read_aem, read_oem,  # noqa: E402
-                                    write_aem, write_oem)
+from renderlab.trajectory_io import (  # noqa: E402
+    PoseSeries,
+    export_truthset,
+    parse_epoch,
+    read_aem,
+    read_oem,
+    write_aem,
+    write_oem,
+)
 from renderlab.worlds.base import frame_specs  # noqa: E402
 
 EPOCH0 = "2030-01-01T00:00:00Z"

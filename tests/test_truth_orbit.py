@@ -16,8 +16,16 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from renderlab.dynamics import orbits
-from renderlab.dynamics.truth_orbit import (EGM2008, TruthForces, ZonalField, density_exponential, propagate_for,
-                                            propagate_truth, zonal_accel, zonal_potential)
+from renderlab.dynamics.truth_orbit import (
+    EGM2008,
+    TruthForces,
+    ZonalField,
+    density_exponential,
+    propagate_for,
+    propagate_truth,
+    zonal_accel,
+    zonal_potential,
+)
 
 ONBOARD_J2 = ZonalField(orbits.MU_EARTH, orbits.R_EARTH, (orbits.J2_EARTH,), "onboard J2")
 TT_2024 = (2460482.5, 0.41743)          # 2024-06-21 ~10:00 TT

@@ -10,8 +10,16 @@ import pytest
 
 from renderlab import truthset
 from renderlab.errors import UserError
-from renderlab.truthset import (FORMAT, TruthFrame, TruthSet, TruthSetWriter, read_dn_png,
-                                read_exr, write_dn_png, write_exr)
+from renderlab.truthset import (
+    FORMAT,
+    TruthFrame,
+    TruthSet,
+    TruthSetWriter,
+    read_dn_png,
+    read_exr,
+    write_dn_png,
+    write_exr,
+)
 
 H, W = 24, 32
 

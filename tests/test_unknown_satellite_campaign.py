@@ -173,8 +173,12 @@ def test_fim_sigma_of_ratios_matches_estimator_spread(repo):
     from estimators.pose import Stage1Options, Stage1Problem, solve_stage1
     from estimators.pose.onboard_model import exp_so3
     from renderlab.geometry.camera import CameraModel
-    from renderlab.studies.unknown_satellite.observability import (ArcCase, arc_information, synthetic_database,
-                                                                   visibility)
+    from renderlab.studies.unknown_satellite.observability import (
+        ArcCase,
+        arc_information,
+        synthetic_database,
+        visibility,
+    )
     from renderlab.worlds.microsat.model import build_parts
     from renderlab.worlds.microsat.plan import separation_truth
 

@@ -380,7 +380,9 @@ def test_earth_flies_a_file_trajectory(tmp_path, kind):
         rf = rec["render_frame"]
         R_er, o = np.array(rf["R_ecef_from_render"]), np.array(rf["origin_ecef_m"])
         assert np.abs(R_er @ rec["pose"]["position_m"] + o - r_i[i]).max() < 0.01
-        to_ecef = lambda P: P @ R_er.T + o  # noqa: E731
+        def to_ecef(P, R_er=R_er, o=o):
+            return P @ R_er.T + o
+
         assert reprojection_px(ch, R_ecef_cam, r_i[i], rec, to_ecef) < 1e-3
         # the sub-satellite point is where OpenCV puts it: the rendered surface there is the ssp, but for the ground
         # facets' chord sag (the tile mesh is 8×8 cells of 48 px / 8 · GSD; its vertices lie on the ellipsoid)

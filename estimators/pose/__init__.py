@@ -63,13 +63,22 @@ doi:10.1155/2018/9731512 (Keldysh
 Institute of Applied Mathematics RAS; equation and section numbers above are this paper's).
 """
 
-from .features import (Blobs, DetectOptions, MeasurementDatabase, Track, TrackOptions, build_database,
-                       detect_blobs, detect_points, track_points)
+from .features import (
+                       Blobs,
+                       DetectOptions,
+                       MeasurementDatabase,
+                       Track,
+                       TrackOptions,
+                       build_database,
+                       detect_blobs,
+                       detect_points,
+                       track_points,
+)
 from .gauge import GaugeFree, gauge_free
 from .inertia import is_physical
 from .observability import ObservabilityReport, fisher_information, observability, with_full_inertia
-from .stage1 import EstimationError, Stage1Options, Stage1Problem, Stage1Result, solve_stage1
 from .rigidity import RigidityOptions, RigidityReport, solve_rigid
+from .stage1 import EstimationError, Stage1Options, Stage1Problem, Stage1Result, solve_stage1
 from .stage2 import FLAG_NAMES, Stage2Options, Stage2Result, coplanarity, run_stage2, solve_pose, steady_gains
 
 __all__ = ["Blobs", "detect_blobs", "GaugeFree", "gauge_free", "is_physical", "RigidityOptions", "RigidityReport", "solve_rigid",

@@ -79,8 +79,14 @@ J. P. Lewis, "Fast normalized cross-correlation", Vision Interface, Vol. 10, 199
 ref. 19; :mod:`estimators.landmarks.correlation`; no DOI).
 """
 
-from estimators.landmarks import (CameraPoseEstimate, LandmarkMeasurement, final_output_phase, pixel_covariance,
-                                  project_point, search_radius_px)
+from estimators.landmarks import (
+                                  CameraPoseEstimate,
+                                  LandmarkMeasurement,
+                                  final_output_phase,
+                                  pixel_covariance,
+                                  project_point,
+                                  search_radius_px,
+)
 from estimators.retina.landmarks import RetinaOptions, measure_frame, measure_landmark
 from estimators.retina.maplet_mesh import MapletMesh, build_mesh
 from estimators.retina.predict import TemplateOptions, render_template

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from estimators.landmarks.peaks import FINDERS
+from estimators.landmarks.pose import CameraPoseEstimate, project_point
 from estimators.retina.landmarks import RetinaOptions, measure_landmark
 from estimators.retina.maplet_mesh import build_mesh
 from estimators.retina.peak_step import STEPS
-from estimators.landmarks.peaks import FINDERS
-from estimators.landmarks.pose import CameraPoseEstimate, project_point
 from estimators.retina.predict import TemplateOptions, render_template
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet

@@ -77,11 +77,11 @@ import numpy as np
 from numba import njit
 
 from estimators import flags as F
-from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
 from estimators.landmarks.correlation import correlation_surface
 from estimators.landmarks.measurement import LandmarkMeasurement, facing_flags, final_output_phase
 from estimators.landmarks.peaks import locate_peak
 from estimators.landmarks.pose import CameraPoseEstimate, project_point
+from estimators.onboard_photometry import DEFAULT_ALPHA0, mcewen_relative
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet
 

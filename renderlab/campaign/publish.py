@@ -20,8 +20,14 @@ import os
 from pathlib import Path
 
 from renderlab.campaign import store
-from renderlab.campaign.store import (STATUSES, TABLES, is_published, load_published_tables,  # noqa: F401
-                                      published_statuses)  # the published layout is read by the store: re-exported
+from renderlab.campaign.store import (  # noqa: F401
+    STATUSES,
+    TABLES,
+    is_published,
+    load_published_tables,
+    published_statuses,  # the published layout is read by the store: re-exported
+)
+
 
 def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
     """Write ``campaign.json``, ``runs.json`` and ``tables/`` of ``campaign_dir`` into ``out_dir`` through one stage

@@ -81,10 +81,9 @@ def run(args) -> int:
     from renderlab.campaign.executors import check_scheduler_options, check_workers, make_executor
     from renderlab.campaign.plan import make_plan
     from renderlab.campaign.runner import run_campaign
+    from renderlab.commands.inputs import check_scenario_inputs
     from renderlab.cost import load_checked
     from renderlab.plugins import register_cli_plugins
-
-    from renderlab.commands.inputs import check_scenario_inputs
 
     check_workers(args.workers)
     security = check_scheduler_options(args.scheduler, args.tls_ca_file, args.tls_cert, args.tls_key)

@@ -32,8 +32,8 @@ def _check_outputs(outs: list, overwrite: bool) -> None:
     import os
     from pathlib import Path
 
-    from renderlab.inputs import shown
     from renderlab.errors import UserError
+    from renderlab.inputs import shown
 
     seen = {}
     for flag, out in outs:

@@ -187,9 +187,9 @@ def _run_images(args, opts) -> int:
     from pathlib import Path
 
     from renderlab.errors import UserError
+    from renderlab.inputs import LIMITS, check_regular
     from renderlab.measurement.apriori import check_frame
     from renderlab.measurement.images import measure_images, read_apriori
-    from renderlab.inputs import LIMITS, check_regular
     from renderlab.measurement.runner import write_table
 
     if args.truthset is not None:

@@ -16,8 +16,8 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
-from renderlab.inputs import LIMITS, open_regular, shown
 from renderlab.errors import UserError
+from renderlab.inputs import LIMITS, open_regular, shown
 
 #: the longest image side the lab decodes, px
 MAX_SIDE_PX = 65_535

@@ -30,7 +30,14 @@ Targets, set before the renderers were compared (what sub-pixel navigation truth
 ≤ 1 %, geometric ≤ 0.05 px, shadow edges ≤ 0.5 px (:data:`~renderlab.crosscheck.agreement.TARGETS`).
 """
 
-from renderlab.crosscheck.agreement import (LIT_FRACTION, TARGETS, FrameAgreement, frame_agreement,  # noqa: F401
-                                            position_gap, radiometric_agreement, reprojection_px,
-                                            shadow_edge_shift_px)
+from renderlab.crosscheck.agreement import (  # noqa: F401
+                                            LIT_FRACTION,
+                                            TARGETS,
+                                            FrameAgreement,
+                                            frame_agreement,
+                                            position_gap,
+                                            radiometric_agreement,
+                                            reprojection_px,
+                                            shadow_edge_shift_px,
+)
 from renderlab.crosscheck.run import compare_truthsets, figure, markdown_table, referee, run_crosscheck  # noqa: F401

@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from renderlab.inputs import LIMITS, PIXEL_MAX, load_yaml, read_text, short
 from renderlab.errors import UserError
+from renderlab.inputs import LIMITS, PIXEL_MAX, load_yaml, read_text, short
 
 from .camera import CameraModel
 from .distortion_opencv import KEYS as OPENCV_KEYS

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.geometry.camera import CameraModel
 from renderlab.dynamics.camera_paths import CameraPose
+from renderlab.geometry.camera import CameraModel
 from renderlab.photometry import PhotometricLaw
 
 

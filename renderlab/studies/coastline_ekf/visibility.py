@@ -27,7 +27,6 @@ from renderlab.worlds.earth import footprint, wgs84
 from renderlab.worlds.earth.clouds import CloudField
 from renderlab.worlds.earth.sun import sun_eci
 
-
 CLOUD_THIN = 8
 SUN_MARGIN_DEG = 0.5
 

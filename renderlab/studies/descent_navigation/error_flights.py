@@ -146,7 +146,7 @@ def fly(geom: Geometry, draws: dict, model: LandmarkErrorModel | None, beta: np.
     sig_px = cfg.sigma_for(method)
     nees, kept_total, misses, lost, diverged = [], 0, 0, False, False
     for k, t in enumerate(geom.times):
-        for t0, t1, u in draws["accel"][k]:
+        for _t0, t1, u in draws["accel"][k]:
             filt.set_input(u)
             filt.propagate(t1)
         x = filt.x

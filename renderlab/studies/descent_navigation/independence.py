@@ -139,11 +139,11 @@ def band_summary(rows: list[dict]) -> list[dict]:
     for m in sorted({r["method"] for r in rows}):
         rr = [r for r in rows if r["method"] == m]
 
-        def frac(key):
+        def frac(key, rr=rr):
             v = [bool(r[key]) for r in rr if r[key] is not None]
             return float(np.mean(v)) if v else math.nan
 
-        def mean(key):
+        def mean(key, rr=rr):
             v = np.array([r[key] for r in rr], float)
             return float(np.nanmean(v)) if np.isfinite(v).any() else math.nan
 

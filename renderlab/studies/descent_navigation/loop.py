@@ -106,7 +106,7 @@ def _prior_cols(filt, R_star) -> dict:
 
 
 def _propagate(filt, intervals) -> None:
-    for t0, t1, u in intervals:
+    for _t0, t1, u in intervals:
         filt.set_input(u)
         filt.propagate(t1)
 

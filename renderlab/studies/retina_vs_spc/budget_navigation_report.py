@@ -84,7 +84,7 @@ def terms(table, sources: list[str]) -> list[dict]:
             for st in STATS:
                 sq = {c: _sq(r, st)[ok] for c, r in rows.items()}
                 est = _term_values(sq, have, lambda x: np.mean(x))
-                rep = _term_values(sq, have, lambda x: np.mean(x[idx], axis=1))
+                rep = _term_values(sq, have, lambda x, idx=idx: np.mean(x[idx], axis=1))
                 for term, v in est.items():
                     lo, hi = _ci(rep[term])
                     chk = ("PASS" if abs(v - 1) <= TOL else "FAIL") if term == "sum_over_all_on" else ""

@@ -90,7 +90,7 @@ def _peak_rows(S, a, b, weights, gross_px, name: str = "peak_step") -> list[dict
     ``retina_refined``) or ``shadow_approximation`` (a = all off, b = ``no_shadows``, :mod:`.budget_shadows`)."""
     out = []
     for st in S.STATS:
-        def term(w):
+        def term(w, st=st):
             d = np.asarray(S.weighted_stat(st, a, w, gross_px)) ** 2 - np.asarray(S.weighted_stat(st, b, w, gross_px)) ** 2
             return np.sign(d) * np.sqrt(np.abs(d))
         lo, hi = S._ci(term(weights))
