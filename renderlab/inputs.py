@@ -184,9 +184,10 @@ def parse_json(text: str, where: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise UserError(f"{where}: not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") from None
+        raise UserError(f"cannot read {where}: not valid JSON ({exc.msg} at line {exc.lineno} column {exc.colno})") \
+            from None
     except RecursionError:
-        raise UserError(f"{where}: JSON nested too deeply") from None
+        raise UserError(f"cannot read {where}: JSON nested too deeply") from None
 
 
 def read_json(path, what: str, limit: int = LIMITS["json"]) -> Any:
@@ -206,7 +207,7 @@ def validation_message(exc, where: str) -> str:
     errors = exc.errors(include_url=False, include_context=False, include_input=True)
     if not errors:
         return f"{where}: invalid"
-    e = errors[0]
+    e = min(errors, key=lambda x: x.get("type") == "missing")  # a wrong value says more than a missing key
     loc = _loc(e.get("loc", ()))
     msg = e.get("msg", "invalid")
     if e.get("type") == "missing":

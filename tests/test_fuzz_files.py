@@ -56,28 +56,46 @@ def lab(tmp_path_factory):
     assert _tree(root / "lab") == before, "a case changed the shared lab"
 
 
-def family_results(family: str, lab: Path, tmp: Path) -> tuple[int, list[dict], float]:
-    """(cases generated, per-case results, seconds) of one family run in a capped child (cached per session)."""
-    if family in _RESULTS:
-        return _RESULTS[family]
-    root = tmp / family
+def _start(family: str, lab: Path, root: Path) -> subprocess.Popen:
     root.mkdir(parents=True)
     code = (f"import sys; sys.path.insert(0, {str(TESTS)!r}); import fuzz_files; "
             f"fuzz_files.run_family({family!r}, __import__('pathlib').Path({str(lab)!r}), "
             f"__import__('pathlib').Path({str(root)!r}))")
-    t0 = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900, cwd=root,
-                          preexec_fn=_limit_memory, env={**os.environ, "RENDERLAB_CACHE": str(root / "cache")})
-    seconds = time.perf_counter() - t0
+    with open(root / "stderr.txt", "w") as err:  # a file, not a pipe: a chatty child never blocks on it
+        return subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=err, cwd=root,
+                                preexec_fn=_limit_memory, env={**os.environ, "RENDERLAB_CACHE": str(root / "cache")})
+
+
+def _collect(family: str, root: Path, proc: subprocess.Popen, seconds: float) -> tuple[int, list[dict], float]:
     lines = (root / "results.jsonl").read_text().splitlines() if (root / "results.jsonl").exists() else []
-    assert lines, f"the {family} child wrote nothing: rc {proc.returncode}, {proc.stderr[-2000:]}"
+    err = (root / "stderr.txt").read_text(errors="replace")
+    assert lines, f"the {family} child wrote nothing: rc {proc.returncode}, {err[-2000:]}"
     n = json.loads(lines[0])["cases"]
     results = [json.loads(x) for x in lines[1:]]
     if len(results) < n:  # the child died inside a case: that case fails
-        results.append({"id": f"case {len(results)} (the child died: rc {proc.returncode}, "
-                              f"{proc.stderr.strip()[-300:]!r})", "rc": "died", "lines": 0, "line": "", "longest": 0,
-                        "needle": "", "seconds": 0, "created": [], "changed": [], "called": [], "traceback": False})
-    _RESULTS[family] = (n, results, seconds)
+        results.append({"id": f"case {len(results)} (the child died: rc {proc.returncode}, {err.strip()[-300:]!r})",
+                        "rc": "died", "lines": 0, "line": "", "longest": 0, "needle": "", "seconds": 0, "created": [],
+                        "changed": [], "called": [], "traceback": False})
+    return n, results, seconds
+
+
+def family_results(family: str, lab: Path, tmp: Path) -> tuple[int, list[dict], float]:
+    """(cases generated, per-case results, seconds) of one family, each family run in its own capped child, as many
+    at once as there are cores (all families started on the first call; cached per session)."""
+    if family not in _RESULTS:
+        pending, running = [f for f in FAMILIES if f not in _RESULTS], {}
+        slots = max(1, min(len(pending), len(os.sched_getaffinity(0))))
+        while pending or running:
+            while pending and len(running) < slots:
+                f = pending.pop(0)
+                running[f] = (_start(f, lab, tmp / f), time.perf_counter())
+            for f, (proc, t0) in list(running.items()):
+                if proc.poll() is not None:
+                    _RESULTS[f] = _collect(f, tmp / f, proc, time.perf_counter() - t0)
+                    del running[f]
+                elif time.perf_counter() - t0 > 900:
+                    proc.kill()
+            time.sleep(0.1)
     return _RESULTS[family]
 
 
