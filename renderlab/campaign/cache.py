@@ -104,7 +104,8 @@ def file_hashes(scenario_dict: dict, base_dir) -> dict[str, str]:
 
 def render_path_options() -> dict:
     """The process-wide Mitsuba render-path choices that change a render's pixels but are not scenario keys
-    (``MitsubaBackend.ray_path``, e.g. ``$RENDERLAB_MITSUBA_RAYS=drjit_grid``; ``MitsubaBackend.integrator``),
+    (``MitsubaBackend.ray_path``, e.g. ``$RENDERLAB_MITSUBA_RAYS=drjit_grid``; ``MitsubaBackend.integrator``;
+    ``MitsubaBackend.tile_design``),
     where they differ from the defaults: part of :func:`truth_key`, so a truth set rendered with another ray path
     or integrator is never served from the cache for the default one (keys of default renders are unchanged)."""
     out = {}
@@ -112,6 +113,8 @@ def render_path_options() -> dict:
         out["mitsuba_ray_path"] = MitsubaBackend.ray_path
     if MitsubaBackend.integrator != "auto":
         out["mitsuba_integrator"] = MitsubaBackend.integrator
+    if MitsubaBackend.tile_design != "auto":
+        out["mitsuba_tile_design"] = MitsubaBackend.tile_design
     return out
 
 

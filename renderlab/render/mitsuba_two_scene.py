@@ -20,7 +20,9 @@ intersected with both:
   evaluation), with the same sampler draws, so a frame equals the one-scene render of the same geometry except
   where two surfaces are hit at exactly the same distance, or where the directional sun's bounding sphere (the
   static scene's here, the merged scene's there) moves the end point of a shadow ray by float32 rounding
-  (``tests/test_mitsuba_two_scene.py`` measures both renders side by side).
+  (``tests/test_mitsuba_two_scene.py`` measures both renders side by side: identical on the tiny test world; on the
+  reduced EV5 of ``results/error_budget`` 0, 1 and 3 of 65 536 pixels differ in its three frames, by at most
+  0.013 W m⁻² sr⁻¹, and no truth AOV but one range pixel).
 
 Tuning
 ------
