@@ -121,3 +121,12 @@ def test_methods_run_remakes_the_published_all_off_rows(tmp_path, monkeypatch):
     assert np.nanmax(np.abs(diff)) < 1e-9
     inc = json.loads((folder / "budget.json").read_text())["incremental"][-1]
     assert inc["methods"] == ["retina"] and max(inc["paired_max_abs_diff"].values()) < 1e-9
+
+
+@pytest.mark.parametrize("workers", ["100000", "0"])
+def test_budget_run_caps_its_worker_processes(tmp_path, workers, capsys):
+    """--workers is refused beyond 4 per core (each is a process) and below 1, before anything is made."""
+    assert B.main(["run", "--out", str(tmp_path / "b"), "--runs", "2", "--workers", workers,
+                   "--workdir", str(tmp_path / "w")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--workers" in err[0] and not any(tmp_path.iterdir())

@@ -149,3 +149,22 @@ def test_disk_filling_mid_campaign_then_resume(small_tmpfs, tmp_path):
     assert again.returncode == 0, again.stderr
     assert "30 of 30 runs finished" in again.stdout
     assert _leftovers(small_tmpfs) == []
+
+
+def test_a_signal_during_mitsuba_start_up_is_not_reported_as_an_llvm_problem(monkeypatch):
+    """A signal whose raise surfaced inside mi.set_variant as an ordinary error (the handler ran in native code)
+    ends the command as a signal: no LLVM advice, no fallback to another variant."""
+    import mitsuba as mi
+
+    from renderlab import signals
+    from renderlab.render import variant
+
+    def boom(name):
+        signals._state["pending"] = 15  # what the handler records before its raise is lost in native code
+        raise RuntimeError("set_variant(): interrupted")
+
+    monkeypatch.setattr(mi, "set_variant", boom)
+    monkeypatch.setattr(variant, "_resolved", {})
+    with pytest.raises(signals.Terminated):
+        variant.init_mitsuba("llvm_ad_mono")
+    assert signals._state["pending"] is None

@@ -231,6 +231,11 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
         if args.command == "run":
+            from renderlab.campaign.executors import check_workers
+
+            if args.workers < 1:
+                raise UserError(f"--workers must be at least 1, got {args.workers}")
+            check_workers(args.workers)  # each is a process: capped like campaign's
             cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
             run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only,
                        args.methods)
