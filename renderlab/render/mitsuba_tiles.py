@@ -71,6 +71,26 @@ class TileArrays:
                         faces=F.reshape(-1, 3), vertex_albedo=A.astype(np.float64))
 
 
+    def add_meshes(self, backend, want: tuple, desc: dict, keys: dict) -> None:
+        """Put one mesh per surface (``tiled{k}``: the frame's tiles ``want[k]``) into scene dict ``desc`` and its
+        body id into ``keys`` (shape key → body id)."""
+        for k, surf in enumerate(self.tiled):
+            desc[f"tiled{k}"] = backend._trimesh(self.body(k, list(want[k])), f"tiled{k}")
+            keys[f"tiled{k}"] = surf.body_id
+
+    def write(self, params, want: tuple, current: tuple) -> None:
+        """Write the tiles of every surface whose set changed from ``current`` to ``want`` into the meshes of
+        ``params`` (``mi.traverse`` of the scene holding them) and update it (its structure is rebuilt)."""
+        for k in range(len(self.tiled)):
+            if want[k] == current[k]:
+                continue
+            V, F, A = self.merged(k, list(want[k]))
+            params[f"tiled{k}.vertex_positions"] = type(params[f"tiled{k}.vertex_positions"])(aligned_f32(V))
+            params[f"tiled{k}.faces"] = type(params[f"tiled{k}.faces"])(F)
+            params[f"tiled{k}.vertex_albedo"] = type(params[f"tiled{k}.vertex_albedo"])(aligned_f32(A))
+        params.update()
+
+
 class TileScenes:
     """The tiled part of one :class:`~renderlab.render.mitsuba_backend.MitsubaBackend`'s scene, merged into it
     (the one-scene design: scalar variants and Mitsuba's ``path`` integrator)."""
@@ -90,20 +110,9 @@ class TileScenes:
         b = self.backend
         if self.current is None:  # first frame: the scene with one mesh per surface
             desc, keys = dict(self.static_desc), dict(self.static_keys)
-            for k, surf in enumerate(self.tiles.tiled):
-                desc[f"tiled{k}"] = b._trimesh(self.tiles.body(k, list(want[k])), f"tiled{k}")
-                keys[f"tiled{k}"] = surf.body_id
+            self.tiles.add_meshes(b, want, desc, keys)
             b._load(desc, keys)
         else:
-
-            p = b.params
-            for k in range(len(self.tiles.tiled)):
-                if want[k] == self.current[k]:
-                    continue
-                V, F, A = self.tiles.merged(k, list(want[k]))
-                p[f"tiled{k}.vertex_positions"] = type(p[f"tiled{k}.vertex_positions"])(aligned_f32(V))
-                p[f"tiled{k}.faces"] = type(p[f"tiled{k}.faces"])(F)
-                p[f"tiled{k}.vertex_albedo"] = type(p[f"tiled{k}.vertex_albedo"])(aligned_f32(A))
-            p.update()
+            self.tiles.write(b.params, want, self.current)
         self.current = want
         self.updates += 1

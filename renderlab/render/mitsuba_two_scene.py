@@ -44,7 +44,6 @@ import numpy as np
 
 from renderlab.errors import UserError
 from renderlab.render.mitsuba_direct import integrator_dict
-from renderlab.render.mitsuba_rays import aligned_f32
 from renderlab.render.mitsuba_tiles import TileArrays
 
 
@@ -76,22 +75,12 @@ class TileScene:
         b = self.backend
         if self.scene is None:
             desc, keys = {"type": "scene"}, {}
-            for k, surf in enumerate(self.tiles.tiled):
-                desc[f"tiled{k}"] = b._trimesh(self.tiles.body(k, list(want[k])), f"tiled{k}")
-                keys[f"tiled{k}"] = surf.body_id
+            self.tiles.add_meshes(b, want, desc, keys)
             self.scene = b.mi.load_dict(desc, optimize=False)
             self.params = b.mi.traverse(self.scene)
             b._register_shapes(self.scene, keys)
         else:
-            p = self.params
-            for k in range(len(self.tiles.tiled)):
-                if want[k] == self.current[k]:
-                    continue
-                V, F, A = self.tiles.merged(k, list(want[k]))
-                p[f"tiled{k}.vertex_positions"] = type(p[f"tiled{k}.vertex_positions"])(aligned_f32(V))
-                p[f"tiled{k}.faces"] = type(p[f"tiled{k}.faces"])(F)
-                p[f"tiled{k}.vertex_albedo"] = type(p[f"tiled{k}.vertex_albedo"])(aligned_f32(A))
-            p.update()
+            self.tiles.write(self.params, want, self.current)
         self.current = want
         self.updates += 1
 
