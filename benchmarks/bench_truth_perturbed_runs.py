@@ -5,8 +5,8 @@ run index = repetition) and renders the run's frames into a temporary truth set 
 interleaved in one process:
 
 * **loaded** -- what the study does (:func:`renderlab.campaign.cache.render_frames` with this process's
-  :class:`~renderlab.campaign.cache.LoadedWorld`: world plan built and scene loaded once, reused for every pose);
-* **per run** -- a fresh ``LoadedWorld`` per run (world plan built and the renderer's scene loaded again each run:
+  :class:`~renderlab.pipeline.frame_api.Renderer`: world plan built and scene loaded once, reused for every pose);
+* **per run** -- a fresh ``Renderer`` per run (world plan built and the renderer's scene loaded again each run:
   the cost of treating each perturbed run as its own scenario).
 
 Both write the same files (same seeds). Prints the median and minimum per rendered frame (render + sensor + truth
@@ -36,9 +36,10 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], help="scenario override key=value (repeatable)")
     args = ap.parse_args(argv)
 
-    from renderlab.campaign.cache import LoadedWorld, render_frames
+    from renderlab.campaign.cache import render_frames
     from renderlab.campaign.perturb import draw_perturbation
     from renderlab.campaign.plan import run_seed_sequence
+    from renderlab.pipeline.frame_api import Renderer
     from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
     from renderlab.studies.retina_vs_spc.truth import perturbed_specs
 
@@ -48,7 +49,7 @@ def main(argv=None) -> int:
     print(f"cores: {os.cpu_count()}  load average: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
     print(f"camera {truth.camera.width}x{truth.camera.height}, spp {truth.render.spp}, world {truth.world.kind}")
     t = time.perf_counter()
-    world = LoadedWorld(truth, base)
+    world = Renderer(truth, base)
     print(f"world plan (once per process): {time.perf_counter() - t:.1f} s, {len(world.plan.frames)} frames per run")
     t = time.perf_counter()
     world.backend_for(world.plan.frames[0])
@@ -60,7 +61,7 @@ def main(argv=None) -> int:
             specs = perturbed_specs(world.plan.frames, draw)
             for name in ("loaded", "per run") if rep % 2 == 0 else ("per run", "loaded"):
                 t = time.perf_counter()
-                w = world if name == "loaded" else LoadedWorld(truth, base)
+                w = world if name == "loaded" else Renderer(truth, base)
                 render_frames(w, Path(tmp) / f"{name.replace(' ', '_')}_{rep}", specs)
                 times[name].append((time.perf_counter() - t) / len(specs))
             print(f"  repeat {rep}: loaded {times['loaded'][-1]:.2f} s/frame, per run {times['per run'][-1]:.2f} s/frame "

@@ -13,8 +13,8 @@ both end with one complete set.
 Runs whose *true* poses differ (truth trajectory/pointing perturbations) render their own frames:
 :func:`cached_frames_truthset` keys a render by the scenario **and the content of its frame specs** (index,
 time, position, attitude quaternion, camera, Sun of every frame, :func:`frame_record`), so a re-run, or
-another method on the same run, finds it. Those renders use one :class:`LoadedWorld` per process (the
-world plan built once, the renderer's scene loaded once and reused for every pose: only the sensor pose
+another method on the same run, finds it. Those renders use one :class:`~renderlab.pipeline.frame_api.Renderer`
+per process (the world plan built once, the renderer's scene loaded once and reused for every pose: only the sensor pose
 changes between calls), and the per-frame render seeds of :func:`renderlab.pipeline.render_truthset`
 (frame k of the plan: the k-th child of ``SeedSequence(render.seed)``), so the nominal poses give the
 nominal truth set's images.
@@ -163,23 +163,17 @@ def frame_record(spec) -> dict:
             "camera": spec.camera.to_dict(), "sun": spec.sun.to_dict()}
 
 
-def LoadedWorld(scenario, base_dir: Path):
-    """A scenario's world plan, built once, and the renderer of its current scene, loaded once and reused for every
-    frame spec rendered from it: the warm frame API's :class:`~renderlab.pipeline.frame_api.Renderer`."""
-    return Renderer(scenario, Path(base_dir))
-
-
 _WORLDS: dict = {}  # this process's loaded world (one at a time: worlds are large)
 
 
 def loaded_world(scenario, base_dir: Path):
-    """This process's :func:`LoadedWorld` (a :class:`~renderlab.pipeline.frame_api.Renderer`) of ``scenario``
-    (built on first use, kept for later runs)."""
+    """This process's :class:`~renderlab.pipeline.frame_api.Renderer` of ``scenario`` (world plan built and scene
+    loaded on first use, kept for later runs)."""
     data = scenario.to_dict()
     key = truth_key(data, None, file_hashes(data, base_dir))
     if key not in _WORLDS:
         _WORLDS.clear()
-        _WORLDS[key] = LoadedWorld(scenario, Path(base_dir))
+        _WORLDS[key] = Renderer(scenario, Path(base_dir))
     return _WORLDS[key]
 
 
