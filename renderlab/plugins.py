@@ -46,6 +46,8 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "coastline_ekf": "renderlab.studies.coastline_ekf:STUDY",
         "unknown_satellite": "renderlab.studies.unknown_satellite:STUDY",
         "descent_navigation": "renderlab.studies.descent_navigation:STUDY",
+        "descent_gnc": "renderlab.studies.descent_gnc:STUDY",
+        "planet_opnav": "renderlab.studies.planet_opnav:STUDY",
     }),
     "worlds": ("renderlab.worlds", {  # renderlab.contracts.world.WorldKind objects
         "analytic": "renderlab.scenario.kinds:ANALYTIC",
@@ -59,6 +61,17 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "unknown_satellite": "renderlab.studies.unknown_satellite.config:UnknownSatelliteStudyConfig",
         "retina_vs_spc": "renderlab.studies.retina_vs_spc.config:RetinaVsSpcConfig",
         "descent_navigation": "renderlab.studies.descent_navigation.config:DescentNavigationConfig",
+        "descent_gnc": "renderlab.studies.descent_gnc.config:DescentGncConfig",
+        "planet_opnav": "renderlab.studies.planet_opnav.config:PlanetOpNavConfig",
+    }),
+    "centre_limb_methods": ("renderlab.centre_limb_methods", {  # the centre_limb kind's methods (its method_group)
+        "centroid_raw": "renderlab.measurement.centre_limb_methods:RawCentroidMethod",
+        "centroid_phase": "renderlab.measurement.centre_limb_methods:PhaseCentroidMethod",
+        "limb_ellipse": "renderlab.measurement.centre_limb_methods:LimbEllipseMethod",
+        "horizon_opnav": "renderlab.measurement.centre_limb_methods:HorizonOpNavMethod",
+        "bsk_hough_circles": "renderlab.basilisk.opnav_methods:HoughCirclesMethod",  # Basilisk (the basilisk extra)
+        "bsk_hough_pixel_line": "renderlab.basilisk.opnav_methods:HoughPixelLineMethod",
+        "bsk_limb_horizon": "renderlab.basilisk.opnav_methods:LimbHorizonMethod",
     }),
     "renderers": ("renderlab.renderers", {
         "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",
@@ -71,12 +84,19 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "crosscheck": "renderlab.crosscheck.figures:RESULT_FOLDER",
         "error_budget": "renderlab.studies.retina_vs_spc.budget_report:RESULT_FOLDER",
     }),
+    "observables": ("renderlab.observables", {  # renderlab.contracts.observable.ObservableKind objects
+        "landmark": "renderlab.contracts.landmark:LANDMARK",
+        "filter": "renderlab.contracts.navigation:FILTER",
+        "pose": "renderlab.contracts.pose:POSE",
+        "centre_limb": "renderlab.contracts.centre_limb:CENTRE_LIMB",
+    }),
 }
 
 _LABELS = {"landmark_methods": "landmark method", "filters": "filter", "studies": "study", "worlds": "world kind",
            "renderers": "renderer", "scenario_sections": "scenario section",
            "measurement_sources": "measurement source", "guidance": "guidance law",
-           "result_folders": "result-folder kind"}
+           "result_folders": "result-folder kind", "observables": "observable kind",
+           "centre_limb_methods": "centre_limb method"}
 
 
 def _load_target(target: str, what: str) -> Any:
@@ -175,25 +195,88 @@ renderers = REGISTRIES["renderers"]
 scenario_sections = REGISTRIES["scenario_sections"]
 result_folders = REGISTRIES["result_folders"]
 guidance = REGISTRIES["guidance"]
+#: observable kinds (:mod:`renderlab.contracts.observable`): everything that lists kinds reads this registry
+observables = REGISTRIES["observables"]
 
 #: world kind → the study a campaign runs when ``campaign.study`` is empty
 DEFAULT_STUDY: dict[str, str] = {"analytic": "analytic_pointing", "ev5": "retina_vs_spc", "earth": "coastline_ekf",
                                  "microsat": "unknown_satellite"}
 
 
+def observable_kinds() -> list:
+    """Every registered :class:`~renderlab.contracts.observable.ObservableKind`: the lab's own in the order of
+    :data:`BUILTIN` (landmark, filter, pose, centre_limb), then the others by name (the order that breaks ties)."""
+    order = list(BUILTIN["observables"][1])
+    names = sorted(observables.names(), key=lambda n: (order.index(n) if n in order else len(order), n))
+    return [observables.get(n) for n in names]
+
+
+def method_registry(kind) -> Registry:
+    """The registry of an observable kind's methods (a kind or its name): the one whose entry-point group is the
+    kind's ``method_group`` (``landmark`` → :data:`landmark_methods`, ``filter`` → :data:`filters`), else a new
+    ``<kind>_methods`` registry made on first use and kept in :data:`REGISTRIES`."""
+    kind = observables.get(kind) if isinstance(kind, str) else kind
+    for reg in REGISTRIES.values():
+        if reg.group == kind.method_group:
+            return reg
+    reg = Registry(f"{kind.name}_methods", kind.method_group, {})
+    reg.label = f"{kind.name} method"
+    REGISTRIES[reg.name] = reg
+    return reg
+
+
+def registry(name: str) -> Registry:
+    """:data:`REGISTRIES` ``[name]``; a kind's method registry ``<kind>_methods`` is made when first asked for."""
+    if name not in REGISTRIES:
+        for kind in observable_kinds():
+            if f"{kind.name}_methods" == name:
+                return method_registry(kind)
+        raise KeyError(name)
+    return REGISTRIES[name]
+
+
+def protocol_methods(protocol) -> set[str]:
+    """The methods (and properties) a ``typing.Protocol`` declares, without ``name`` and dunders."""
+    return {k for k, v in vars(protocol).items() if not k.startswith("_") and (callable(v) or isinstance(v, property))}
+
+
+def kind_of_method(obj):
+    """The registered observable kind whose protocol ``obj`` (a class or an instance) follows: every method the
+    protocol declares is there. The kind with the most such methods wins; None when no kind fits."""
+    import inspect
+
+    if inspect.isclass(obj) and (getattr(obj, "_is_protocol", False) or inspect.isabstract(obj)):
+        return None
+    fits = []
+    for kind in observable_kinds():
+        need = protocol_methods(kind.protocol)
+        if need and all(getattr(obj, m, None) is not None for m in need) \
+                and all(callable(getattr(obj, m)) for m in need if not isinstance(vars(kind.protocol)[m], property)):
+            fits.append((len(need), kind.name, kind))
+    return max(fits)[2] if fits else None
+
+
 def register_cli_plugins(texts) -> tuple:
     """Register ``--plugin [NAME=]module:attr`` references typed on the command line: a
-    :class:`~renderlab.contracts.study.Study` goes to :data:`studies`, anything else to :data:`landmark_methods`.
-    Returns ``((registry, name, reference), ...)`` for the campaign's workers."""
+    :class:`~renderlab.contracts.study.Study` goes to :data:`studies`, a method class to the method registry of the
+    observable kind whose protocol it follows (:func:`kind_of_method`). Returns ``((registry, name, reference), ...)``
+    for the campaign's workers."""
     from renderlab.contracts.study import Study
 
     out = []
     for text in texts or ():
         name, ref = parse_plugin(text)
         obj = _load_target(ref, f"--plugin {ref!r}")
-        registry = "studies" if isinstance(obj, Study) else "landmark_methods"
-        key = REGISTRIES[registry].add_reference(ref, name)
-        out.append((registry, key, ref))
+        if isinstance(obj, Study):
+            registry_name = "studies"
+        else:
+            kind = kind_of_method(obj)
+            if kind is None:
+                raise UserError(f"--plugin {ref!r}: neither a Study nor a method of a registered observable kind "
+                                f"({', '.join(observables.names())})")
+            registry_name = method_registry(kind).name
+        key = REGISTRIES[registry_name].add_reference(ref, name)
+        out.append((registry_name, key, ref))
     return tuple(out)
 
 

@@ -63,18 +63,20 @@ def check_landmark_method(text: str, what: str = "--method"):
 
 
 def check_plugin(text: str) -> None:
-    """A ``--plugin [NAME=]module:attr``: a registered study object or a landmark-method class (checked, not
-    called)."""
+    """A ``--plugin [NAME=]module:attr``: a study object or a method class of a registered observable kind (its
+    protocol's methods there, :func:`renderlab.plugins.kind_of_method`), checked, not called."""
     from renderlab.contracts.study import Study
+    from renderlab.plugins import kind_of_method, observables
 
     name, sep, ref = text.partition("=")
     if sep and not (name.isidentifier() and len(name) <= 64):
         raise UserError(f"--plugin {short(text)}: NAME must be an identifier")
     ref = ref if sep else text
     obj = load_reference(ref, "--plugin")
-    if not (isinstance(obj, Study) or is_landmark_method_class(obj)):
-        raise UserError(f"--plugin: {short(ref)} is {_kind(obj)}, neither a Study nor a landmark-method class "
-                        "(see renderlab.contracts.study, renderlab.contracts.landmark)")
+    if not (isinstance(obj, Study) or (inspect.isclass(obj) and kind_of_method(obj) is not None)):
+        raise UserError(f"--plugin: {short(ref)} is {_kind(obj)}, neither a Study nor a method class of an "
+                        f"observable kind ({', '.join(observables.names())}; see renderlab.contracts.study, "
+                        "renderlab.contracts.observable)")
 
 
 def _kind(obj) -> str:

@@ -30,6 +30,7 @@ from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
+from renderlab.contracts.observable import ObservableKind
 from renderlab.contracts.reasons import LandmarkReason
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.maplet import Maplet
@@ -167,3 +168,16 @@ class LandmarkMethod(Protocol):
     def measure_frame(self, frame: LandmarkFrame) -> list[LandmarkResult]:
         """One :class:`LandmarkResult` per ``frame.landmarks`` entry, in order."""
         ...
+
+
+#: the landmark kind (:mod:`renderlab.contracts.observable`): registered as ``landmark`` in
+#: :data:`renderlab.plugins.observables`
+LANDMARK = ObservableKind(
+    name="landmark", description="landmark shifts in an image: one row per landmark attempted per image",
+    reasons=LandmarkReason, frame=LandmarkFrame, result=LandmarkResult, protocol=LandmarkMethod,
+    truth_table="landmark_truth", result_schema="renderlab.contracts.schemas:LANDMARK_CORE",
+    known_schema="renderlab.contracts.schemas:LANDMARK_RUNNER", table_names=("measurements",),
+    methods="renderlab.landmark_methods", scorer="renderlab.campaign.scoring:score_measurements",
+    report_section="renderlab.report.landmark_section:landmark_report_section",
+    conformance="renderlab.measurement.conformance:check_landmark_method",
+)

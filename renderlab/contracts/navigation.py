@@ -19,6 +19,9 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from renderlab.contracts.observable import ObservableKind
+from renderlab.contracts.reasons import FilterReason
+
 
 @dataclass(frozen=True)
 class FilterMeasurement:
@@ -56,3 +59,15 @@ class NavigationFilter(Protocol):
     def propagate(self, t_s: float) -> None: ...
 
     def update(self, t_s: float, measurement: FilterMeasurement) -> FilterUpdate: ...
+
+
+#: the filter kind (:mod:`renderlab.contracts.observable`): one row per run and time; its methods are the
+#: :data:`renderlab.plugins.filters`
+FILTER = ObservableKind(
+    name="filter", description="navigation-filter time steps: estimation errors, covariance, NEES and NIS",
+    reasons=FilterReason, frame=FilterMeasurement, result=FilterUpdate, protocol=NavigationFilter,
+    result_schema="renderlab.contracts.schemas:FILTER_CORE", methods="renderlab.filters",
+    scorer="renderlab.campaign.scoring:score_filter",
+    report_section="renderlab.report.filter_section:filter_report_section",
+    conformance="renderlab.measurement.conformance_filter:check_filter_method",
+)

@@ -14,6 +14,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from renderlab.contracts.observable import ObservableKind
 from renderlab.contracts.reasons import PoseReason
 from renderlab.geometry.camera import CameraModel
 
@@ -49,3 +50,12 @@ class PoseEstimator(Protocol):
     def estimate(self, tracks: FeatureTracks) -> PoseEstimate: ...
 
 
+
+
+#: the pose kind (:mod:`renderlab.contracts.observable`): one row per run (or frame) of a pose / inertia estimate;
+#: no generic report section or harness yet (the unknown-satellite study reports its own)
+POSE = ObservableKind(
+    name="pose", description="relative pose / inertia estimates: one row per run or frame",
+    reasons=PoseReason, frame=FeatureTracks, result=PoseEstimate, protocol=PoseEstimator,
+    result_schema="renderlab.contracts.schemas:POSE_CORE",
+)

@@ -1,5 +1,8 @@
 """Why a row has no result: one documented enum per kind of observable (the ``reason`` column).
 
+Each enum belongs to one registered observable kind (:mod:`renderlab.contracts.observable`, ``reasons``); the
+allowed values of a kind are read from the registry :data:`renderlab.plugins.observables` (:func:`reason_values`).
+
 The values are plain strings (``str`` enums), stored as a Parquet dictionary column. ``ok`` is the only value
 allowed when ``has_result`` is true. A producer gives the reason that stopped it; when it knows several at once, the
 first in the enum's order (the order below). Its own detailed flags go to the free-text ``diagnostics`` column.
@@ -45,10 +48,8 @@ class PoseReason(str, Enum):
     LOST_TRACK = "lost_track"           #: tracks lost before the arc was complete
 
 
-#: kind → its reason enum
-REASONS: dict[str, type[Enum]] = {"landmark": LandmarkReason, "filter": FilterReason, "pose": PoseReason}
-
-
 def reason_values(kind: str) -> tuple[str, ...]:
-    """The allowed ``reason`` strings of a table kind, in priority order."""
-    return tuple(r.value for r in REASONS[kind])
+    """The allowed ``reason`` strings of a registered observable kind, in priority order."""
+    from renderlab import plugins
+
+    return plugins.observables.get(kind).reason_values()

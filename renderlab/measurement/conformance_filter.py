@@ -265,3 +265,9 @@ def check_filter(factory, seed: int, n_runs: int = 200, min_fraction_inside: flo
     problems, stats = score(case, out, min_fraction_inside)
     problems = list(out["problems"]) + modified + problems
     return (problems, stats) if return_stats else problems
+
+
+def check_filter_method(factory) -> list[str]:
+    """The filter kind's ``conformance`` (:mod:`renderlab.contracts.observable`, ``renderlab check-method filter
+    NAME``): :func:`check_filter` of ``factory()`` on the case of seed 0 with its default runs and bands."""
+    return check_filter(factory, 0)

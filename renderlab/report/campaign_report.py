@@ -9,18 +9,15 @@ once all are written.
 
 from __future__ import annotations
 
-import html
 import os
 from pathlib import Path
 
 from renderlab import plugins
 from renderlab.campaign import scoring, store
 from renderlab.campaign.publish import is_published
+from renderlab.contracts.observable import ReportContext
 from renderlab.report.csvio import write_csv  # noqa: F401  (re-exported for studies)
-from renderlab.report.filter_section import filter_section
 from renderlab.report.html_table import table as html_table
-from renderlab.report.landmark_section import landmark_section
-from renderlab.report.style import ci
 
 TEMPLATE_DIR = Path(__file__).parent / "templates"
 #: a study section with this title opens the page (before the generic sections): what the numbers below measure
@@ -92,40 +89,24 @@ def _study_sections(study: str, tables, stage: Path) -> list[dict]:
 
 
 def _write_all(tables, stage: Path, manifest: dict, confidence) -> tuple[list[dict], list[dict], str]:
-    """Sections of every landmark and filter table, the summary rows and the headline."""
+    """One section per table of a registered observable kind with a ``report_section`` (the registry
+    :data:`renderlab.plugins.observables`; tables the study reports itself skipped), the summary rows and the
+    headline (the first table's that gives one)."""
     sections, summary_all, headline = [], [], ""
     found = _study(manifest["plan"]["study"])
-    scenario = manifest["plan"].get("scenario") or {}
+    context = ReportContext(study=found, scenario=manifest["plan"].get("scenario") or {}, confidence=confidence)
     for name, t in sorted(tables.items()):
-        kind = scoring.table_kind(t) if name not in getattr(found, "own_tables", ()) else "own"
-        if kind == "landmark":
-            subsets = found.subsets(t, scenario) if getattr(found, "subsets", None) else []
-            gross = found.gross_error_px(scenario) if getattr(found, "gross_error_px", None) else 1.0
-            keys = tuple(getattr(found, "clusters", None) or ("frame", "item"))
-            sec, csvs = landmark_section(name, t, stage, gross_px=gross, subsets=subsets, cluster_keys=keys)
-            sections.append(sec)
-            summary_all += csvs["summary"]
-            headline = headline or _headline(csvs["summary"])
-        elif kind == "filter":
-            sec, _ = filter_section(name, t, stage, confidence=confidence)
-            sections.append(sec)
+        if name in getattr(found, "own_tables", ()):
+            continue
+        kind = scoring.table_kind(t)
+        report_section = None if kind == "other" else plugins.observables.get(kind).part("report_section")
+        if report_section is None:
+            continue
+        sec, rows, head = report_section(name, t, stage, context)
+        sections.append(sec)
+        summary_all += rows
+        headline = headline or head
     return sections, summary_all, headline
-
-
-def _headline(summary: list[dict]) -> str:
-    """One line per method on the last (most specific) subset: bias and robust σ per axis with CIs."""
-    if not summary:
-        return ""
-    subset = summary[-1]["subset"]
-    rows = [r for r in summary if r["subset"] == subset]
-    parts = []
-    for m in sorted({r["method"] for r in rows}):
-        s, l = (next(r for r in rows if r["method"] == m and r["axis"] == a) for a in "sl")
-        parts.append(f"<b>{html.escape(m)}</b>: bias s {ci(s['bias_px'], s['bias_px_lo'], s['bias_px_hi'])}, "
-                     f"l {ci(l['bias_px'], l['bias_px_lo'], l['bias_px_hi'])} px; robust σ "
-                     f"{s['robust_sigma_px']:.3f} / {l['robust_sigma_px']:.3f} px; no result "
-                     f"{100 * s['no_result_rate']:.1f} %")
-    return f"Headline ({html.escape(subset)} rows, 95 % cluster-bootstrap CIs): " + "; ".join(parts) + "."
 
 
 def _header_tables(manifest: dict) -> list[str]:

@@ -79,3 +79,10 @@ def filter_section(name: str, t, stage: Path, *, confidence: float = 0.95) -> tu
     if sentence:
         blocks.append({"kind": "text", "html": sentence})
     return {"title": f"Filter: {name}", "anchor": name, "blocks": blocks}, rows
+
+
+def filter_report_section(name: str, table, stage: Path, context) -> tuple[dict, list[dict], str]:
+    """The filter kind's ``report_section`` (:mod:`renderlab.contracts.observable`): :func:`filter_section`; its rows
+    stay in ``<name>_filter_summary.csv`` (none go to the report's ``summary.csv``), no headline."""
+    sec, _ = filter_section(name, table, stage, confidence=context.confidence)
+    return sec, [], ""

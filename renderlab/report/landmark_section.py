@@ -3,6 +3,7 @@ intervals, the no-result reasons, the paired comparison, pixel locking and the b
 
 from __future__ import annotations
 
+import html
 from pathlib import Path
 
 from renderlab.report import landmark_figures as figs
@@ -123,3 +124,30 @@ def _reason_blocks(reason_rows: list[dict], stage: Path, name: str) -> list[dict
     return [{"kind": "figure", "png": rfig[0], "svg": rfig[1], "alt": "no-result reasons",
              "caption": "Share of rows without a result, by the method's reason (the contract's LandmarkReason); "
                         "reasons are drawn in greys with hatches, never in a method's colour."}]
+
+
+def landmark_report_section(name: str, table, stage: Path, context) -> tuple[dict, list[dict], str]:
+    """The landmark kind's ``report_section`` (:mod:`renderlab.contracts.observable`): :func:`landmark_section` with
+    the study's subsets, gross-error threshold and cluster columns (its hooks); the summary rows and the headline."""
+    study, scenario = context.study, context.scenario or {}
+    subsets = study.subsets(table, scenario) if getattr(study, "subsets", None) else []
+    gross = study.gross_error_px(scenario) if getattr(study, "gross_error_px", None) else 1.0
+    keys = tuple(getattr(study, "clusters", None) or ("frame", "item"))
+    sec, csvs = landmark_section(name, table, stage, gross_px=gross, subsets=subsets, cluster_keys=keys)
+    return sec, csvs["summary"], headline(csvs["summary"])
+
+
+def headline(summary: list[dict]) -> str:
+    """One line per method on the last (most specific) subset: bias and robust σ per axis with CIs."""
+    if not summary:
+        return ""
+    subset = summary[-1]["subset"]
+    rows = [r for r in summary if r["subset"] == subset]
+    parts = []
+    for m in sorted({r["method"] for r in rows}):
+        s, l = (next(r for r in rows if r["method"] == m and r["axis"] == a) for a in "sl")
+        parts.append(f"<b>{html.escape(m)}</b>: bias s {ci(s['bias_px'], s['bias_px_lo'], s['bias_px_hi'])}, "
+                     f"l {ci(l['bias_px'], l['bias_px_lo'], l['bias_px_hi'])} px; robust σ "
+                     f"{s['robust_sigma_px']:.3f} / {l['robust_sigma_px']:.3f} px; no result "
+                     f"{100 * s['no_result_rate']:.1f} %")
+    return f"Headline ({html.escape(subset)} rows, 95 % cluster-bootstrap CIs): " + "; ".join(parts) + "."
