@@ -110,14 +110,14 @@ class _Scaled:
 
 def closed_loop(ts_dir: Path, scenario: Path, images: int) -> None:
     from renderlab.campaign.reexpose import ReexposedTruthSet
+    from renderlab.files.truthset import TruthSet
     from renderlab.measurement.descent_filter import DescentNavFilter
     from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
     from renderlab.scenario import load_scenario
-    from renderlab.sensor import SensorOptions
+    from renderlab.sensor.model import SensorOptions
     from renderlab.studies.descent_navigation import loop
     from renderlab.studies.descent_navigation.run import filter_options, run_inputs, section
     from renderlab.studies.descent_navigation.truth import true_descent
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
     sc, _ = load_scenario(scenario)

@@ -97,7 +97,7 @@ def bar_vs_sphere(args, r, mi) -> None:
     import drjit as dr
     import trimesh
 
-    from renderlab.truthset import TruthSetWriter
+    from renderlab.files.truthset import TruthSetWriter
 
     sph = trimesh.creation.icosphere(subdivisions=8, radius=1.0)
     scene = mi.load_dict({"type": "scene", "sun": {"type": "directional", "direction": [0.3, 0.2, -1.0]},

@@ -35,10 +35,10 @@ def _row(label, es, er):
 
 
 def main():
+    from renderlab.files.truthset import TruthSet
     from renderlab.measurement.runner import MeasureOptions, measure_truthset
     from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
     ap = argparse.ArgumentParser()

@@ -1,4 +1,4 @@
-"""``renderlab.sensor.expose`` with the per-pixel counter-based noise vs the former sequential stream, side by side.
+"""``renderlab.sensor.model.expose`` with the per-pixel counter-based noise vs the former sequential stream, side by side.
 
 The radiance is a lit disc on a dark sky, like a small body in view: inside, a smooth field from 0.2 to 1.0 of
 the 10 W m⁻² sr⁻¹ peak (default sensor: about 1000–5000 e, PTRS pixels) with a fine random texture; outside,
@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from renderlab.sensor import SensorOptions, expose
+from renderlab.sensor.model import SensorOptions, expose
 
 
 def scene(n: int, seed: int = 0) -> np.ndarray:

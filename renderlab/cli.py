@@ -6,8 +6,8 @@ User errors (bad scenario, bad arguments, missing or unwritable files, a full di
 runs or is created, the whole request is checked: paths (non-empty, no NUL, components of at most 255
 bytes), the scenario file (a regular file of sane size, TOML nested at most as deep as Python can parse),
 ``--set`` keys (plain names and list indices), numbers (finite) and the cost of the request
-(:mod:`renderlab.cost`; ``--allow-large`` lifts its limits). SIGINT, SIGTERM and SIGHUP clean up and exit
-with 130, 143 and 129 (:mod:`renderlab.signals`).
+(:mod:`renderlab.commands.cost`; ``--allow-large`` lifts its limits). SIGINT, SIGTERM and SIGHUP clean up and exit
+with 130, 143 and 129 (:mod:`renderlab.files.signals`).
 
 Caches: every cache of a run lives under one lab cache folder, ``$RENDERLAB_CACHE`` (default
 ``~/.cache/renderlab``): Dr.Jit kernels, matplotlib, Blender's user folders, the XDG cache and config
@@ -29,7 +29,7 @@ import sys
 from pathlib import Path
 
 from renderlab import __version__
-from renderlab.cost import check_path, load_checked
+from renderlab.commands.cost import check_path, load_checked
 from renderlab.errors import UserError
 
 #: environment variable → folder under the lab cache (set only when the user has not set it)
@@ -96,7 +96,6 @@ EXTRA_COMMANDS = {
     "scenes": "renderlab.commands.scenes",
     "show": "renderlab.commands.show",
     "info": "renderlab.commands.info",
-    "check-method": "renderlab.commands.check_method",
 }
 
 
@@ -131,7 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override a scenario key (TOML value), e.g. --set camera.width=128; repeatable")
     r.add_argument("--overwrite", action="store_true", help="replace DIR (and the --save-blend file) if it exists")
     r.add_argument("--allow-large", action="store_true",
-                   help="run past the cost limits (pixels × spp × frames, memory, disk; see renderlab.cost)")
+                   help="run past the cost limits (pixels × spp × frames, memory, disk; see renderlab.commands.cost)")
     r.add_argument("--save-blend", metavar="FILE.blend",
                    help="also save the first frame's Blender scene (Cycles only), to open in Blender's GUI")
     r.add_argument("--dry-run", action="store_true",
@@ -177,7 +176,7 @@ def _check_overwrite_target(out: Path, scenario: Path) -> None:
 
 def sweep_out(out, *, own: bool = False) -> None:
     """Remove leftover staging folders of ``out`` (earlier crashes; ``own``: this process's, after an interrupt)."""
-    from renderlab.signals import sweep_staging
+    from renderlab.files.signals import sweep_staging
 
     out = Path(os.path.abspath(out))
     sweep_staging(out.parent, out.name, own=own)
@@ -185,7 +184,8 @@ def sweep_out(out, *, own: bool = False) -> None:
 
 # ----------------------------------------------------------------------------------------- commands
 def cmd_render(args) -> int:
-    from renderlab import cost, plugins
+    from renderlab import plugins
+    from renderlab.commands import cost
 
     if args.renderer is not None:
         plugins.renderers.get(args.renderer, where="--renderer: ")  # a registered name, checked before anything
@@ -221,7 +221,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_demo(args) -> int:
-    from renderlab.demo import run_demo
+    from renderlab.commands.demo import run_demo
 
     report, html = run_demo(Path(args.out), progress=not args.quiet)
     print(f"renderlab: demo finished; open the campaign report {html} (summary: {report})")
@@ -241,7 +241,7 @@ def lab_environment():
     with those of earlier runs whose process is gone); the environment is restored afterwards."""
     import tempfile
 
-    from renderlab.signals import sweep_staging
+    from renderlab.files.signals import sweep_staging
 
     root = cache_root()
     saved = {k: os.environ.get(k) for k in (*CACHE_ENV, "TMPDIR")}
@@ -298,7 +298,7 @@ def _dispatch(args, parser) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command; every failure the user or the machine causes is one line on stderr."""
-    from renderlab import signals
+    from renderlab.files import signals
 
     if argv is None and os.environ.get("_ARGCOMPLETE"):  # shell completion: answers and exits, before any set-up
         with contextlib.suppress(ImportError):
@@ -314,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
         except UserError as err:
             print(f"renderlab: error: {err}", file=sys.stderr)
             return 2
-        except KeyboardInterrupt as exc:  # also SIGTERM and SIGHUP (renderlab.signals.Terminated)
+        except KeyboardInterrupt as exc:  # also SIGTERM and SIGHUP (renderlab.files.signals.Terminated)
             if args is not None and getattr(args, "out", None):
                 sweep_out(args.out, own=True)
             print(f"renderlab: {signals.describe(exc)}", file=sys.stderr)

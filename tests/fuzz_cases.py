@@ -119,7 +119,7 @@ def to_toml(d: dict) -> str:
 
 def _bad_values(path, value, field, i: int) -> list[tuple[str, str]]:
     """(tag, TOML text) of values ``path`` must refuse (NaN, inf, wrong type, bool, past its bounds)."""
-    from renderlab.config_types import accepts_bool
+    from renderlab.contracts.config_types import accepts_bool
 
     is_bool_field = field is not None and accepts_bool(field.annotation)
     out = []
@@ -204,7 +204,7 @@ def _scenario_cases(files: dict) -> list:
 
 
 def _cost_cases() -> list:
-    """Keys valid one by one, a request too large together (renderlab.cost)."""
+    """Keys valid one by one, a request too large together (renderlab.commands.cost)."""
     a, e, u = "{IN}/analytic_sphere_box.toml", "{IN}/ev5_descent.toml", "{IN}/unknown_satellite.toml"
     big = ["--set", "camera.width=16384", "--set", "camera.height=16384"]
     return [

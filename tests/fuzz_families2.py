@@ -192,7 +192,7 @@ def _maplet_hex(bad: str) -> str:
 
     import numpy as np
 
-    from renderlab.imageio import write_exr
+    from renderlab.files.imageio import write_exr
 
     h, a = np.zeros((15, 15)), np.full((15, 15), 0.2)
     {"nan_height": h, "inf_height": h, "nan_albedo": a}[bad][7, 7] = np.inf if bad.startswith("inf") else np.nan

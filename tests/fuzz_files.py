@@ -40,7 +40,7 @@ def _catalog(d: Path) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from renderlab.imageio import write_exr
+    from renderlab.files.imageio import write_exr
 
     (d / "maplets").mkdir(parents=True)
     ids = [1, 2]

@@ -100,7 +100,7 @@ def test_schema_refusals_are_one_line(truthset, tmp_path, capsys, case, change, 
 
 
 def test_exported_apriori_measures_what_the_truthset_measures(truthset, tmp_path, capsys):  # noqa: F811
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     path, _ = truthset
     if not (path / "landmarks.parquet").is_file():

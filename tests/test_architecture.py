@@ -214,3 +214,9 @@ def test_ruff_is_clean():
     r = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache", "renderlab", "estimators", "tests"],
                        cwd=REPO, capture_output=True, text=True)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-1000:]
+
+
+def test_package_root_holds_at_most_twelve_modules():
+    """The root of ``renderlab`` keeps the entry points and the lowest layers; everything else lives in a subpackage."""
+    root = sorted(p.name for p in (REPO / "renderlab").glob("*.py"))
+    assert len(root) <= 12, root

@@ -18,7 +18,7 @@ import pytest
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory):
     """``run_demo`` once for the module, every campaign at 2 runs (the real renders, estimators, reports)."""
-    from renderlab.demo import run_demo
+    from renderlab.commands.demo import run_demo
 
     out = tmp_path_factory.mktemp("demo") / "demo_out"
     report, html = run_demo(out, progress=False, runs=(2, 2, 2))

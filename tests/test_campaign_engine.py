@@ -65,7 +65,7 @@ def test_campaign_runs_and_truth_matches_opencv(campaign):
     import cv2
     from scipy.spatial.transform import Rotation
 
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     plan, d, res = campaign
     assert (res.executed, res.skipped, res.failed) == (3, 0, [])

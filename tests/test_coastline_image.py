@@ -27,9 +27,9 @@ SMALL = ["camera.width=128", "camera.height=128", "trajectory.frames=2", "trajec
 
 def _truthset(repo, cache, *overrides):
     from renderlab.campaign.cache import cached_truthset
+    from renderlab.files.truthset import TruthSet
     from renderlab.scenario import load_scenario, scenario_from_dict
     from renderlab.studies.coastline_ekf.image import render_scenario_dict
-    from renderlab.truthset import TruthSet
 
     sc, base = load_scenario(repo / "scenes/coastline_image.toml", [*SMALL, *overrides])
     path, _ = cached_truthset(scenario_from_dict(render_scenario_dict(sc)), base, cache)

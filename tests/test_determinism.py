@@ -83,7 +83,7 @@ def test_same_seed_byte_identical_across_processes(sets, tmp_path):
 
 # ------------------------------------------------------------------------ (b) different seed
 def test_different_seed_changes_noise_not_truth(sets):
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     a, c = TruthSet.open(sets["A"]), TruthSet.open(sets["C"])
     assert len(a) == len(c) == N_FRAMES
@@ -109,13 +109,13 @@ def test_different_seed_changes_noise_not_truth(sets):
 # ------------------------------------------------------------------------------- (c) round trip
 def test_truthset_round_trip_matches_backend(sets):
     """Re-render each frame alone (pipeline seed derivation) and compare with what was read back."""
+    from renderlab.files.imageio import read_exr
+    from renderlab.files.truthset import AOV_CHANNELS, TruthSet
     from renderlab.geometry.camera import CameraModel
     from renderlab.geometry.rotations import rotation_from_quat_xyzw
-    from renderlab.imageio import read_exr
     from renderlab.pipeline import frame_specs, make_backend
     from renderlab.scenario import load_scenario
-    from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
-    from renderlab.truthset import AOV_CHANNELS, TruthSet
+    from renderlab.sensor.model import SensorOptions, expose, exposure_for_peak, with_exposure
     from renderlab.worlds.analytic import build_scene
 
     seed = 3
@@ -194,7 +194,7 @@ def test_truthset_round_trip_matches_backend(sets):
 def test_scalar_fallback_when_llvm_is_missing(tmp_path):
     """DRJIT_LIBLLVM_PATH → a missing file: Dr.Jit cannot start its LLVM backend, so init_mitsuba falls
     back to scalar_rgb with a RuntimeWarning; the render still succeeds and agrees with LLVM."""
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     centre = ["--set", "render.pixel_filter=center", "--seed", "5"]
     env = {**os.environ, "DRJIT_LIBLLVM_PATH": "/nonexistent/libLLVM.so"}

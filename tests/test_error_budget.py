@@ -155,7 +155,7 @@ def test_sensor_noise_switch_gives_the_mean_of_the_noisy_exposures():
 
     from renderlab.campaign.perturb import draw_perturbation
     from renderlab.scenario.campaign import PerturbationConfig
-    from renderlab.sensor import SensorOptions
+    from renderlab.sensor.model import SensorOptions
     from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
 
     @dataclass

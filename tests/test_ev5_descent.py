@@ -11,7 +11,7 @@ import pytest
 from scipy.interpolate import RegularGridInterpolator
 from scipy.spatial.transform import Rotation
 
-from renderlab.imageio import read_exr
+from renderlab.files.imageio import read_exr
 
 SCENARIO = {
     "name": "ev5_test",

@@ -231,7 +231,7 @@ def test_same_seed_same_world_other_seed_differs(model):
 
 
 def test_catalog_round_trip_and_errors(model, tmp_path):
-    from renderlab.truthset import TruthSetWriter
+    from renderlab.files.truthset import TruthSetWriter
     from renderlab.worlds.ev5.catalog import read_catalog, write_catalog
 
     out = tmp_path / "set"

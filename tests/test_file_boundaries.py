@@ -114,7 +114,7 @@ def test_png_header_checked_before_decoding(tmp_path, monkeypatch):
     """A 200-byte PNG claiming 60000 × 60000 px is refused from its IHDR; cv2.imdecode is never reached."""
     import cv2
 
-    from renderlab.imageio import read_dn_png
+    from renderlab.files.imageio import read_dn_png
 
     (tmp_path / "b.png").write_bytes(png_header(60000, 60000))
     monkeypatch.setattr(cv2, "imdecode", lambda *a: pytest.fail("decoded"))
@@ -128,8 +128,8 @@ def test_truth_frame_sizes_against_the_camera(made, tmp_path, monkeypatch):
 
     import cv2
 
-    from renderlab.imageio import read_exr, write_exr
-    from renderlab.truthset import TruthSet
+    from renderlab.files.imageio import read_exr, write_exr
+    from renderlab.files.truthset import TruthSet
 
     ts_dir = tmp_path / "ts"
     shutil.copytree(made / "ts", ts_dir)
@@ -153,7 +153,7 @@ def test_strings_are_not_numbers():
 
     from pydantic import ValidationError
 
-    from renderlab.config_types import Strict
+    from renderlab.contracts.config_types import Strict
 
     class M(Strict):
         n: int = 1

@@ -62,7 +62,7 @@ def _same_as_truthset(frame, ts, k):
 def test_frame_equals_renderlab_render_byte_for_byte(tmp_path):
     """Every frame of the analytic scene from the API equals the truth set the command line wrote."""
     from renderlab import Renderer
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     _cli_render(ANALYTIC, tmp_path / "ts", SMALL)
     ts = TruthSet.open(tmp_path / "ts")
@@ -78,7 +78,7 @@ def test_frame_equals_renderlab_render_byte_for_byte(tmp_path):
 def test_ev5_frame_and_truth_rows_equal_the_truth_set(tmp_path, monkeypatch):
     """Tiled EV5 world: the frames and the landmark truth rows in memory equal the truth set's files."""
     from renderlab import Renderer
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     monkeypatch.setenv("RENDERLAB_CACHE", str(tmp_path / "cache"))
     scen = tmp_path / "ev5.toml"
@@ -181,7 +181,7 @@ def test_auto_exposure_per_frame_and_saturation_recorded():
     """sensor.auto_exposure = "per_frame": each frame's exposure is exposure_for_peak of its own radiance (the former
     code documented this and silently kept frame 0's), and each record counts its saturated pixels."""
     from renderlab import Renderer
-    from renderlab.sensor import exposure_for_peak
+    from renderlab.sensor.model import exposure_for_peak
 
     with Renderer(ANALYTIC, overrides=SMALL + ["trajectory.azimuth_end_deg=120",
                                                'sensor.auto_exposure="per_frame"']) as r:
@@ -210,8 +210,8 @@ def test_a_world_whose_scene_follows_the_planned_pose_refuses_a_moved_camera():
 def test_default_auto_exposure_keeps_the_first_frames_exposure(tmp_path):
     """sensor.auto_exposure = true (documented now as it behaves): every frame of a truth set gets frame 0's."""
     from renderlab import Renderer
-    from renderlab.sensor import exposure_for_peak
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
+    from renderlab.sensor.model import exposure_for_peak
 
     sets = SMALL + ["trajectory.azimuth_end_deg=120"]
     _cli_render(ANALYTIC, tmp_path / "ts", sets)

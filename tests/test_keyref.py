@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import re
 
-from renderlab import keyref
+from renderlab.scenario import keyref
 
 #: key-name endings that are a unit: such a key's description must end with its unit in brackets
 UNIT_SUFFIXES = ("_m", "_km", "_deg", "_s", "_px", "_mps", "_m2", "_hz", "_h", "_arcsec", "_mrad", "_frac",

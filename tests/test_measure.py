@@ -18,7 +18,7 @@ def truthset(tmp_path_factory):
     from scipy.spatial.transform import Rotation
 
     from estimators.retina import CameraPoseEstimate, project_point
-    from renderlab.truthset import TruthSetWriter
+    from renderlab.files.truthset import TruthSetWriter
 
     dem = terrain_dem()
     maplets = make_maplets(dem)
@@ -52,8 +52,8 @@ def truthset(tmp_path_factory):
 
 
 def _measure(path, maplets, method, seed, **kw):
+    from renderlab.files.truthset import TruthSet
     from renderlab.measurement.runner import MeasureOptions, measure_truthset
-    from renderlab.truthset import TruthSet
 
     opts = MeasureOptions(sigma_pos_m=(0.2, 0.2, 0.2), sigma_att_rad=(1e-3,) * 3, campaign="t", **kw)
     return measure_truthset(TruthSet.open(path), maplets, method, opts, np.random.default_rng(seed)).to_pydict()
@@ -102,7 +102,7 @@ def test_search_distance_is_n_sigma_of_the_projected_apriori_covariance(truthset
     from scipy.spatial.transform import Rotation
 
     from estimators.retina import CameraPoseEstimate, pixel_covariance
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     path, maplets = truthset
     ts = TruthSet.open(path)

@@ -53,9 +53,9 @@ def select_well_measurable(truth: dict, sizes: dict) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def ev5_set(tmp_path_factory):
+    from renderlab.files.truthset import TruthSet
     from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
     path = render_truthset(scenario_from_dict(copy.deepcopy(SCENARIO)), ".",

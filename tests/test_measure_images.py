@@ -18,7 +18,7 @@ SHIFT = (2, 1)  # imposed (sample, line) shift, px
 def _write_inputs(tmp_path, ts_path, shift=(0, 0), fmt="png", name="img"):
     import cv2
 
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     ts = TruthSet.open(ts_path)
     dn = ts.load(0).dn.astype(np.uint16)
@@ -66,7 +66,7 @@ def test_imposed_shift_is_measured(truthset, tmp_path, capsys, method):  # noqa:
     np.testing.assert_allclose(ds, SHIFT[0], atol=0.05)
     np.testing.assert_allclose(dl, SHIFT[1], atol=0.05)
     # the unshifted image measured at its true pose lands on the truth table of the set it came from
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     t = TruthSet.open(path).read_table("landmark_truth").to_pydict()
     truth = {i: (s, l) for f, i, s, l in zip(t["frame"], t["landmark_id"], t["s"], t["l"]) if f == 0}

@@ -30,8 +30,8 @@ SETS = ["trajectory.frames=8", "trajectory.dt_s=4.0", "trajectory.v0_lvlh_mps=[0
 
 @pytest.fixture(scope="module")
 def rendered(tmp_path_factory, repo):
+    from renderlab.files.truthset import TruthSet
     from renderlab.pipeline import render_truthset
-    from renderlab.truthset import TruthSet
 
     sc, base = load_scenario(repo / "scenes" / "unknown_satellite.toml", SETS)
     out = render_truthset(sc, base, tmp_path_factory.mktemp("ms") / "ts", progress=False)

@@ -114,7 +114,7 @@ _CHECK = """
 import json, sys
 from renderlab.report.truth_checks import check_frame
 from renderlab.scenario import load_scenario
-from renderlab.truthset import TruthSet
+from renderlab.files.truthset import TruthSet
 from renderlab.builtin import scene_path
 scenario, _ = load_scenario(scene_path("analytic_sphere_box.toml"))
 ts = TruthSet.open(sys.argv[1])

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from pydantic import Field
 
-from renderlab.config_types import Positive, Strict
+from renderlab.contracts.config_types import Positive, Strict
 
 
 class MoonWorld(Strict):
@@ -54,9 +54,9 @@ SCENE = {"name": "moon_test", "world": {"kind": "moon", "radius_m": 2.0, "albedo
 
 
 def test_plugin_world_validates_and_renders(moon, tmp_path):
+    from renderlab.files.truthset import TruthSet
     from renderlab.pipeline import render_truthset
     from renderlab.scenario import scenario_from_dict
-    from renderlab.truthset import TruthSet
 
     sc = scenario_from_dict(SCENE, "moon scenario")
     assert sc.world.kind == "moon" and isinstance(sc.world, MoonWorld)

@@ -162,7 +162,7 @@ def test_3_cost_model_refuses_with_the_estimate(capsys, lab, argv, needle):
 
 
 def test_3_allow_large_lifts_the_limits(capsys, lab, monkeypatch):
-    from renderlab import cost
+    from renderlab.commands import cost
 
     monkeypatch.setitem(cost.LIMITS, "samples", 10)
     argv = ["render", str(SCENE), "--out", "o", "--quiet", *TINY]

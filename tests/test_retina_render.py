@@ -95,7 +95,7 @@ def render_dn(dem, pose, camera=CAMERA, seed: int = 0, spp: int = 4):
     from renderlab.dynamics.camera_paths import CameraPose
     from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.render.scene import FrameSpec, RenderSettings, SceneDescription, SunSpec
-    from renderlab.sensor import SensorOptions, expose, exposure_for_peak, with_exposure
+    from renderlab.sensor.model import SensorOptions, expose, exposure_for_peak, with_exposure
 
     be = MitsubaBackend(SceneDescription(bodies=[terrain_body(dem)]), RenderSettings(spp=spp))
     cp = CameraPose(0.0, pose.position_m, Rotation.from_matrix(pose.R_body_from_cam))

@@ -63,7 +63,7 @@ def campaign(tmp_path_factory):
 
 def _sets(d: Path) -> dict:
     """{cache key: TruthSet} of the campaign's truth cache."""
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     root = d / "camp" / "work" / "truth_cache"
     return {p.name: TruthSet.open(p) for p in sorted(root.iterdir()) if (p / "manifest.json").is_file()}
@@ -179,9 +179,9 @@ def test_same_poses_give_byte_identical_files_and_nominal_poses_the_nominal_imag
     from renderlab.campaign.cache import cached_frames_truthset, cached_truthset
     from renderlab.campaign.perturb import draw_perturbation
     from renderlab.campaign.plan import run_seed_sequence
+    from renderlab.files.truthset import TruthSet
     from renderlab.scenario import load_scenario
     from renderlab.studies.retina_vs_spc.truth import perturbed_specs, run_truthset
-    from renderlab.truthset import TruthSet
 
     d, _, pert = campaign
     sc, base = load_scenario(d / "tiny.toml")

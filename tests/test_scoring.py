@@ -84,7 +84,7 @@ def test_crlb_closed_form_and_mle_reaches_it():
 
 
 def test_dn_variance_matches_sensor_simulation():
-    from renderlab.sensor import SensorOptions, expose
+    from renderlab.sensor.model import SensorOptions, expose
 
     opts = SensorOptions(bits=16, gain_e_per_dn=4.0, read_noise_e=12.0, full_well_e=1e6)
     rad = np.full((200, 200), 20.0)

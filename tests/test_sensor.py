@@ -1,4 +1,4 @@
-"""Tests for renderlab.sensor: radiometry, noise statistics, clipping, seeding, validation."""
+"""Tests for renderlab.sensor.model: radiometry, noise statistics, clipping, seeding, validation."""
 
 import dataclasses
 import math
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from renderlab import sensor
 from renderlab.errors import UserError
-from renderlab.sensor import SensorOptions, expected_dn, expose, exposure_for_peak, mean_electrons
+from renderlab.sensor import model as sensor
+from renderlab.sensor.model import SensorOptions, expected_dn, expose, exposure_for_peak, mean_electrons
 
 REPO = Path(__file__).resolve().parents[1]
 

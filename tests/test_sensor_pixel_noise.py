@@ -1,4 +1,4 @@
-"""Per-pixel counter-based sensor noise (renderlab.sensor_noise): locality, the generator against published
+"""Per-pixel counter-based sensor noise (renderlab.sensor.noise): locality, the generator against published
 test vectors and numpy's own Philox, the Poisson and Normal samplers against scipy, seeding, and the former
 sequential stream kept bit for bit."""
 
@@ -11,8 +11,8 @@ import pytest
 from scipy import stats
 
 from renderlab.errors import UserError
-from renderlab.sensor import SensorOptions, expose, mean_electrons
-from renderlab.sensor_noise import frame_key, per_pixel_electrons, philox4x64
+from renderlab.sensor.model import SensorOptions, expose, mean_electrons
+from renderlab.sensor.noise import frame_key, per_pixel_electrons, philox4x64
 
 REPO = Path(__file__).resolve().parents[1]
 M64 = 2 ** 64 - 1
@@ -253,7 +253,7 @@ def test_parallel_kernel_does_not_depend_on_the_thread_count():
     """Pixels are drawn in parallel (numba prange): one thread and every thread give the same bytes."""
     import numba
 
-    from renderlab.sensor_noise import per_pixel_electrons
+    from renderlab.sensor.noise import per_pixel_electrons
 
     mu = np.random.default_rng(3).gamma(2.0, 40.0, (96, 80))
     mu[::7, ::5] = 3e5  # PTRS pixels beside inversion ones

@@ -133,8 +133,8 @@ def test_shadows_false_needs_direct_sunlight():
 
 def test_truth_cache_never_reuses_a_shadowed_render_for_shadow_free_truth(tmp_path):
     from renderlab.campaign.cache import cached_truthset
+    from renderlab.files.truthset import TruthSet
     from renderlab.scenario import scenario_from_dict
-    from renderlab.truthset import TruthSet
 
     paths = {}
     for shadows in (True, False, True):
@@ -178,9 +178,9 @@ def test_truth_cache_keeps_renders_of_another_ray_path_or_integrator_apart(tmp_p
     """A truth set rendered with ``ray_path = "drjit_grid"`` (``$RENDERLAB_MITSUBA_RAYS``) or ``integrator =
     "path"`` is its own cache entry: never served for the default path, and the default's entry is still a hit."""
     from renderlab.campaign.cache import cached_truthset
+    from renderlab.files.truthset import TruthSet
     from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.scenario import scenario_from_dict
-    from renderlab.truthset import TruthSet
 
     sc = scenario_from_dict(scenario_dict(render={"spp": 2, "pixel_filter": "box", "seed": 1,
                                                   "near_clip_m": 0.01, "far_clip_m": 1000.0}))

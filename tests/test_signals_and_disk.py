@@ -156,7 +156,7 @@ def test_a_signal_during_mitsuba_start_up_is_not_reported_as_an_llvm_problem(mon
     ends the command as a signal: no LLVM advice, no fallback to another variant."""
     import mitsuba as mi
 
-    from renderlab import signals
+    from renderlab.files import signals
     from renderlab.render import variant
 
     def boom(name):

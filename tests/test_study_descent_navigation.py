@@ -81,10 +81,10 @@ def _project(p_body, pos, R_body_from_cam, cam):
 
 
 def test_truth_trajectory_is_the_rendered_one(campaign):
+    from renderlab.files.truthset import TruthSet
     from renderlab.scenario import load_scenario
     from renderlab.studies.descent_navigation.run import section
     from renderlab.studies.descent_navigation.truth import true_descent
-    from renderlab.truthset import TruthSet
 
     d, _, _, ts_dir = campaign
     sc, _ = load_scenario(d / "tiny.toml")

@@ -61,7 +61,7 @@ def campaign(tmp_path_factory):
 
 
 def _truth_set(d: Path):
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     sets = [p for p in (d / "camp" / "work" / "truth_cache").iterdir() if (p / "manifest.json").is_file()]
     assert len(sets) == 1, "one truth render serves every run"
@@ -128,7 +128,7 @@ def test_prediction_uses_believed_camera_and_apriori_pose_opencv(campaign):
 def test_spacing_knowledge_scales_gsd_ratio_and_noise_is_redrawn(campaign):
     from renderlab.campaign.perturb import PerturbationDraw
     from renderlab.scenario import load_scenario
-    from renderlab.sensor import SensorOptions, expected_dn
+    from renderlab.sensor.model import SensorOptions, expected_dn
     from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
 
     d, meas, pert = campaign

@@ -24,8 +24,8 @@ import pytest
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from renderlab.imageio import read_dn_png, write_dn_png, write_dn_preview, write_exr
-from renderlab.truthset import TruthSet, TruthSetWriter
+from renderlab.files.imageio import read_dn_png, write_dn_png, write_dn_preview, write_exr
+from renderlab.files.truthset import TruthSet, TruthSetWriter
 
 H, W = 12, 16
 CAM = {"width": W, "height": H, "fx": 20.0, "fy": 18.0, "cx": 7.25, "cy": 5.5, "skew": 0.0,

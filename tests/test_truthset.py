@@ -1,4 +1,4 @@
-"""Tests for renderlab.truthset: EXR/PNG I/O, atomic truth-set writing, reading, errors."""
+"""Tests for renderlab.files.truthset: EXR/PNG I/O, atomic truth-set writing, reading, errors."""
 
 import json
 import os
@@ -8,9 +8,9 @@ import OpenEXR
 import pyarrow as pa
 import pytest
 
-from renderlab import truthset
 from renderlab.errors import UserError
-from renderlab.truthset import (
+from renderlab.files import truthset
+from renderlab.files.truthset import (
     FORMAT,
     TruthFrame,
     TruthSet,

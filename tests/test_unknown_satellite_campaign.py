@@ -142,9 +142,9 @@ def test_bad_study_input_is_a_user_error(repo, tmp_path):
 
 def test_geometric_visibility_matches_rendered_occlusion(campaign, repo):
     """Line of sight to each knob blocked by the bus/panels (box test) vs the id AOV of the real render."""
+    from renderlab.files.truthset import TruthSet
     from renderlab.geometry.camera import CameraModel
     from renderlab.studies.unknown_satellite.observability import visibility
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.microsat.model import build_parts
     from renderlab.worlds.microsat.plan import separation_truth
 

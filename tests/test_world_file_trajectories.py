@@ -190,7 +190,7 @@ def test_plugin_world_that_declares_file_trajectories_flies_one(tmp_path):
     from typing import Literal
 
     from renderlab import plugins
-    from renderlab.config_types import Strict
+    from renderlab.contracts.config_types import Strict
     from renderlab.contracts.world import WorldKind
     from renderlab.errors import UserError
     from renderlab.scenario import load_scenario

@@ -108,14 +108,15 @@ def predicted_errors(camera, pose, centres: np.ndarray, dz: np.ndarray, n_up: np
 
 def probe_geometry(scenario_path: Path, ts_dir: Path, frames: list[int]) -> list[str]:
     """Per image: the mean offsets and the scale eq. G1 predicts from each (module docstring)."""
+    from scipy.spatial.transform import Rotation
+
     from renderlab.contracts.landmark import CameraPose
+    from renderlab.files.truthset import TruthSet
     from renderlab.measurement.runner import _frame_record
     from renderlab.scenario import load_scenario
     from renderlab.studies.descent_navigation.run import section
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5 import build_model
     from renderlab.worlds.ev5.catalog import read_catalog
-    from scipy.spatial.transform import Rotation
 
     sc, _ = load_scenario(scenario_path)
     lo, hi = section(sc).gsd_ratio_range
@@ -208,10 +209,15 @@ def probe_fresh(scenario_path: Path, ts_dir: Path, frames: list[int], method: st
     docstring), with its bootstrap 95 % interval, beside that of the catalogue's landmarks of the tier."""
     from renderlab.contracts.landmark import CameraPose
     from renderlab.errors import UserError
-    from renderlab.measurement.runner import (MeasureOptions, _frame_record, make_method, onboard_photometry,
-                                              run_method_on_image)
+    from renderlab.files.truthset import TruthSet
+    from renderlab.measurement.runner import (
+        MeasureOptions,
+        _frame_record,
+        make_method,
+        onboard_photometry,
+        run_method_on_image,
+    )
     from renderlab.scenario import load_scenario
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5 import build_model
     from renderlab.worlds.ev5.catalog import read_catalog
 

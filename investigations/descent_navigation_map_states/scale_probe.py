@@ -56,11 +56,16 @@ def in_view(camera, pose, centres: np.ndarray, spacing: np.ndarray, lo: float, h
 def probe(scenario_path: Path, ts_dir: Path, method: str, frames: list[int], kept: dict | None = None) -> list[str]:
     from renderlab.campaign.maplets import respaced_maplets
     from renderlab.contracts.landmark import CameraPose
-    from renderlab.measurement.runner import (MeasureOptions, _frame_record, make_method, onboard_photometry,
-                                              run_method_on_image)
+    from renderlab.files.truthset import TruthSet
+    from renderlab.measurement.runner import (
+        MeasureOptions,
+        _frame_record,
+        make_method,
+        onboard_photometry,
+        run_method_on_image,
+    )
     from renderlab.scenario import load_scenario
     from renderlab.studies.descent_navigation.run import section
-    from renderlab.truthset import TruthSet
     from renderlab.worlds.ev5.catalog import read_catalog
 
     sc, _ = load_scenario(scenario_path)

@@ -35,8 +35,8 @@ def main(truthset: str, out: Path = RESULT) -> None:
     import pyarrow.parquet as pq
     from scipy.spatial.transform import Rotation
 
+    from renderlab.files.imageio import read_dn_png
     from renderlab.geometry.camera import CameraModel
-    from renderlab.imageio import read_dn_png
     from renderlab.worlds.ev5.catalog import read_catalog
 
     root = Path(truthset)

@@ -7,7 +7,7 @@ canonical JSON plus the truth-set format and a fingerprint of the code that make
 modules, and the installed Mitsuba/Dr.Jit/bpy versions), so a render cached by older truth code is never
 reused after that code changes, and the content hashes of the files it references (albedo maps, meshes,
 shape models: a changed file is a new key even under the same name); the set lives in ``<cache_root>/<key>/`` and is written
-atomically by :class:`renderlab.truthset.TruthSetWriter`, so concurrent workers rendering the same key
+atomically by :class:`renderlab.files.truthset.TruthSetWriter`, so concurrent workers rendering the same key
 both end with one complete set.
 
 Runs whose *true* poses differ (truth trajectory/pointing perturbations) render their own frames:
@@ -30,15 +30,16 @@ from importlib import metadata
 from pathlib import Path
 
 from renderlab.errors import UserError
+from renderlab.files.truthset import FORMAT
 from renderlab.geometry.rotations import quat_xyzw
 from renderlab.inputs import LIMITS, sha256
 from renderlab.pipeline import render_truthset, write_frames
 from renderlab.pipeline.frame_api import Renderer
 from renderlab.render.mitsuba_backend import MitsubaBackend
-from renderlab.truthset import FORMAT
 
 _TRUTH_PACKAGES = ("render", "worlds", "geometry", "dynamics", "scenario", "pipeline")
-_TRUTH_MODULES = ("sensor.py", "sensor_noise.py", "photometry.py", "truthset.py", "imageio.py", "config_types.py")
+_TRUTH_MODULES = ("sensor/model.py", "sensor/noise.py", "photometry.py", "files/truthset.py", "files/imageio.py",
+                  "contracts/config_types.py")
 _RENDERER_DISTS = ("mitsuba", "drjit", "bpy")
 
 

@@ -2,8 +2,8 @@
 
 A truth set's DN images hold the noise realisation of its render, which every run sharing the render (the
 truth cache, :mod:`renderlab.campaign.cache`) would otherwise see. A study that wants noise statistics over
-independent realisations re-exposes the frame's radiance (:func:`renderlab.sensor.expose`: Poisson + read
-noise) with the run's :class:`~renderlab.sensor.SensorOptions` — the exposure time taken from the frame's
+independent realisations re-exposes the frame's radiance (:func:`renderlab.sensor.model.expose`: Poisson + read
+noise) with the run's :class:`~renderlab.sensor.model.SensorOptions` — the exposure time taken from the frame's
 manifest record, as auto-exposure chose it at render time — and one seed per frame, drawn by
 ``numpy.random.default_rng(seed)`` (an int or a :class:`numpy.random.SeedSequence`), so a run replays alone.
 """
@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from renderlab.errors import UserError
-from renderlab.sensor import expose
+from renderlab.sensor.model import expose
 
 __all__ = ["ReexposedTruthSet", "frame_sensor_options", "reexposed_dn"]
 
@@ -43,14 +43,14 @@ def reexposed_dn(ts, i: int, sensor_options, seed, *, frame=None, rgb_fallback: 
     Parameters
     ----------
     ts
-        A truth set (``path``, ``frames``, ``load``), e.g. :class:`renderlab.truthset.TruthSet`.
+        A truth set (``path``, ``frames``, ``load``), e.g. :class:`renderlab.files.truthset.TruthSet`.
     i : int
         Frame position in ``ts.frames``.
-    sensor_options : renderlab.sensor.SensorOptions
+    sensor_options : renderlab.sensor.model.SensorOptions
         The run's sensor; its exposure time is replaced by the frame's recorded one.
     seed : int or numpy.random.SeedSequence
         Seed of the frame's noise generator.
-    frame : renderlab.truthset.TruthFrame, optional
+    frame : renderlab.files.truthset.TruthFrame, optional
         Frame ``i`` already loaded (default: ``ts.load(i)``).
     rgb_fallback : bool
         Re-expose the mean of the RGB channels of a frame without radiance (default: refuse it).
@@ -78,8 +78,8 @@ class ReexposedTruthSet:
     Parameters
     ----------
     ts
-        The cached truth set (:class:`renderlab.truthset.TruthSet` or the same interface).
-    sensor_options : renderlab.sensor.SensorOptions
+        The cached truth set (:class:`renderlab.files.truthset.TruthSet` or the same interface).
+    sensor_options : renderlab.sensor.model.SensorOptions
         The run's sensor.
     seeds : sequence of int or numpy.random.SeedSequence
         One noise seed per frame.

@@ -20,8 +20,8 @@ from renderlab.campaign import store
 from renderlab.campaign.executors import InProcessExecutor, execute_run, make_executor
 from renderlab.campaign.plan import make_plan
 from renderlab.errors import UserError
+from renderlab.files.signals import raise_pending, sweep_campaign
 from renderlab.scenario import load_scenario
-from renderlab.signals import raise_pending, sweep_campaign
 
 
 @dataclass(frozen=True)

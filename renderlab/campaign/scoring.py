@@ -30,24 +30,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from renderlab.contracts.schemas import table_kind as kind
-from renderlab.sensor import mean_electrons
+from renderlab.sensor.model import mean_electrons
 
 BREAKDOWNS = ("phase_deg", "gsd_ratio", "shadow_fraction", "albedo_contrast", "range_m")
 
 
 def table_kind(table) -> str:
-    """The registered observable kind of a table, or ``"other"`` (:func:`renderlab.contracts.schemas.table_kind`)."""
+    """``"landmark"``, ``"filter"``, ``"pose"`` or ``"other"`` (:func:`renderlab.contracts.schemas.table_kind`)."""
     return kind(table)
-
-
-def score_table(table, *, confidence: float = 0.95) -> list[dict]:
-    """Summary rows of a table by its registered kind's ``scorer(table, *, confidence)``
-    (:mod:`renderlab.contracts.observable`); ``[]`` for a table of no kind or of a kind without a scorer."""
-    from renderlab import plugins
-
-    name = kind(table)
-    scorer = None if name == "other" else plugins.observables.get(name).part("scorer")
-    return [] if scorer is None else list(scorer(table, confidence=confidence))
 
 
 # ------------------------------------------------------------------------------ statistics
@@ -174,7 +164,7 @@ def breakdown(table, column: str, bins: int = 4, confidence: float = 0.95) -> li
 
 # ----------------------------------------------------------------------------- CRLB
 def dn_variance(radiance: np.ndarray, options) -> np.ndarray:
-    """Per-pixel DN noise variance of :func:`renderlab.sensor.expose`: (μₑ + σ_read²)/g² + 1/12."""
+    """Per-pixel DN noise variance of :func:`renderlab.sensor.model.expose`: (μₑ + σ_read²)/g² + 1/12."""
     mu = np.minimum(mean_electrons(np.asarray(radiance, float), options), float(options.full_well_e))
     return (mu + float(options.read_noise_e) ** 2) / float(options.gain_e_per_dn) ** 2 + 1.0 / 12.0
 

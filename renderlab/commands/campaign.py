@@ -70,19 +70,19 @@ def add_parser(subparsers) -> None:
                         "zeroed there and kept in runs/NNNNNN/timings.parquet, so the same seed gives "
                         "byte-identical result tables")
     p.add_argument("--allow-large", action="store_true",
-                   help="run past the cost limits (pixels × spp × frames × runs, memory, disk; see renderlab.cost)")
+                   help="run past the cost limits (pixels × spp × frames × runs, memory, disk; see renderlab.commands.cost)")
     p.add_argument("--dry-run", action="store_true",
                    help="check the request and print what would be run (runs, frames, rays, disk), creating nothing")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run(args) -> int:
-    from renderlab import cost
     from renderlab.campaign.executors import check_scheduler_options, check_workers, make_executor
     from renderlab.campaign.plan import make_plan
     from renderlab.campaign.runner import run_campaign
+    from renderlab.commands import cost
+    from renderlab.commands.cost import load_checked
     from renderlab.commands.inputs import check_scenario_inputs
-    from renderlab.cost import load_checked
     from renderlab.plugins import register_cli_plugins
 
     check_workers(args.workers)

@@ -31,9 +31,9 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from renderlab import cost
+    from renderlab.commands import cost
+    from renderlab.commands.cost import load_checked
     from renderlab.commands.inputs import check_scenario_inputs
-    from renderlab.cost import load_checked
 
     scenario, base = load_checked(args.scenario, args.overrides)
     check_scenario_inputs(scenario, base)

@@ -4,7 +4,7 @@ The request is checked as the real run checks it (scenario, ``--set``, the campa
 frames, image size, samples per pixel, rays (pixels × spp × frames × runs), the EV5 body's global facets
 (``world.facet_m``) and site cells (``world.site.cell_m``), the disk per frame and in all, the memory of one run,
 and whether the request is within the cost limits. The numbers come from the cost model
-(:func:`renderlab.cost.estimate`, upper-side estimates). Nothing is created: no output folder, no staging
+(:func:`renderlab.commands.cost.estimate`, upper-side estimates). Nothing is created: no output folder, no staging
 folder, no cache.
 """
 
@@ -14,12 +14,12 @@ from pathlib import Path
 
 from renderlab.errors import UserError
 
-#: radiance channels of a frame's EXR beside the AOVs (renderlab.truthset.AOV_CHANNELS)
+#: radiance channels of a frame's EXR beside the AOVs (renderlab.files.truthset.AOV_CHANNELS)
 _RADIANCE = {"mono": ("Y",), "rgb": ("R", "G", "B")}
 
 
 def _size(n: float) -> str:
-    from renderlab.cost import _size as size
+    from renderlab.commands.cost import _size as size
 
     return size(n)
 
@@ -31,7 +31,7 @@ def _line(label: str, text) -> str:
 def exr_channels(scenario, renderer: str | None = None) -> int:
     """Float channels of one frame's EXR: the radiance (``Y`` or ``R G B``) and the AOVs (position, normal,
     range, id)."""
-    from renderlab.truthset import AOV_CHANNELS
+    from renderlab.files.truthset import AOV_CHANNELS
 
     rgb = (renderer or scenario.render.renderer) == "mitsuba" and scenario.render.variant.endswith("_rgb")
     return len(_RADIANCE["rgb" if rgb else "mono"]) + len(AOV_CHANNELS)
@@ -63,20 +63,20 @@ def describe(scenario, est, *, renderer: str | None = None, runs: int = 1) -> li
 
 
 def _limits(est, out, allow_large: bool) -> str:
-    from renderlab import cost
+    from renderlab.commands import cost
 
     try:
         cost.check(est, out=Path(out) if out else None, allow_large=allow_large, what="the request")
     except UserError as err:
         return f"over: {str(err).removeprefix('the request is too large: ').split(' (estimate:')[0]}; " \
                "the real run is refused without --allow-large"
-    return "within the limits (renderlab.cost.LIMITS)" + (" (--allow-large)" if allow_large else "")
+    return "within the limits (renderlab.commands.cost.LIMITS)" + (" (--allow-large)" if allow_large else "")
 
 
 def render_dry_run(scenario, args) -> int:
     """Print what ``renderlab render`` would make (``args``: its parsed arguments); nothing is created."""
-    from renderlab import cost
-    from renderlab.truthset import TruthSetWriter
+    from renderlab.commands import cost
+    from renderlab.files.truthset import TruthSetWriter
 
     out = Path(args.out)
     TruthSetWriter(out, {}, overwrite=args.overwrite)  # the target checks of the real run; creates nothing
@@ -113,7 +113,7 @@ def _finished_before(out: Path, plan, resume: bool) -> int:
 
 def campaign_dry_run(scenario, plan, args) -> int:
     """Print what ``renderlab campaign`` would run (``plan``: the validated plan); nothing is created."""
-    from renderlab import cost
+    from renderlab.commands import cost
 
     out = Path(args.out)
     done = _finished_before(out, plan, args.resume)

@@ -54,11 +54,11 @@ def _check_outputs(outs: list, overwrite: bool) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from renderlab.cost import check_path
+    from renderlab.commands.cost import check_path
     from renderlab.errors import UserError
+    from renderlab.files.truthset import TruthSet
     from renderlab.inputs import epoch_text
     from renderlab.trajectory_io.export import export_truthset, kvn_text
-    from renderlab.truthset import TruthSet
 
     if not args.oem and not args.aem and not args.apriori:
         raise UserError("give --oem FILE, --aem FILE and/or --apriori FILE")

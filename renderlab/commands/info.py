@@ -86,7 +86,7 @@ def _line(label: str, text) -> str:
 
 def truthset_lines(path: Path) -> list[str]:
     """The description of truth set ``path``."""
-    from renderlab.truthset import TruthSet
+    from renderlab.files.truthset import TruthSet
 
     ts = TruthSet.open(path)
     m, sc = ts.manifest, ts.manifest.get("scenario") or {}
@@ -190,7 +190,7 @@ def headline_lines(summary: Path) -> list[str]:
 
 
 def run(args) -> int:
-    from renderlab.cost import check_path
+    from renderlab.commands.cost import check_path
 
     path = check_path(args.path, "PATH")
     kind = folder_kind(path)

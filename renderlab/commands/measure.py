@@ -83,8 +83,8 @@ def run(args) -> int:
     import numpy as np
 
     from renderlab.errors import UserError
+    from renderlab.files.truthset import TruthSet
     from renderlab.measurement.runner import MeasureOptions, make_method, measure_truthset, write_table
-    from renderlab.truthset import TruthSet
 
     if args.seed < 0:
         raise UserError(f"--seed must be >= 0, got {args.seed}")

@@ -1,7 +1,7 @@
 """``renderlab show SCENARIO [--set KEY=VALUE ...]``: the resolved, validated scenario as TOML.
 
 SCENARIO is a file or a built-in name (``renderlab scenes``). The scenario is read, overridden and validated as
-``renderlab render`` does (:func:`renderlab.cost.load_checked`), then printed: keys the file, a ``--set`` or the
+``renderlab render`` does (:func:`renderlab.commands.cost.load_checked`), then printed: keys the file, a ``--set`` or the
 loader gave (``camera.fov_deg`` and ``camera.calibration_file`` become ``fx, fy, cx, cy``) as keys; keys left at
 their default commented out (``# key = value``), as are the tables that were left out. Uncommented, a default reads
 the same; left commented, validators that care which keys were given (``trajectory.target_m`` only with
@@ -72,14 +72,14 @@ def _is_table_array(v: Any) -> bool:
 
 
 def _header(path: tuple[str, ...]) -> str:
-    from renderlab.keyref import toml_key
+    from renderlab.scenario.keyref import toml_key
 
     return ".".join(toml_key(p) for p in path)
 
 
 def _emit(d: dict, path: tuple[str, ...], lines: list[str], comment: bool) -> None:
     """Write the keys of table ``d`` (at ``path``), then its sub-tables and arrays of tables."""
-    from renderlab.keyref import toml_key, toml_value
+    from renderlab.scenario.keyref import toml_key, toml_value
 
     later = []
     for key, v in d.items():
@@ -118,8 +118,8 @@ def scenario_toml(scenario, *, defaults: bool = True, header: list[str] = ()) ->
 
 def run(args) -> int:
     from renderlab import __version__
+    from renderlab.commands.cost import load_checked
     from renderlab.commands.scenes import scenario_file
-    from renderlab.cost import load_checked
 
     path = scenario_file(args.scenario)
     scenario, base = load_checked(path, args.overrides)

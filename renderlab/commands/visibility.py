@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--cloud-cover", type=float, default=0.0, help="cloud cover fraction in [0, 1)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="seed of the cloud field (with --cloud-cover)")
     p.add_argument("--allow-large", action="store_true",
-                   help="run past the cost limit (images per track × inclinations × FOVs; see renderlab.cost)")
+                   help="run past the cost limit (images per track × inclinations × FOVs; see renderlab.commands.cost)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -39,7 +39,7 @@ def _check(args) -> tuple[list[float], list[float]]:
     """Every argument, before anything is read or created (numbers finite, ranges, the sweep's cost)."""
     import math
 
-    from renderlab import cost
+    from renderlab.commands import cost
     from renderlab.worlds.earth import wgs84
 
     incs, fovs = _floats(args.inclinations), _floats(args.fovs)

@@ -15,9 +15,9 @@ from renderlab.crosscheck.figures import figure as draw
 from renderlab.crosscheck.figures import markdown_table as table
 from renderlab.errors import UserError
 from renderlab.extras import require
+from renderlab.files.truthset import TruthSet
 from renderlab.pipeline import render_truthset
 from renderlab.render.ray_oracle import consistent, oracle_scene, pixel_truth
-from renderlab.truthset import TruthSet
 from renderlab.worlds.base import make_plan
 
 ORACLE_K = 16  # oracle sub-samples per pixel side

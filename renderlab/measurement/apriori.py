@@ -27,14 +27,14 @@ import numpy as np
 import pydantic
 from pydantic import Field, model_validator
 
-from renderlab import keyref
-from renderlab.config_types import Finite, NonNegative, Positive, Strict, Vec3
+from renderlab.contracts.config_types import Finite, NonNegative, Positive, Strict, Vec3
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.geometry.calibration import read_calibration
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import rotation_from_quat_xyzw
 from renderlab.measurement.runner import MeasureOptions, draw_apriori
-from renderlab.truthset import TruthSet
+from renderlab.scenario import keyref
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "apriori_file.md"
 REGENERATE = "python -m renderlab.measurement.apriori"

@@ -311,7 +311,7 @@ def _measure_one_frame(ts, i: int, maplets: list, ctx: _RunContext, rng: np.rand
 def measure_truthset(ts, maplets: list, method, options: MeasureOptions = MeasureOptions(),
                      rng: np.random.Generator | None = None, progress: bool = False, *,
                      allow_reference: bool = False):
-    """Measure every landmark of every frame of an open :class:`~renderlab.truthset.TruthSet`.
+    """Measure every landmark of every frame of an open :class:`~renderlab.files.truthset.TruthSet`.
 
     Parameters
     ----------

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSetWriter
 from renderlab.pipeline.backend import make_backend  # noqa: F401  (re-exported)
 from renderlab.scenario import Scenario
-from renderlab.truthset import TruthSetWriter
 from renderlab.worlds.base import frame_specs  # noqa: F401  (re-exported)
 
 
@@ -119,7 +119,7 @@ def _contact_sheet_png(writer) -> bytes:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from renderlab.imageio import read_dn_png
+    from renderlab.files.imageio import read_dn_png
 
     frames = writer.manifest()["frames"]
     pick = np.unique(np.linspace(0, len(frames) - 1, min(16, len(frames))).round().astype(int))

@@ -22,11 +22,11 @@ tangent tile per footprint) declares ``scene_follows_pose`` and refuses a moved 
 
 **Seeds.** Frame ``index`` uses the ``index``-th child of the scenario's ``render.seed`` (as ``renderlab render``
 spawns them), split into the sample pattern and the sensor noise; ``seed=`` gives another root. The sensor noise
-is keyed per pixel (:mod:`renderlab.sensor`), so two frames that differ in a few radiance pixels differ in those DN.
+is keyed per pixel (:mod:`renderlab.sensor.model`), so two frames that differ in a few radiance pixels differ in those DN.
 
 **Exposure.** With ``sensor.auto_exposure = true`` the exposure time is chosen on the first frame with DN (of a
 truth set, or since this renderer was made or :meth:`Renderer.reset_exposure`) and kept, like a camera whose
-exposure is set once per sequence (:func:`renderlab.sensor.exposure_for_peak`: a high percentile of the mean charge
+exposure is set once per sequence (:func:`renderlab.sensor.model.exposure_for_peak`: a high percentile of the mean charge
 at ``auto_exposure_fraction`` of full scale); ``"per_frame"`` chooses it for every frame from its own radiance;
 ``false`` uses ``sensor.exposure_s``; ``exposure_s=`` fixes it for one frame. Every frame's record carries its exposure
 and its count of saturated pixels (``sensor.saturated_px``), and a truth set warns about frames over 1 % saturated.
@@ -135,7 +135,7 @@ class Renderer:
 
     def __init__(self, scenario, base_dir=None, *, overrides=(), seed=None, renderer: str | None = None):
         from renderlab import plugins
-        from renderlab.sensor import SensorOptions
+        from renderlab.sensor.model import SensorOptions
         from renderlab.worlds.base import make_plan
 
         self.scenario, self.base_dir = _load(scenario, base_dir, overrides, seed)
@@ -231,8 +231,8 @@ class Renderer:
     def render_spec(self, spec: FrameSpec, seed: np.random.SeedSequence, *, outputs=OUTPUTS,
                     spp: int | None = None, exposure_s: float | None = None) -> Frame:
         """Render one frame spec with its seed (the loop every truth set goes through)."""
-        from renderlab.sensor import exposure_for_peak, expose, with_exposure
-        from renderlab.signals import raise_pending
+        from renderlab.sensor.model import exposure_for_peak, expose, with_exposure
+        from renderlab.files.signals import raise_pending
 
         raise_pending()  # a signal whose raise the garbage collector swallowed ends the loop here
         backend, scene = self.backend_for(spec)

@@ -105,7 +105,7 @@ def init_mitsuba(variant: str = "llvm_ad_mono"):
         try:
             mi.set_variant(candidate)
         except Exception as exc:  # the CUDA/LLVM backend is missing or broken on this machine
-            from renderlab.signals import raise_pending
+            from renderlab.files.signals import raise_pending
 
             raise_pending()  # a SIGTERM/SIGINT raised inside Mitsuba's start-up comes back as an error: end, no advice
             errors.append(f"{candidate}: {_why(candidate, exc)}")

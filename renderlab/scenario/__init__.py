@@ -25,7 +25,7 @@ from renderlab.scenario.camera import CameraConfig, resolve_camera
 from renderlab.scenario.campaign import CampaignConfig, PerturbationConfig
 from renderlab.scenario.sun import SunConfig
 from renderlab.scenario.trajectory import SOURCE_KINDS, SourceTrajectoryConfig, TrajectoryConfig
-from renderlab.config_types import Finite, Positive, Strict as _Strict, Vec3
+from renderlab.contracts.config_types import Finite, Positive, Strict as _Strict, Vec3
 from renderlab.errors import UserError
 from renderlab.worlds.earth.config import EarthWorld, LEOTrajectory
 from renderlab.worlds.ev5.config import EV5DescentTrajectory, EV5World
@@ -125,7 +125,7 @@ class RenderConfig(_Strict):
 
 
 class SensorConfig(_Strict):
-    """Sensor settings; keys other than ``auto_exposure`` are :class:`renderlab.sensor.SensorOptions` fields."""
+    """Sensor settings; keys other than ``auto_exposure`` are :class:`renderlab.sensor.model.SensorOptions` fields."""
 
     model_config = ConfigDict(extra="allow", allow_inf_nan=False)
     auto_exposure: bool | Literal["per_frame"] = Field(True, description="Exposure chosen so the brightest pixels "
@@ -139,7 +139,7 @@ class SensorConfig(_Strict):
 
     @model_validator(mode="after")
     def _known_fields(self):
-        from renderlab.sensor import SensorOptions  # light: numpy/scipy only
+        from renderlab.sensor.model import SensorOptions  # light: numpy/scipy only
 
         extra = self.options_dict()
         known = set(SensorOptions.__dataclass_fields__)
@@ -202,7 +202,7 @@ class Scenario(_Strict):
     sun: SunConfig = Field(SunConfig(), description="The sun, a directional source ([sun])")
     camera: CameraConfig = Field(CameraConfig(), description="The camera model ([camera])")
     trajectory: Trajectory = Field(TrajectoryConfig(), description="The camera path ([trajectory]) with its kind")
-    sensor: SensorConfig = Field(SensorConfig(), description="The sensor ([sensor]; renderlab.sensor.SensorOptions "
+    sensor: SensorConfig = Field(SensorConfig(), description="The sensor ([sensor]; renderlab.sensor.model.SensorOptions "
                                  "keys)")
     render: RenderConfig = Field(RenderConfig(), description="Renderer settings ([render])")
     perturbations: PerturbationConfig = Field(PerturbationConfig(), description="Monte Carlo dispersions of a "

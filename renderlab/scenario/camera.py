@@ -33,8 +33,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
-from renderlab.config_types import Finite, Positive
-from renderlab.config_types import Strict as _Strict
+from renderlab.contracts.config_types import Finite, Positive
+from renderlab.contracts.config_types import Strict as _Strict
 from renderlab.errors import UserError
 
 __all__ = ["CameraConfig", "resolve_camera", "resolve_optics"]
@@ -210,7 +210,7 @@ def resolve_optics(sensor: dict[str, Any], fx: float, fy: float, skew: float = 0
         One line naming both values: ``focal_length_m / pixel_pitch_m`` against the camera's focal length,
         or ``f_number`` against the camera's ``f / D``.
     """
-    from renderlab.sensor import SensorOptions, pixel_solid_angle_sr
+    from renderlab.sensor.model import SensorOptions, pixel_solid_angle_sr
 
     out = dict(sensor)
     pitch = out.get("pixel_pitch_m", SensorOptions.__dataclass_fields__["pixel_pitch_m"].default)

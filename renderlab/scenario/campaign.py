@@ -14,7 +14,7 @@ from typing import Annotated
 import numpy as np
 from pydantic import Field, model_validator
 
-from renderlab.config_types import Finite, NonNegative, Seed, Strict
+from renderlab.contracts.config_types import Finite, NonNegative, Seed, Strict
 
 NonNegVec3 = Annotated[list[NonNegative], Field(min_length=3, max_length=3)]
 Matrix = list[list[Finite]]

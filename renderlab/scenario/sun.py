@@ -8,8 +8,8 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from renderlab.config_types import Positive, Vec3
-from renderlab.config_types import Strict as _Strict
+from renderlab.contracts.config_types import Positive, Vec3
+from renderlab.contracts.config_types import Strict as _Strict
 
 __all__ = ["SunConfig"]
 

@@ -8,8 +8,8 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from renderlab.config_types import Finite, Positive, Vec3
-from renderlab.config_types import Strict as _Strict
+from renderlab.contracts.config_types import Finite, Positive, Vec3
+from renderlab.contracts.config_types import Strict as _Strict
 
 class TrajectoryConfig(_Strict):
     """Camera path. ``line``: from ``start_m`` to ``end_m``; ``orbit``: around ``target_m`` at

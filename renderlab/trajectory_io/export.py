@@ -23,7 +23,7 @@ from renderlab.trajectory_io.timescales import parse_epoch
 
 def _manifest(folder: Path) -> dict:
     """The truth set's ``manifest.json`` (a regular JSON file of bounded size; ``renderlab export`` has validated it
-    with :class:`renderlab.contracts.file_models.TruthManifest` through :meth:`renderlab.truthset.TruthSet.open`)."""
+    with :class:`renderlab.contracts.file_models.TruthManifest` through :meth:`renderlab.files.truthset.TruthSet.open`)."""
     p = Path(folder) / "manifest.json"
     if not p.is_file():
         raise UserError(f"not a truth set (no manifest.json): {shown(folder)}")

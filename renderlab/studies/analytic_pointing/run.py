@@ -35,10 +35,10 @@ from renderlab.campaign.scoring import dn_variance, registration_crlb
 from renderlab.contracts.reasons import LandmarkReason as R
 from renderlab.contracts.schemas import LANDMARK_CORE, table_from_rows
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
 from renderlab.scenario import scenario_from_dict
-from renderlab.sensor import SensorOptions, expected_dn
-from renderlab.truthset import TruthSet
+from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.worlds.base import frame_specs
 
 METHODS = ("centroid", "ellipse")

@@ -15,7 +15,7 @@ from typing import Annotated, Literal
 import numpy as np
 from pydantic import Field
 
-from renderlab.config_types import NonNegative, Positive, Strict
+from renderlab.contracts.config_types import NonNegative, Positive, Strict
 from renderlab.errors import UserError
 
 

@@ -38,12 +38,12 @@ from estimators.coastline.match import MatchOptions, match_coastline
 from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
 from renderlab.scenario import scenario_from_dict
-from renderlab.sensor import SensorOptions
+from renderlab.sensor.model import SensorOptions
 from renderlab.studies.coastline_ekf.config import check_perturbations
 from renderlab.studies.coastline_ekf.geometric import FILTER_COLUMNS, filter_status, ric_axes
-from renderlab.truthset import TruthSet
 from renderlab.worlds.earth.coast_db import CoastDBOptions, build_coast_db
 from renderlab.worlds.earth.gshhg import load_gshhg
 from renderlab.worlds.earth.plan import EarthPlan

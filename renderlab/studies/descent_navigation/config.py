@@ -27,7 +27,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from renderlab.config_types import Finite, NonNegative, Positive, Strict
+from renderlab.contracts.config_types import Finite, NonNegative, Positive, Strict
 
 Unit = Annotated[float, Field(gt=0, le=1, allow_inf_nan=False)]
 Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]

@@ -26,14 +26,14 @@ from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.maplets import respaced_maplets
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
 from renderlab.scenario import scenario_from_dict, truth_dict
-from renderlab.sensor import SensorOptions
+from renderlab.sensor.model import SensorOptions
 from renderlab.studies.descent_navigation.config import DescentNavigationConfig
 from renderlab.studies.descent_navigation.loop import RunInputs, run_method
 from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
 from renderlab.studies.descent_navigation.truth import planned_descent, true_descent, truthset_frames
-from renderlab.truthset import TruthSet
 from renderlab.worlds.ev5.catalog import read_catalog
 
 TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")

@@ -52,15 +52,15 @@ from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.reexpose import frame_sensor_options
 from renderlab.campaign.scoring import dn_variance, image_gradients, registration_crlb, template_shift_covariance
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import rotation_from_quat_xyzw
 from renderlab.measurement.runner import MeasureOptions, onboard_photometry
 from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
-from renderlab.sensor import SensorOptions, expected_dn
+from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.studies.retina_vs_spc import budget_stats as S
 from renderlab.studies.retina_vs_spc.budget_plan import budget_configs
 from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
-from renderlab.truthset import TruthSet
 from renderlab.worlds.ev5.catalog import read_catalog
 
 TABLE = "budget_crlb"

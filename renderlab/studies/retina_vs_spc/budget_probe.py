@@ -18,12 +18,12 @@ import numpy as np
 
 from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.perturb import draw_perturbation
+from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, measure_truthset
 from renderlab.scenario import scenario_from_dict, truth_dict
-from renderlab.sensor import SensorOptions
+from renderlab.sensor.model import SensorOptions
 from renderlab.stats.bootstrap import cluster_bootstrap
 from renderlab.studies.retina_vs_spc.run import BelievedTruthSet
-from renderlab.truthset import TruthSet
 from renderlab.worlds.ev5.catalog import read_catalog
 
 SUPERSAMPLE = (1, 3, 6)

@@ -15,7 +15,7 @@ from typing import Annotated
 
 from pydantic import Field, model_validator
 
-from renderlab.config_types import NonNegative, Positive, Strict
+from renderlab.contracts.config_types import NonNegative, Positive, Strict
 
 
 class WellMeasuredSubset(Strict):

@@ -18,9 +18,9 @@ cached by the content of those poses, the world loaded once per worker process
 * landmark resolution: the maplets are rebuilt from the site DEM at ``spacing·(1+δs)`` (same centres and
   frames, fresh mapping error), so the GSD ratio of the run is ``gsd_ratio/(1+δs)``;
 * sensor noise: the DN image is re-exposed from the cached radiance with the run's own Poisson + read noise
-  (:func:`renderlab.sensor.expose`), so noise statistics are over independent realisations;
+  (:func:`renderlab.sensor.model.expose`), so noise statistics are over independent realisations;
   ``[retina_vs_spc] sensor_noise = false`` measures the noise-free expected DN instead (rounded to integers,
-  :func:`renderlab.sensor.expected_dn`; the switch of an error budget).
+  :func:`renderlab.sensor.model.expected_dn`; the switch of an error budget).
 
 The a-priori pose is drawn around the run's (perturbed) true pose. All methods see the same image, the same
 a-priori draw and the same believed camera/Sun/maplets. Truth (s, l) is ``landmark_truth.parquet`` of the
@@ -46,12 +46,12 @@ from renderlab.campaign.perturb import draw_perturbation, perturb_camera, pertur
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.campaign.scoring import dn_variance, registration_crlb
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, measure_truthset
 from renderlab.scenario import scenario_from_dict, truth_dict
-from renderlab.sensor import SensorOptions, expected_dn
+from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
 from renderlab.studies.retina_vs_spc.truth import run_truthset
-from renderlab.truthset import TruthSet
 from renderlab.worlds.ev5.catalog import read_catalog
 
 

@@ -15,7 +15,7 @@ from typing import Annotated
 
 from pydantic import Field
 
-from renderlab.config_types import NonNegative, Positive, Strict
+from renderlab.contracts.config_types import NonNegative, Positive, Strict
 
 Fraction = Annotated[float, Field(ge=0, lt=0.5, allow_inf_nan=False)]
 

@@ -6,7 +6,7 @@ per-frame pose + constant-gain Kalman filter). What a run draws, each from its o
 ``SeedSequence`` (so switching one dispersion on or off never changes the others):
 
 * sensor noise — the DN images are re-exposed from the cached radiance with the run's own Poisson + read
-  noise (:func:`renderlab.sensor.expose`, the scenario's ``[sensor]`` and the recorded exposure);
+  noise (:func:`renderlab.sensor.model.expose`, the scenario's ``[sensor]`` and the recorded exposure);
 * stage-1 initial values — r0, v0 (``perturbations.apriori_position_sigma_m``, ``apriori_velocity_sigma_mps``,
   per LVLH axis), the initial attitude (``apriori_attitude_sigma_deg``), ω0 and the inertia ratios
   (``[unknown_satellite]`` ``apriori_omega_sigma_deg_s``, ``apriori_ratio_sigma_frac``) and the range prior;
@@ -30,12 +30,12 @@ import numpy as np
 from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.scenario import scenario_from_dict, truth_dict
-from renderlab.sensor import SensorOptions
+from renderlab.sensor.model import SensorOptions
 from renderlab.studies.unknown_satellite.config import RUN_FLAGS, UnknownSatelliteStudyConfig
 from renderlab.studies.unknown_satellite.report_section import study_section
 from renderlab.studies.unknown_satellite.sequence import PriorOptions, StudyOptions, analyse_truthset
-from renderlab.truthset import TruthSet
 
 #: generic [perturbations] keys this study uses; any other non-zero one is refused
 USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", "apriori_attitude_sigma_deg",

@@ -42,9 +42,9 @@ from estimators.pose.onboard_model import exp_so3, log_so3
 from estimators.pose.rigidity import solve_rigid
 from estimators.pose.stage2 import FLAG_NAMES
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
 from renderlab.pipeline import render_truthset
-from renderlab.truthset import TruthSet
 
 
 @dataclass(frozen=True)
@@ -313,7 +313,7 @@ def _stage2_scores(s2, e2: tuple, s1, P, truth_pts, fid, R_true0) -> dict:
 def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = StudyOptions(),
                      progress: bool = False, run: int = 0) -> SequenceResult:
     """Run both stages on a microsat truth set (a folder, or an object with ``frames``, ``load``,
-    ``read_table`` and ``len`` like :class:`renderlab.truthset.TruthSet`) and score them against its truth."""
+    ``read_table`` and ``len`` like :class:`renderlab.files.truthset.TruthSet`) and score them against its truth."""
     import pyarrow as pa
     from tqdm import tqdm
 

@@ -9,7 +9,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from renderlab.config_types import NonNegative, Positive, Seed, Strict
+from renderlab.contracts.config_types import NonNegative, Positive, Seed, Strict
 from renderlab.errors import UserError
 
 Fraction = Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)]

@@ -29,11 +29,11 @@ def maplet_relpath(landmark_id: int) -> str:
 
 def write_catalog(writer, maplets: list[Maplet], tiers: dict[int, str] | None = None) -> None:
     """Write ``landmarks.parquet`` and one ``maplets/NNNNNN.exr`` per maplet into an open
-    :class:`renderlab.truthset.TruthSetWriter`. ``tiers`` optionally names each landmark's tier."""
+    :class:`renderlab.files.truthset.TruthSetWriter`. ``tiers`` optionally names each landmark's tier."""
     import pyarrow as pa
     from scipy.spatial.transform import Rotation
 
-    from renderlab.imageio import write_exr
+    from renderlab.files.imageio import write_exr
 
     ids = [int(m.landmark_id) for m in maplets]
     if len(set(ids)) != len(ids):
@@ -63,9 +63,9 @@ def read_catalog(truthset_dir) -> list[Maplet]:
     """The maplets of a truth set (sorted by landmark id). UserError names a missing or bad file."""
     import pyarrow.parquet as pq
 
+    from renderlab.files.imageio import read_exr
+    from renderlab.files.truthset import _safe_relpath
     from renderlab.geometry.rotations import rotation_from_quat_xyzw
-    from renderlab.imageio import read_exr
-    from renderlab.truthset import _safe_relpath
 
     root = Path(truthset_dir)
     table_path = root / "landmarks.parquet"

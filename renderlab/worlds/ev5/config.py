@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from renderlab.config_types import Finite, NonNegative, Positive, Seed, Strict, Vec3
+from renderlab.contracts.config_types import Finite, NonNegative, Positive, Seed, Strict, Vec3
 
 Fraction = Annotated[float, Field(ge=0, lt=1, allow_inf_nan=False)]
 Odd = Annotated[int, Field(ge=3, le=401)]

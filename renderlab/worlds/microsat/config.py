@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from renderlab.config_types import Finite, Positive, Seed, Strict, Vec3
+from renderlab.contracts.config_types import Finite, Positive, Seed, Strict, Vec3
 
 Albedo = Annotated[float, Field(ge=0, le=1, allow_inf_nan=False)]
 PositiveVec3 = Annotated[list[Positive], Field(min_length=3, max_length=3)]

@@ -25,7 +25,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
-from renderlab.config_types import Finite, Positive, Seed, Strict, Vec3
+from renderlab.contracts.config_types import Finite, Positive, Seed, Strict, Vec3
 
 LAWS = ("lambert", "lommel_seeliger", "mcewen", "hapke")
 PositiveVec3 = Annotated[list[Positive], Field(min_length=3, max_length=3)]

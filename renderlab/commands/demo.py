@@ -22,6 +22,7 @@ from pathlib import Path
 from renderlab.builtin import SCENES_DIR  # noqa: F401
 from renderlab.builtin import scene_path as builtin_scene
 from renderlab.errors import UserError
+from renderlab.files.truthset import TruthSet
 from renderlab.pipeline import render_truthset
 from renderlab.report.preview import truthset_preview
 from renderlab.report.truth_checks import check_frame, lambert_residual_image
@@ -30,7 +31,6 @@ from renderlab.studies.coastline_ekf.study import run_demo_coastline
 from renderlab.studies.retina_vs_spc.demo import DEMO_RUNS, headline_table, run_demo_campaign
 from renderlab.studies.unknown_satellite.demo import DEMO_RUNS as US_DEMO_RUNS
 from renderlab.studies.unknown_satellite.demo import run_demo_unknown_satellite
-from renderlab.truthset import TruthSet
 
 DEMO_SCENE = "analytic_sphere_box.toml"
 

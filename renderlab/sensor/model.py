@@ -12,7 +12,7 @@ pixel, with radiance ``L`` in W m⁻² sr⁻¹ integrated over the camera passba
    product is the étendue of one pixel; ``h c / λ`` turns joules into photons at the
    effective wavelength ``λ``.
 3. Shot noise: ``n = Poisson(μ)`` — one draw of the *total* mean (signal + dark), exact in distribution
-   (inversion below μ = 10, Hörmann's PTRS rejection from 10 up to the cap of 1e15; :mod:`renderlab.sensor_noise`).
+   (inversion below μ = 10, Hörmann's PTRS rejection from 10 up to the cap of 1e15; :mod:`renderlab.sensor.noise`).
 4. Read noise: ``e = n + Normal(0, σ_read)`` (Box–Muller on two of the pixel's own draws).
 5. Full well: ``e ← min(e, FW)``.
 6. Gain: ``DN = round(bias + e / g)``.
@@ -30,7 +30,7 @@ there only where ``focal_length_m / pixel_pitch_m`` agrees with the camera (0.1 
 
 Random draws are keyed per pixel (``noise_stream = "per_pixel"``, default): every variate of pixel ``i``
 (row-major) is a pure function of (frame key, ``i``, draw number) from the counter-based Philox4x64-10
-(:mod:`renderlab.sensor_noise`), so radiance images that differ in a few pixels give DN that differ there only.
+(:mod:`renderlab.sensor.noise`), so radiance images that differ in a few pixels give DN that differ there only.
 The 128-bit frame key is two 64-bit draws of the ``numpy.random.Generator`` passed in, so a seed replays an image
 bit for bit. ``"sequential"`` keeps the former order bit for bit (``rng.poisson`` over the image, then ``rng.normal``).
 :func:`expected_dn` gives the noise-free expectation ``clip(bias + min(μ, FW)/g, 0, 2^bits−1)``
@@ -325,7 +325,7 @@ def expose(radiance: np.ndarray, options: SensorOptions, rng) -> SensorResult:
     SensorResult
         ``dn`` (uint16), ``electrons_mean`` (float64), ``saturated`` (bool).
     """
-    from renderlab.sensor_noise import draw_electrons  # numba: compiled on first use
+    from renderlab.sensor.noise import draw_electrons  # numba: compiled on first use
 
     mu = mean_electrons(radiance, options)
     electrons = draw_electrons(np.minimum(mu, _MAX_POISSON_MEAN), options.read_noise_e, options.noise_stream, rng)

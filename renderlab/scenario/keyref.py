@@ -5,13 +5,13 @@ sections, one model per world and trajectory kind, and the registered study sect
 ...)`` is the key's documentation, ending with its unit in brackets (``"Image width [px]"``). This module walks
 those models and writes one Markdown table per section: key (dotted, as ``--set`` spells it), type, default,
 allowed values or range, unit and description. The ``[sensor]`` keys are the fields of
-:class:`renderlab.sensor.SensorOptions`, read from its docstring.
+:class:`renderlab.sensor.model.SensorOptions`, read from its docstring.
 
 ::
 
-    python -m renderlab.keyref           # rewrite docs/scenario_keys.md
-    python -m renderlab.keyref --check   # exit 1 if docs/scenario_keys.md is stale
-    python -m renderlab.keyref --stdout  # print it
+    python -m renderlab.scenario.keyref           # rewrite docs/scenario_keys.md
+    python -m renderlab.scenario.keyref --check   # exit 1 if docs/scenario_keys.md is stale
+    python -m renderlab.scenario.keyref --stdout  # print it
 
 ``tests/test_keyref.py`` fails when the committed file differs from a fresh generation.
 """
@@ -34,10 +34,10 @@ from pydantic.fields import FieldInfo
 from pydantic_core import PydanticUndefined
 
 from renderlab.scenario import WORLD_TRAJECTORIES, scenario_model
-from renderlab.sensor import SensorOptions
+from renderlab.sensor.model import SensorOptions
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "scenario_keys.md"
-REGENERATE = "python -m renderlab.keyref"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "scenario_keys.md"
+REGENERATE = "python -m renderlab.scenario.keyref"
 _UNIT = re.compile(r"\s*\[([^\[\]]+)\]$")
 #: keys the loader reads before validation (renderlab.scenario.camera.resolve_camera): section → rows
 LOADER_KEYS = {
@@ -253,7 +253,7 @@ def _walk(model: type, prefix: str, title: str, out: list[Section], note: str = 
 
 
 def _sensor_rows() -> list[tuple[str, ...]]:
-    """``[sensor]`` keys: the fields of :class:`renderlab.sensor.SensorOptions` (numpy-style docstring)."""
+    """``[sensor]`` keys: the fields of :class:`renderlab.sensor.model.SensorOptions` (numpy-style docstring)."""
     doc = (SensorOptions.__doc__ or "").split("Attributes", 1)[-1]
     text = {m.group(1): " ".join(m.group(3).split()) for m in
             re.finditer(r"^\s{4}(\w+) : ([^\n]+)\n((?:\s{8}[^\n]*\n?)+)", doc, re.M)}
@@ -294,10 +294,10 @@ def render() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m renderlab.keyref [--check | --stdout] [--out FILE]``."""
+    """``python -m renderlab.scenario.keyref [--check | --stdout] [--out FILE]``."""
     import argparse
 
-    p = argparse.ArgumentParser(prog="python -m renderlab.keyref", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m renderlab.scenario.keyref", description=__doc__.split("\n")[0])
     p.add_argument("--check", action="store_true", help="exit 1 if the file differs from a fresh generation")
     p.add_argument("--stdout", action="store_true", help="print the reference instead of writing it")
     p.add_argument("--out", type=Path, default=DOC, help=f"file to write (default: {DOC.name} in docs/)")

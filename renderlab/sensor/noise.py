@@ -29,7 +29,7 @@ not depend on how many attempts its Poisson draw took, and the common case (no r
   probabilities", 2000; as in R's ``dpois``), whose terms are O(1) where ``−μ + k log μ − lgamma(k + 1)``
   cancels terms of size ``μ log μ`` (about 3.5e16 at μ = 1e15, i.e. errors of several units in the log).
 
-The kernels are compiled with numba on first use (cached on disk); :mod:`renderlab.sensor` imports this module
+The kernels are compiled with numba on first use (cached on disk); :mod:`renderlab.sensor.model` imports this module
 only when it draws noise, so importing the sensor model stays light.
 """
 

@@ -3,7 +3,7 @@
 A truth set is a folder with ``manifest.json`` (``"format": "renderlab.truthset/1"``) and,
 per frame, ``frames/NNNNNN.exr`` (float32 radiance + AOVs: ``Y`` or ``R G B``, ``P.X P.Y P.Z``,
 ``N.X N.Y N.Z``, ``range``; ``id`` as a UINT channel; camera, pose, units and time in the header, see
-:func:`renderlab.imageio.frame_exr_header`), ``frames/NNNNNN.png`` (16-bit DN, exact, with an ``sBIT``
+:func:`renderlab.files.imageio.frame_exr_header`), ``frames/NNNNNN.png`` (16-bit DN, exact, with an ``sBIT``
 chunk) and ``dn_preview/NNNNNN.png`` (8-bit view of the DN, full scale → 255), plus optional Parquet
 tables and files. :class:`TruthSetWriter` stages everything in a hidden sibling folder and renames
 it into place only on success; :class:`TruthSet` reads a set without mitsuba or bpy. The same
@@ -25,7 +25,7 @@ import numpy as np
 from renderlab.contracts.file_models import TruthManifest
 from renderlab.contracts.schemas import TRUTH_TABLES, read_parquet
 from renderlab.errors import UserError
-from renderlab.imageio import (  # noqa: F401
+from renderlab.files.imageio import (  # noqa: F401
     _MAX_EXACT_ID,
     decode_ids,
     encode_ids,
@@ -101,7 +101,7 @@ class TruthSetWriter:
 
     def __init__(self, out_dir, manifest_head: dict, *, overwrite: bool = False, exr_compression: str = "zip"):
         self.out_dir = Path(out_dir).absolute()
-        self.exr_compression = exr_compression  # lossless (renderlab.imageio.EXR_COMPRESSIONS)
+        self.exr_compression = exr_compression  # lossless (renderlab.files.imageio.EXR_COMPRESSIONS)
         if not isinstance(manifest_head, dict):
             raise TypeError("manifest_head must be a dict")
         for key in ("format", "frames"):
