@@ -38,4 +38,6 @@ LOCK=requirements.lock
 .venv/bin/python -m pip install -q -c "$LOCK" -e ".[all,test]"
 # the worked third-party plug-in (examples/ncc_baseline): installed like any user package, found by entry point
 .venv/bin/python -m pip install -q -c "$LOCK" --no-deps -e examples/ncc_baseline
+# the worked observable kind (examples/toy_kind: kind bright_spot with its methods and study), found by entry point
+.venv/bin/python -m pip install -q -c "$LOCK" --no-deps -e examples/toy_kind
 echo "setup: done. Run .venv/bin/renderlab --help"

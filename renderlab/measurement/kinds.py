@@ -34,7 +34,12 @@ def measure_frames(kind, method, frames, *, campaign: str = "", run: int = 0):
     runner, schema = kind.part("runner"), kind.known_columns()
     if runner is None or schema is None:
         raise UserError(f"observable kind '{kind.name}' has no generic runner or result schema")
+    import pyarrow as pa
+
     rows = [{"campaign": campaign, "run": run, **row} for row in runner(make_kind_method(kind, method), frames)]
+    given = set().union(*(r.keys() for r in rows)) if rows else set()
+    core = set(kind.core_schema().names)
+    schema = pa.schema([f for f in schema if f.name in core or f.name in given])  # optional columns only when given
     table = table_from_rows(rows, schema, kind.name) if rows else schema.empty_table()
     check_table(table, kind.name, where=f"{kind.name} runner")
     return table
