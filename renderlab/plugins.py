@@ -46,6 +46,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "coastline_ekf": "renderlab.studies.coastline_ekf:STUDY",
         "unknown_satellite": "renderlab.studies.unknown_satellite:STUDY",
         "descent_navigation": "renderlab.studies.descent_navigation:STUDY",
+        "planet_opnav": "renderlab.studies.planet_opnav:STUDY",
     }),
     "worlds": ("renderlab.worlds", {  # renderlab.contracts.world.WorldKind objects
         "analytic": "renderlab.scenario.kinds:ANALYTIC",
@@ -59,6 +60,16 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "unknown_satellite": "renderlab.studies.unknown_satellite.config:UnknownSatelliteStudyConfig",
         "retina_vs_spc": "renderlab.studies.retina_vs_spc.config:RetinaVsSpcConfig",
         "descent_navigation": "renderlab.studies.descent_navigation.config:DescentNavigationConfig",
+        "planet_opnav": "renderlab.studies.planet_opnav.config:PlanetOpNavConfig",
+    }),
+    "centre_limb_methods": ("renderlab.centre_limb_methods", {  # the centre_limb kind's methods (its method_group)
+        "centroid_raw": "renderlab.measurement.centre_limb_methods:RawCentroidMethod",
+        "centroid_phase": "renderlab.measurement.centre_limb_methods:PhaseCentroidMethod",
+        "limb_ellipse": "renderlab.measurement.centre_limb_methods:LimbEllipseMethod",
+        "horizon_opnav": "renderlab.measurement.centre_limb_methods:HorizonOpNavMethod",
+        "bsk_hough_circles": "renderlab.basilisk.opnav_methods:HoughCirclesMethod",  # Basilisk (the basilisk extra)
+        "bsk_hough_pixel_line": "renderlab.basilisk.opnav_methods:HoughPixelLineMethod",
+        "bsk_limb_horizon": "renderlab.basilisk.opnav_methods:LimbHorizonMethod",
     }),
     "renderers": ("renderlab.renderers", {
         "mitsuba": "renderlab.render.mitsuba_backend:MitsubaBackend",
@@ -82,7 +93,8 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
 _LABELS = {"landmark_methods": "landmark method", "filters": "filter", "studies": "study", "worlds": "world kind",
            "renderers": "renderer", "scenario_sections": "scenario section",
            "measurement_sources": "measurement source", "guidance": "guidance law",
-           "result_folders": "result-folder kind", "observables": "observable kind"}
+           "result_folders": "result-folder kind", "observables": "observable kind",
+           "centre_limb_methods": "centre_limb method"}
 
 
 def _load_target(target: str, what: str) -> Any:

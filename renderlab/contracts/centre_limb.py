@@ -20,8 +20,12 @@ Rules every method obeys (checked by :func:`renderlab.measurement.conformance_ce
 4. Pixels in the lab's convention (``(0, 0)`` is the centre of the top-left pixel, sample = column); body frame metres;
    ``p_body = R_body_from_cam @ p_cam + position_m``; covariances in px² (centre) and m² (camera-frame vector).
 
-The kind itself is described by :data:`CENTRE_LIMB` (:mod:`renderlab.contracts.observable`), the object a later
-registry of observable kinds will hold.
+The kind itself is :data:`CENTRE_LIMB` (:mod:`renderlab.contracts.observable`, registered in
+:data:`renderlab.plugins.observables`): result table :mod:`renderlab.contracts.centre_limb_table`, runner
+:mod:`renderlab.measurement.centre_limb_runner`, scorer :mod:`renderlab.stats.centre_limb`, report section
+:mod:`renderlab.report.centre_limb_section`, conformance :mod:`renderlab.measurement.conformance_centre_limb`; its
+methods are registered in ``renderlab.plugins.method_registry("centre_limb")`` (entry-point group
+``renderlab.centre_limb_methods``: the lab's four and the Basilisk wrappers of :mod:`renderlab.basilisk.opnav_methods`).
 """
 
 from __future__ import annotations
@@ -182,6 +186,10 @@ CENTRE_LIMB = ObservableKind(
     description="centre and limb of a resolved body: line of sight, apparent size, range",
     reasons=CentreLimbReason, frame=CentreLimbFrame, result=CentreLimbResult, protocol=CentreLimbMethod,
     truth_table="centre_truth", conformance="renderlab.measurement.conformance_centre_limb:check_centre_limb_method",
+    result_schema="renderlab.contracts.centre_limb_table:CENTRE_LIMB_CORE",
+    known_schema="renderlab.contracts.centre_limb_table:CENTRE_LIMB_KNOWN",
+    runner="renderlab.measurement.centre_limb_runner:runner", scorer="renderlab.stats.centre_limb:score_table",
+    report_section="renderlab.report.centre_limb_section:report_section",
 )
 
 __all__ = ["BodyModel", "CameraModel", "CameraPose", "CentreLimbFrame", "CentreLimbMethod", "CentreLimbReason",
