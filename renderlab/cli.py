@@ -96,6 +96,7 @@ EXTRA_COMMANDS = {
     "scenes": "renderlab.commands.scenes",
     "show": "renderlab.commands.show",
     "info": "renderlab.commands.info",
+    "check-method": "renderlab.commands.check_method",
 }
 
 

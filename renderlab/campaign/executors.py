@@ -26,7 +26,7 @@ from pathlib import Path
 
 from renderlab import plugins
 from renderlab.campaign import store
-from renderlab.contracts.schemas import CORE, TIMING_COLUMNS, table_kind
+from renderlab.contracts.schemas import TIMING_COLUMNS, core_schema, kind_of_table_name, table_kind
 from renderlab.errors import UserError
 from renderlab.extras import require
 from renderlab.files.signals import ignored_in_children
@@ -49,9 +49,10 @@ def _validate_tables(tables, task) -> dict:
             t = t.add_column(0, "run", pa.array([task.index] * t.num_rows, pa.int64()))
         if "campaign" not in t.column_names:
             t = t.add_column(0, "campaign", pa.array([task.campaign] * t.num_rows, pa.string()))
-        if name == "measurements" and table_kind(t) != "landmark":
-            missing = [c for c in CORE["landmark"].names if c not in t.column_names]
-            raise ValueError(f"study {task.study}: measurements lack columns {', '.join(missing)}")
+        named = kind_of_table_name(name)  # a name a registered kind claims (measurements: landmark)
+        if named is not None and table_kind(t) != named:
+            missing = [c for c in core_schema(named).names if c not in t.column_names]
+            raise ValueError(f"study {task.study}: {name} lack columns {', '.join(missing)}")
         out[name] = t
     return out
 
@@ -156,7 +157,7 @@ def execute_run(task, timings: str = "inline") -> dict:
     tables, side = {}, None
     try:
         for registry, name, ref in task.plugins:  # typed by the user on the command line, never read from a file
-            plugins.REGISTRIES[registry].add_reference(ref, name)
+            plugins.registry(registry).add_reference(ref, name)
         fn = plugins.studies.get(task.study, where="campaign.study: ").run
         scenario = scenario_from_dict(task.scenario, "campaign scenario")
         workdir = Path(task.campaign_dir) / "work"

@@ -36,8 +36,18 @@ BREAKDOWNS = ("phase_deg", "gsd_ratio", "shadow_fraction", "albedo_contrast", "r
 
 
 def table_kind(table) -> str:
-    """``"landmark"``, ``"filter"``, ``"pose"`` or ``"other"`` (:func:`renderlab.contracts.schemas.table_kind`)."""
+    """The registered observable kind of a table, or ``"other"`` (:func:`renderlab.contracts.schemas.table_kind`)."""
     return kind(table)
+
+
+def score_table(table, *, confidence: float = 0.95) -> list[dict]:
+    """Summary rows of a table by its registered kind's ``scorer(table, *, confidence)``
+    (:mod:`renderlab.contracts.observable`); ``[]`` for a table of no kind or of a kind without a scorer."""
+    from renderlab import plugins
+
+    name = kind(table)
+    scorer = None if name == "other" else plugins.observables.get(name).part("scorer")
+    return [] if scorer is None else list(scorer(table, confidence=confidence))
 
 
 # ------------------------------------------------------------------------------ statistics

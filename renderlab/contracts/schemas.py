@@ -1,5 +1,9 @@
 """Table schemas, written once: the measurement (landmark), filter and pose tables of the lab.
 
+Which schema a kind of table has is said by its registered observable kind (:data:`renderlab.plugins.observables`,
+``result_schema`` / ``known_schema``); :func:`table_kind`, :func:`expected_kind` and the checks below read that
+registry, so a kind registered by a plug-in is detected and checked like the lab's own.
+
 Every runner builds its table with these schemas, every scorer and report reads columns by these names,
 and the tests import them. Studies may append their own columns after the schema's (e.g. ``range_m``,
 ``crlb_s``); :func:`check_table` verifies the schema's columns and types are there.
@@ -85,10 +89,6 @@ CENTRE_TRUTH = pa.schema([
     ("limb_in_image", BOOL), ("limb_model", STR),
 ])
 
-#: kind → the columns every table of that kind has
-CORE = {"landmark": LANDMARK_CORE, "filter": FILTER_CORE, "pose": POSE_CORE}
-#: kind → every column the lab's readers of that kind know (core and optional), with its type
-KNOWN = {"landmark": LANDMARK_RUNNER, "filter": FILTER_CORE, "pose": POSE_CORE}
 
 #: a truth set's landmark catalogue (``landmarks.parquet``, :mod:`renderlab.worlds.ev5.catalog`)
 LANDMARK_CATALOG = pa.schema([
@@ -105,13 +105,42 @@ TRUTH_TABLES = {"landmark_truth": LANDMARK_TRUTH}
 TIMING_COLUMNS = ("t_ms",)
 
 
+def _core_schemas() -> dict[str, pa.Schema]:
+    """Registered kind → the columns every table of it has (kinds without a result schema left out)."""
+    from renderlab import plugins
+
+    return {k.name: s for k in plugins.observable_kinds() if (s := k.core_schema()) is not None}
+
+
+def core_schema(kind: str) -> pa.Schema:
+    """The columns every table of a registered kind has."""
+    from renderlab import plugins
+
+    schema = plugins.observables.get(kind).core_schema()
+    if schema is None:
+        raise ValueError(f"observable kind {kind!r} has no result schema")
+    return schema
+
+
+def known_schema(kind: str) -> pa.Schema:
+    """Every column the readers of a registered kind know (core and optional), with its type."""
+    from renderlab import plugins
+
+    return plugins.observables.get(kind).known_columns()
+
+
+#: columns the campaign engine adds to every table: they tell no kind apart
+IDENTITY_COLUMNS = ("campaign", "run")
+
+
 def table_kind(table: pa.Table) -> str:
-    """``"landmark"``, ``"filter"``, ``"pose"`` or ``"other"`` from the columns a table has."""
+    """The registered observable kind of a table from its columns, or ``"other"``: of the kinds whose every core
+    column is there, the one with the most core columns beside ``campaign``/``run`` (``landmark`` over ``pose``); on a
+    tie the one registered first (:func:`renderlab.plugins.observable_kinds`: ``filter`` over ``pose``)."""
     names = set(table.column_names)
-    for kind in ("landmark", "filter", "pose"):
-        if set(CORE[kind].names) <= names:
-            return kind
-    return "other"
+    fits = [(len(set(s.names) - set(IDENTITY_COLUMNS)), kind) for kind, s in _core_schemas().items()
+            if set(s.names) <= names]
+    return max(fits, key=lambda f: f[0])[1] if fits else "other"  # max keeps the first of equals
 
 
 def reason_array(values, kind: str) -> pa.DictionaryArray:
@@ -138,7 +167,7 @@ def table_from_rows(rows: list[dict], schema: pa.Schema, kind: str) -> pa.Table:
 
 def check_table(table: pa.Table, kind: str, where: str = "table") -> None:
     """Raise ``ValueError`` naming the first missing or mistyped column of the kind's core schema."""
-    for f in CORE[kind]:
+    for f in core_schema(kind):
         if f.name not in table.column_names:
             raise ValueError(f"{where}: {kind} table lacks column {f.name!r}")
         t = table.schema.field(f.name).type
@@ -181,21 +210,31 @@ def check_schema(table: pa.Table, schema: pa.Schema, where: str, *, required: tu
             raise ValueError(f"{where}: column {f.name!r} must be {f.type}, got {table.schema.field(f.name).type}")
 
 
+def kind_of_table_name(name: str) -> str | None:
+    """The registered kind whose ``table_names`` hold ``name`` (``measurements`` → ``landmark``), or None."""
+    from renderlab import plugins
+
+    return next((k.name for k in plugins.observable_kinds() if name in k.table_names), None)
+
+
 def expected_kind(name: str, table: pa.Table) -> str:
-    """The kind a campaign table is meant to be: ``measurements`` is a landmark table; any other table holding
-    more than half of a kind's core columns (beside ``campaign``/``run``) is of that kind; else ``"other"``."""
-    if name == "measurements":
-        return "landmark"
+    """The kind a campaign table is meant to be: a name a kind claims (``table_names``: ``measurements`` is a landmark
+    table) is of that kind; any other table holding more than half of a kind's core columns (beside
+    ``campaign``/``run``) is of that kind (the highest share, then the most core columns, then the first registered);
+    else ``"other"``."""
+    named = kind_of_table_name(name)
+    if named is not None:
+        return named
     whole = table_kind(table)  # every core column of a kind there: that kind
     if whole != "other":
         return whole
     names = set(table.column_names)
     share = {}
-    for kind in ("landmark", "filter", "pose"):
-        core = [c for c in CORE[kind].names if c not in ("campaign", "run")]
-        share[kind] = sum(c in names for c in core) / len(core)
-    best = max(share, key=share.get)
-    return best if share[best] > 0.5 else "other"
+    for kind, schema in _core_schemas().items():
+        core = [c for c in schema.names if c not in IDENTITY_COLUMNS]
+        share[kind] = (sum(c in names for c in core) / len(core), len(core)) if core else (0.0, 0)
+    best = max(share, key=share.get, default=None)  # the highest share, then the most core columns, then first
+    return best if best is not None and share[best][0] > 0.5 else "other"
 
 
 def check_campaign_table(name: str, table: pa.Table, where: str) -> str:
@@ -203,7 +242,7 @@ def check_campaign_table(name: str, table: pa.Table, where: str) -> str:
     column there, every known column typed as the readers need. Returns the kind; ``ValueError`` otherwise."""
     kind = expected_kind(name, table)
     if kind != "other":
-        check_schema(table, KNOWN[kind], f"{where} ({kind} table)", required=tuple(CORE[kind].names))
+        check_schema(table, known_schema(kind), f"{where} ({kind} table)", required=tuple(core_schema(kind).names))
     return kind
 
 
