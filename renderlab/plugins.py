@@ -80,7 +80,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
     }),
     "result_folders": ("renderlab.result_folders", {  # renderlab.contracts.result_folder.ResultFolderKind objects
         "crosscheck": "renderlab.crosscheck.figures:RESULT_FOLDER",
-        "error_budget": "renderlab.studies.retina_vs_spc.budget_report:RESULT_FOLDER",
+        "error_budget": "renderlab.studies.retina_vs_spc.budget.report:RESULT_FOLDER",
     }),
     "observables": ("renderlab.observables", {  # renderlab.contracts.observable.ObservableKind objects
         "landmark": "renderlab.contracts.landmark:LANDMARK",

@@ -10,7 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from renderlab.campaign.scoring import fisher_information, registration_crlb, template_shift_covariance
-from renderlab.studies.retina_vs_spc import budget_crlb as BC
+from renderlab.studies.retina_vs_spc.budget import crlb as BC
 
 
 def _analytic_image(n: int = 48):

@@ -13,28 +13,29 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from renderlab.campaign import oat_tables as T
 from renderlab.errors import UserError
-from renderlab.studies.retina_vs_spc import budget as B
-from renderlab.studies.retina_vs_spc import budget_tables as T
+from renderlab.studies.retina_vs_spc.budget import plan as P
+from renderlab.studies.retina_vs_spc.budget import runner as B
 
 REPO = Path(__file__).resolve().parents[1]
 PUBLISHED = REPO / "results" / "error_budget"
 
 
 def _meas(cfg, method, n, err=0.0, crlb=0.01):
-    base = {c: [0.0] * n for c in T.COLUMNS}
+    base = {c: [0.0] * n for c in P.BUDGET_TABLES.columns}
     base.update(config=[cfg] * n, run=[0] * n, frame=[0] * n, item=list(range(n)), method=[method] * n,
                 peak=["x"] * n, reason=["ok"] * n, has_result=[True] * n, outlier=[False] * n,
                 truth_visible=[True] * n, search_px=[2] * n, n_pixels=[9] * n, err_s=[err] * n,
                 truth_s=[10.0 + i for i in range(n)], crlb_s=[crlb] * n, crlb_l=[crlb] * n)
-    return pa.table({c: base[c] for c in T.COLUMNS})
+    return pa.table({c: base[c] for c in P.BUDGET_TABLES.columns})
 
 
 def _folder(tmp_path):
     cfgs = [{"config": c, "source": "", "description": c, "runs": 1, "overrides": {}} for c in ("all_off", "b")]
     meas = pa.concat_tables([_meas(c, m, 3, err=v) for c, v in (("all_off", 1.0), ("b", 2.0)) for m in ("r", "s")])
     pert = pa.table({"config": ["all_off", "b"], "run": [0, 0], "dfocal": [0.0, 0.5], "campaign": ["x", "x"]})
-    T.write_tables(tmp_path, cfgs, meas, pert, {"command": "test"})
+    P.BUDGET_TABLES.write(tmp_path, cfgs, meas, pert, {"command": "test"})
     return cfgs, pert
 
 
@@ -47,7 +48,7 @@ def test_methods_merge_adds_one_method_and_keeps_everything_else(tmp_path):
     cfgs, pert = _folder(tmp_path)
     before = {n: (tmp_path / "tables" / f"{n}.parquet").read_bytes() for n in (T.CONFIGS, T.PERTURBATIONS)}
     new = pa.concat_tables([_meas(c, "ml", 3, err=v) for c, v in (("all_off", 7.0), ("b", 8.0))])
-    T.merge_tables(tmp_path, cfgs, new, pert, {"command": "again"}, methods=["ml"])
+    P.BUDGET_TABLES.merge(tmp_path, cfgs, new, pert, {"command": "again"}, methods=["ml"])
     got = _rows(tmp_path)
     assert [r for r in got if r[1] != "ml"] == sorted((c, m, i, v) for c, v in (("all_off", 1.0), ("b", 2.0))
                                                       for m in ("r", "s") for i in range(3))
@@ -57,7 +58,7 @@ def test_methods_merge_adds_one_method_and_keeps_everything_else(tmp_path):
         assert (tmp_path / "tables" / f"{n}.parquet").read_bytes() == b
     inc = json.loads((tmp_path / "budget.json").read_text())["incremental"][0]
     assert inc["methods"] == ["ml"] and inc["paired_max_abs_diff"]["crlb_s"] == 0.0
-    T.merge_tables(tmp_path, cfgs[:1], _meas("all_off", "ml", 3, err=9.0), pert.slice(0, 1), {"command": "3"},
+    P.BUDGET_TABLES.merge(tmp_path, cfgs[:1], _meas("all_off", "ml", 3, err=9.0), pert.slice(0, 1), {"command": "3"},
                    methods=["ml"])   # a re-run replaces that method's rows of that configuration only
     assert [r[3] for r in _rows(tmp_path) if r[1] == "ml"] == [9.0] * 3 + [8.0] * 3
 
@@ -75,7 +76,7 @@ def test_methods_merge_refuses_rows_of_another_truth_or_draw(tmp_path, change):
     if change == "draws":
         pert = pert.set_column(pert.column_names.index("dfocal"), "dfocal", pa.array([0.0, 0.25]))
     with pytest.raises(UserError, match="--methods"):
-        T.merge_tables(tmp_path, cfgs, new, pert, {"command": "again"}, methods=["ml"])
+        P.BUDGET_TABLES.merge(tmp_path, cfgs, new, pert, {"command": "again"}, methods=["ml"])
     assert _rows(tmp_path) == before
 
 

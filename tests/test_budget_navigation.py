@@ -1,4 +1,4 @@
-"""The navigation error budget: the budget's error models (renderlab.studies.retina_vs_spc.budget_navigation) flown
+"""The navigation error budget: the budget's error models (renderlab.studies.retina_vs_spc.budget.navigation) flown
 through the descent filter with geometric landmark measurements (renderlab.studies.descent_navigation.error_flights)
 by ``renderlab navigation-budget`` (renderlab.commands.navigation_budget), checked against the rendered campaign's
 truth, the χ² distribution, the geometry of a uniform image shift and direct numpy statistics."""
@@ -15,10 +15,10 @@ from scipy import stats
 
 from renderlab.cli import main
 from renderlab.contracts.error_model import LandmarkErrorModel
+from renderlab.stats import oat_budget as S
 from renderlab.studies.descent_navigation import error_flights as F
-from renderlab.studies.retina_vs_spc import budget_navigation as N
-from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
-from renderlab.studies.retina_vs_spc import budget_stats as S
+from renderlab.studies.retina_vs_spc.budget import navigation as N
+from renderlab.studies.retina_vs_spc.budget import navigation_report as NR
 
 REPO = Path(__file__).resolve().parents[1]
 DESCENT = REPO / "results" / "descent_navigation"

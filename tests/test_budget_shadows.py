@@ -1,4 +1,4 @@
-"""The error budget's shadow term (renderlab.studies.retina_vs_spc.budget_shadows): the onboard predictions with
+"""The error budget's shadow term (renderlab.studies.retina_vs_spc.budget.shadows): the onboard predictions with
 cast shadows off, checked against an independent computation of the attached-shadow mask, and the incremental
 ``budget run --only`` merge."""
 
@@ -15,9 +15,9 @@ import pytest
 from renderlab.contracts.landmark import LandmarkMethodOptions
 from renderlab.errors import UserError
 from renderlab.geometry.maplet import Maplet
-from renderlab.studies.retina_vs_spc import budget as B
-from renderlab.studies.retina_vs_spc import budget_shadows as SH
-from renderlab.studies.retina_vs_spc import budget_tables as T
+from renderlab.studies.retina_vs_spc.budget import plan as P
+from renderlab.studies.retina_vs_spc.budget import runner as B
+from renderlab.studies.retina_vs_spc.budget import shadows as SH
 
 
 def _ridge_maplet(n=31, s=0.1):
@@ -47,7 +47,7 @@ def test_spc_without_cast_shadows_keeps_only_the_attached_shadow():
 def test_every_budget_method_gets_its_cast_shadows_switched_off():
     from renderlab import plugins
 
-    for name in B.METHODS:
+    for name in P.METHODS:
         obj = SH.factories([name])[0](LandmarkMethodOptions())
         assert obj.name == name
         opts = getattr(obj, "template_options", None) or getattr(obj.options, "template", None) or obj.options
@@ -61,7 +61,7 @@ def test_every_budget_method_gets_its_cast_shadows_switched_off():
 
 
 def test_merge_replaces_only_the_named_configuration(tmp_path):
-    from renderlab.studies.retina_vs_spc.budget_tables import COLUMNS, write_tables
+    COLUMNS, write_tables = P.BUDGET_TABLES.columns, P.BUDGET_TABLES.write
 
     def meas(cfg, v, n):
         base = {c: [0.0] * n for c in COLUMNS}
@@ -75,7 +75,7 @@ def test_merge_replaces_only_the_named_configuration(tmp_path):
                  pa.table({"config": ["all_off", "no_shadows"], "run": [0, 0]}), {"command": "test"})
     (tmp_path / "tables" / "other.parquet").write_bytes(b"kept")
     new_cfg = [{"config": "no_shadows", "source": "", "description": "new", "runs": 1, "overrides": {"a": 1}}]
-    T.merge_tables(tmp_path, new_cfg, meas("no_shadows", 5.0, 4), pa.table({"config": ["no_shadows"], "run": [0]}),
+    P.BUDGET_TABLES.merge(tmp_path, new_cfg, meas("no_shadows", 5.0, 4), pa.table({"config": ["no_shadows"], "run": [0]}),
              {"command": "again"})
     t = pq.read_table(tmp_path / "tables" / "budget_measurements.parquet").to_pydict()
     got = sorted(zip(t["config"], t["err_s"]))

@@ -12,12 +12,13 @@ import numpy as np
 import pyarrow as pa
 import pytest
 
+from renderlab.campaign.oat_budget import get_key
 from renderlab.errors import UserError
 from renderlab.scenario import load_scenario
-from renderlab.studies.retina_vs_spc import budget as B
-from renderlab.studies.retina_vs_spc import budget_stats as S
-from renderlab.studies.retina_vs_spc.budget_report import write_report
-from renderlab.studies.retina_vs_spc.budget_tables import COLUMNS, write_tables
+from renderlab.stats import oat_budget as S
+from renderlab.studies.retina_vs_spc.budget import plan as B
+from renderlab.studies.retina_vs_spc.budget.report import write_report
+from renderlab.studies.retina_vs_spc.budget.runner import main
 
 REPO = Path(__file__).resolve().parents[1]
 PUBLISHED = REPO / "results" / "error_budget"
@@ -34,7 +35,7 @@ def test_configurations_switch_one_source_each_by_scenario_keys():
     assert list(cfgs) == ["all_off", *B.SOURCES, "all_on", "no_shadows"]
     ns = cfgs["no_shadows"]["scenario"]   # all off + no cast shadows in the truth (the methods: budget_shadows)
     assert ns["render"]["shadows"] is False and not B.stochastic(ns) and cfgs["no_shadows"]["source"] == ""
-    assert all(B._get(ns, k) == B.OFF[k] for k in B.OFF) and base["render"].get("shadows", True) is True
+    assert all(get_key(ns, k) == B.OFF[k] for k in B.OFF) and base["render"].get("shadows", True) is True
     off = cfgs["all_off"]["scenario"]
     assert off["world"]["law"] == "mcewen" and off["world"]["mapping_error_m"] == 0
     assert off["retina_vs_spc"]["sensor_noise"] is False and not B.stochastic(off)
@@ -43,7 +44,7 @@ def test_configurations_switch_one_source_each_by_scenario_keys():
     for src, (_, keys) in B.SOURCES.items():
         sc = cfgs[src]["scenario"]
         for k in B.OFF:  # exactly this source's keys differ from all off
-            assert (B._get(sc, k) == B._get(base, k)) if k in keys else (B._get(sc, k) == B.OFF[k]), (src, k)
+            assert (get_key(sc, k) == get_key(base, k)) if k in keys else (get_key(sc, k) == B.OFF[k]), (src, k)
         assert sc["retina_vs_spc"]["methods"] == list(B.METHODS)
     assert B.stochastic(cfgs["sensor_noise"]["scenario"]) and B.stochastic(cfgs["sun_knowledge"]["scenario"])
     assert not B.stochastic(cfgs["mapping_error"]["scenario"]) and not B.stochastic(cfgs["photometric_law"]["scenario"])
@@ -77,7 +78,7 @@ def _synthetic(rng, interact: bool, n_lm=60, runs=12):
              "pred_shadow_fraction": [0.0] * n, "crlb_s": [0.01] * n, "crlb_l": [0.01] * n, "range_m": [100.0] * n}
     configs = [{"config": c, "source": s, "description": c, "runs": nr, "overrides": {}}
                for c, s, nr in (("all_off", "", 1), ("a", "a", 1), ("b", "b", runs), ("all_on", "", runs))]
-    return pa.table({c: table[c] for c in COLUMNS}), configs
+    return pa.table({c: table[c] for c in B.BUDGET_TABLES.columns}), configs
 
 
 def test_statistics_match_direct_numpy_computations():
@@ -109,7 +110,7 @@ def test_statistics_match_direct_numpy_computations():
 @pytest.mark.parametrize("interact, verdict", [(False, "PASS"), (True, "FAIL")])
 def test_quadrature_check_passes_additive_sources_and_flags_an_interaction(interact, verdict, tmp_path):
     t, configs = _synthetic(np.random.default_rng(11), interact)
-    write_tables(tmp_path / "b", configs, t, pa.table({"config": ["all_off"], "run": [0]}), {"command": "test"})
+    B.BUDGET_TABLES.write(tmp_path / "b", configs, t, pa.table({"config": ["all_off"], "run": [0]}), {"command": "test"})
     write_report(tmp_path / "b")
     terms = (tmp_path / "b" / "report" / "budget_terms.csv").read_text().splitlines()
     head = terms[0].split(",")
@@ -134,7 +135,7 @@ def test_report_refuses_a_folder_without_tables(tmp_path):
 def test_published_budget_regenerates_from_its_tables(tmp_path):
     copy = tmp_path / "error_budget"
     shutil.copytree(PUBLISHED, copy, ignore=lambda d, names: ["report"] if Path(d) == PUBLISHED else [])
-    assert B.main(["report", str(copy)]) == 0
+    assert main(["report", str(copy)]) == 0
     committed = sorted(p.name for p in (PUBLISHED / "report").glob("*.csv")) + ["budget_table.md"]
     for name in committed:
         assert (copy / "report" / name).read_text() == (PUBLISHED / "report" / name).read_text(), name

@@ -1,10 +1,10 @@
 """``renderlab navigation-budget FOLDER``: the error budget's landmark errors flown through the descent filter.
 
 A synthesis of two studies that stay independent of each other: the error budget's per-configuration landmark
-error models (:mod:`renderlab.studies.retina_vs_spc.budget_navigation`) flown geometrically along the descent
+error models (:mod:`renderlab.studies.retina_vs_spc.budget.navigation`) flown geometrically along the descent
 study's truth (:mod:`renderlab.studies.descent_navigation.error_flights`); this command, a layer above the studies,
 joins them: models → flights → ``FOLDER/tables/budget_navigation*.parquet`` → the budget's report
-(:mod:`renderlab.studies.retina_vs_spc.budget_report`, which reads the tables alone). ``--only CONFIG ...`` flies
+(:mod:`renderlab.studies.retina_vs_spc.budget.report`, which reads the tables alone). ``--only CONFIG ...`` flies
 just those configurations (no floor) with the same runs and seed, so their rows replace those of the existing table
 and equal what a full run gives; ``--methods METHOD ...`` likewise flies just those methods (of every configuration,
 or of ``--only``'s), replacing only their rows.
@@ -28,7 +28,7 @@ def add_parser(sub) -> None:
     n.add_argument("--seed", type=int, default=2027, help="seed of the injected landmark errors")
     n.add_argument("--workers", type=int, default=2, help="worker processes (1 to 4 per core)")
     n.add_argument("--mappings", nargs="+", default=None, help="mappings of the budget's statistics onto the "
-                   "descent's altitudes (default: altitude ground pixel; see budget_navigation)")
+                   "descent's altitudes (default: altitude ground pixel; see budget.navigation)")
     n.add_argument("--only", nargs="+", metavar="CONFIG", help="fly only these configurations and replace their "
                    "rows in FOLDER/tables/budget_navigation.parquet")
     n.add_argument("--methods", nargs="+", metavar="METHOD", help="fly only these landmark methods (same runs and "
@@ -37,20 +37,20 @@ def add_parser(sub) -> None:
 
 def navigation_tables(folder, scenario_path, opts, workers: int = 2, only=None, methods=None) -> tuple:
     """(navigation table, rendered touchdown table) of a budget folder's error models
-    (:func:`~renderlab.studies.retina_vs_spc.budget_navigation.error_models`, options ``opts``:
-    :class:`~renderlab.studies.retina_vs_spc.budget_navigation.NavBudgetOptions`) flown along ``scenario_path``'s
+    (:func:`~renderlab.studies.retina_vs_spc.budget.navigation.error_models`, options ``opts``:
+    :class:`~renderlab.studies.retina_vs_spc.budget.navigation.NavBudgetOptions`) flown along ``scenario_path``'s
     descent (:func:`~renderlab.studies.descent_navigation.error_flights.fly_models`); ``only``: just these
     configurations, ``methods``: just these methods, either: no floor."""
     from renderlab.studies.descent_navigation.error_flights import descent_geometry, fly_models, rendered_touchdown
-    from renderlab.studies.retina_vs_spc.budget_navigation import MAPPINGS, NONE_CONFIG, NONE_METHOD, error_models
-    from renderlab.studies.retina_vs_spc.budget_tables import read_tables
+    from renderlab.studies.retina_vs_spc.budget.navigation import MAPPINGS, NONE_CONFIG, NONE_METHOD, error_models
+    from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES
 
     if opts.runs < 2:
         raise UserError(f"--runs must be >= 2, got {opts.runs}")
     bad = sorted(set(opts.mappings) - set(MAPPINGS))
     if bad:
         raise UserError(f"--mappings: {short(bad[0])} is not one of {', '.join(MAPPINGS)}")
-    meas, configs = read_tables(folder)
+    meas, configs = BUDGET_TABLES.read(folder)
     geom = descent_geometry(scenario_path)
     models = [m for mp in opts.mappings
               for m in error_models(meas, configs, geom.camera.fx, geom.cfg.gsd_ratio_range, mp, opts.gross_px)]
@@ -79,9 +79,9 @@ def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, work
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
-    from renderlab.studies.retina_vs_spc.budget_navigation import RENDERED, TABLE, NavBudgetOptions
-    from renderlab.studies.retina_vs_spc.budget_report import write_report
-    from renderlab.studies.retina_vs_spc.budget_tables import TABLES
+    from renderlab.campaign.oat_tables import TABLES
+    from renderlab.studies.retina_vs_spc.budget.navigation import RENDERED, TABLE, NavBudgetOptions
+    from renderlab.studies.retina_vs_spc.budget.report import write_report
 
     opts = NavBudgetOptions(runs=runs, seed=seed, **({"mappings": tuple(mappings)} if mappings else {}))
     nav, rendered = navigation_tables(folder, scenario_path, opts, workers, only, methods)

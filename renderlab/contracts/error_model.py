@@ -1,6 +1,6 @@
 """The landmark error-model contract: what a source of injected landmark-measurement errors gives a geometric flight.
 
-A study that *measures* landmark errors (the error budget, :mod:`renderlab.studies.retina_vs_spc.budget_navigation`)
+A study that *measures* landmark errors (the error budget, :mod:`renderlab.studies.retina_vs_spc.budget.navigation`)
 builds error models; a study that *flies* a filter with geometric measurements
 (:mod:`renderlab.studies.descent_navigation.error_flights`) injects them. Neither study imports the other: both speak
 this protocol, and a command above both (:mod:`renderlab.commands.navigation_budget`) hands one to the other.

@@ -31,7 +31,7 @@ The *floor* (``floor`` labels given) is run i flown with no landmark error: what
 tracker, the accelerometer and the gravity model the filter lacks leave.
 
 This module knows nothing of where the models come from (the error budget builds them,
-:mod:`renderlab.studies.retina_vs_spc.budget_navigation`; :mod:`renderlab.commands.navigation_budget` joins the
+:mod:`renderlab.studies.retina_vs_spc.budget.navigation`; :mod:`renderlab.commands.navigation_budget` joins the
 two).
 
 Tuning

@@ -150,7 +150,7 @@ def check(scenario) -> None:
 def run(scenario, base_dir, run_index: int, seed_sequence, workdir, methods=None) -> dict:
     """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``. ``methods``: landmark
     methods (names, objects or factories, :func:`renderlab.measurement.runner.make_method`) instead of the
-    section's names (the error budget's shadow-free onboard variants, :mod:`.budget_shadows`)."""
+    section's names (the error budget's shadow-free onboard variants, :mod:`.budget.shadows`)."""
     import pyarrow as pa
 
 

@@ -1,4 +1,5 @@
-"""The error budget's report, from its tables alone (:mod:`.budget_tables`, statistics :mod:`.budget_stats`).
+"""The error budget's report, from its tables alone (:mod:`renderlab.campaign.oat_tables`, statistics
+:mod:`renderlab.stats.oat_budget`).
 
 ``python -m renderlab.studies.retina_vs_spc.budget report FOLDER`` writes ``FOLDER/report/``:
 
@@ -8,15 +9,15 @@
 * ``budget_terms.csv`` — per method, subset, axis and statistic: all-off value, each source's contribution,
   the quadrature sum, all-on and sum / all-on (joint cluster bootstrap), ``check`` PASS when sum / all-on is
   within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off); with the
-  ``no_shadows`` configuration, ``shadow_approximation`` (all off vs no cast shadows, :mod:`.budget_shadows`);
+  ``no_shadows`` configuration, ``shadow_approximation`` (all off vs no cast shadows, :mod:`.shadows`);
 * ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
   residual of the exact models comes from; and the sensor-noise-alone rms noise sd / CRLB in the same groups;
 * ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure;
-* with ``tables/budget_navigation.parquet`` (:mod:`.budget_navigation`): ``budget_navigation.csv`` (each
+* with ``tables/budget_navigation.parquet`` (:mod:`.navigation`): ``budget_navigation.csv`` (each
   source's contribution to the descent filter's touchdown-proxy error), ``budget_navigation_validation.csv``
   (geometric all-on vs the rendered closed-loop campaign) and ``budget_navigation.png``/``.svg``
-  (:mod:`.budget_navigation_report`);
-* with ``tables/budget_crlb.parquet`` (:mod:`.budget_crlb`): ``budget_crlb.csv`` — the budget's CRLB (from its
+  (:mod:`.navigation_report`);
+* with ``tables/budget_crlb.parquet`` (:mod:`.crlb`): ``budget_crlb.csv`` — the budget's CRLB (from its
   8-spp truth render) against clean renders' bound, and the sensor-noise-alone noise / CRLB with each bound.
 """
 
@@ -28,19 +29,19 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.campaign import store
+from renderlab.campaign.oat_tables import TABLES
 from renderlab.errors import UserError
-from renderlab.studies.retina_vs_spc import budget_crlb as BC
-from renderlab.studies.retina_vs_spc import budget_navigation_report as NR
-from renderlab.studies.retina_vs_spc import budget_stats as S
-from renderlab.studies.retina_vs_spc.budget_figure import budget_figure
-from renderlab.studies.retina_vs_spc.budget_probe import PROBE, probe_rows
-from renderlab.studies.retina_vs_spc.budget_stats import TERMS_ORDER
-from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
+from renderlab.report.budget_figure import budget_figure
+from renderlab.stats import oat_budget as S
+from renderlab.studies.retina_vs_spc.budget import crlb as BC
+from renderlab.studies.retina_vs_spc.budget import navigation_report as NR
+from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES, TERMS_ORDER
+from renderlab.studies.retina_vs_spc.budget.probe import PROBE, probe_rows
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
 from renderlab.studies.retina_vs_spc.report import well_measured_mask
 
 N_BOOT_SUMMARY, N_BOOT_JOINT, SEED = 1000, 500, 20
-SHADOW_CONFIG = "no_shadows"  # renderlab.studies.retina_vs_spc.budget_shadows.CONFIG
+SHADOW_CONFIG = "no_shadows"  # renderlab.studies.retina_vs_spc.budget.shadows.CONFIG
 BANDS = (("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf))
 
 
@@ -87,7 +88,7 @@ def compute(meas, configs, gross_px: float = 1.0) -> tuple[list, list, list]:
 
 def _peak_rows(S, a, b, weights, gross_px, name: str = "peak_step") -> list[dict]:
     """A term measured at all off, signed √(v²(a) − v²(b)): ``peak_step`` (a = Retina's 3×3 step, b =
-    ``retina_refined``) or ``shadow_approximation`` (a = all off, b = ``no_shadows``, :mod:`.budget_shadows`)."""
+    ``retina_refined``) or ``shadow_approximation`` (a = all off, b = ``no_shadows``, :mod:`.shadows`)."""
     out = []
     for st in S.STATS:
         def term(w, st=st):
@@ -169,7 +170,7 @@ def markdown(summary: list[dict], terms: list[dict]) -> str:
 
 
 def _probe(folder: Path) -> list[dict]:
-    """The template-sampling probe's rows (:mod:`.budget_probe`), or [] when the folder has no probe table."""
+    """The template-sampling probe's rows (:mod:`.probe`), or [] when the folder has no probe table."""
     import pyarrow.parquet as pq
 
 
@@ -191,7 +192,7 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder}: no such folder")
-    meas, configs = read_tables(folder)
+    meas, configs = BUDGET_TABLES.read(folder)
     summary, terms, breakdown = compute(meas, configs)
     probe = _probe(folder)
     out_dir = Path(out_dir) if out_dir is not None else folder / "report"
@@ -214,7 +215,7 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
         nav = NR.write(folder, stage, sources, _write_csv)
         md += ("\n" + nav) if nav else ""
         (stage / "budget_table.md").write_text(md, encoding="utf-8")
-        budget_figure(summary, terms, stage / "error_budget")
+        budget_figure(summary, terms, stage / "error_budget", TERMS_ORDER)
     return out_dir
 
 

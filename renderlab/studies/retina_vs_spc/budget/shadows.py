@@ -1,4 +1,4 @@
-"""The error budget's shadow-approximation term: configuration ``no_shadows`` (:mod:`.budget`).
+"""The error budget's shadow-approximation term: configuration ``no_shadows`` (:mod:`.runner`).
 
 What the onboard methods do with cast shadows, and why "off" switches both sides:
 
@@ -19,7 +19,7 @@ image lacks (a new error, not the absence of the approximation); switching only 
 measure "no shadow model" against the approximate one.
 
 The term is measured at the all-off point, like the peak step: ``no_shadows`` is every source off plus no
-cast shadows; the shadow term is ``sign(d)·√|d|`` with d = v²(all off) − v²(no shadows) (:mod:`.budget_report`).
+cast shadows; the shadow term is ``sign(d)·√|d|`` with d = v²(all off) − v²(no shadows) (:mod:`.report`).
 It is part of the all-off residual, so it does not enter the quadrature sum (which starts from all off).
 """
 

@@ -1,11 +1,11 @@
-"""The navigation budget's statistics, tables and figure (:mod:`.budget_navigation`), from its tables alone.
+"""The navigation budget's statistics, tables and figure (:mod:`.navigation`), from its tables alone.
 
 Statistics of the touchdown-proxy position error δr (last image, 50 m; site east, north, up; m) over the runs
 of one mapping × method: ``rms_3d`` = √(mean |δr|²) and ``rms_e``/``rms_n``/``rms_u`` per axis. A source's
 contribution is ``sign(d)·√|d|``, d = v²(source alone) − v²(all off) — the same rule as the per-landmark budget
-(:mod:`.budget_stats`) — the quadrature sum √(v²(all off) + Σ d) is checked against v(all on) (PASS within 20 %);
+(:mod:`renderlab.stats.oat_budget`) — the quadrature sum √(v²(all off) + Σ d) is checked against v(all on) (PASS within 20 %);
 ``peak_step`` (``retina`` only) is the 3×3 step against ``retina_refined`` at all off, ``shadow_approximation`` all off against ``no_shadows``
-(:mod:`.budget_shadows`; neither enters the sum: both are inside all off), and ``floor`` the
+(:mod:`.shadows`; neither enters the sum: both are inside all off), and ``floor`` the
 descent without landmark error (inside every other value, not a term of the sum). Runs that diverged in any
 configuration of the mapping × method are left out of it (counted in ``runs_lost``). **Intervals**: 95 %
 percentile bootstrap over **runs** (runs are independent; every configuration and method of a run shares its
@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.studies.retina_vs_spc.budget_navigation import NONE_CONFIG, NONE_METHOD, RENDERED, TABLE, term_order
-from renderlab.studies.retina_vs_spc.budget_navigation_figure import navigation_figure
-from renderlab.studies.retina_vs_spc.budget_tables import TABLES
+from renderlab.campaign.oat_tables import TABLES
+from renderlab.studies.retina_vs_spc.budget.navigation import NONE_CONFIG, NONE_METHOD, RENDERED, TABLE, term_order
+from renderlab.studies.retina_vs_spc.budget.navigation_figure import navigation_figure
 
 N_BOOT, SEED, TOL = 1000, 21, 0.2
-SHADOW_CONFIG = "no_shadows"  # .budget_shadows.CONFIG: its term is at all off, like the peak step
+SHADOW_CONFIG = "no_shadows"  # .shadows.CONFIG: its term is at all off, like the peak step
 STATS = ("rms_3d", "rms_e", "rms_n", "rms_u")
 AXES = {"rms_3d": ("e", "n", "u"), "rms_e": ("e",), "rms_n": ("n",), "rms_u": ("u",)}
 

@@ -1,4 +1,4 @@
-"""The navigation budget's figure (:mod:`.budget_navigation_report`): top, per method the touchdown-proxy rms
+"""The navigation budget's figure (:mod:`.navigation_report`): top, per method the touchdown-proxy rms
 3-D position error of each budget term (primary mapping ``altitude``, 95 % paired run-bootstrap intervals) with
 the other mappings as markers (the bracket) and PASS/FAIL of the quadrature check over the sum bar; bottom, the
 validation: rendered campaign vs geometric all-on (each mapping), rms 3-D and median |δr| with intervals.
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
-from renderlab.studies.retina_vs_spc.budget_navigation import term_order
+from renderlab.studies.retina_vs_spc.budget.navigation import term_order
 
 PRIMARY = "altitude"
 MARKERS = {"ground": "v", "pixel": "^"}

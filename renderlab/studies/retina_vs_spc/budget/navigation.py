@@ -47,7 +47,7 @@ command above both studies that joins them; ``--only CONFIG ...``: just those co
 rows) writes ``tables/budget_navigation.parquet`` (:data:`TABLE`: one row per mapping, configuration, method and
 run: touchdown-proxy error at the last image, east / north / up in the site frame, the filter's 1σ, NEES, track
 loss, the injected model) and ``tables/budget_navigation_rendered.parquet`` (:data:`RENDERED`: the rendered
-campaign's touchdown rows, for the validation), then the report (:mod:`.budget_navigation_report`).
+campaign's touchdown rows, for the validation), then the report (:mod:`.navigation_report`).
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from renderlab.errors import UserError
-from renderlab.studies.retina_vs_spc import budget_stats as S
+from renderlab.stats import oat_budget as S
 
 MAPPINGS = ("altitude", "ground", "pixel")
 NONE_CONFIG, NONE_METHOD = "no_landmark_error", "none"

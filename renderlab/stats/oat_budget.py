@@ -1,5 +1,6 @@
-"""Statistics of the error budget (:mod:`.budget`): per configuration, method, subset and axis, and each
-source's contribution beside the registration Cramér–Rao bound. Pure numpy on the budget's tables.
+"""Statistics of a one-at-a-time error budget of landmark shifts (:mod:`renderlab.campaign.oat_budget`): per
+configuration, method, subset and axis, and each source's contribution beside the registration Cramér–Rao bound.
+Pure numpy on the budget's tables (any study's: the columns of :func:`columns`).
 
 Rows: a landmark attempted in a frame with a truth pixel (``truth_visible``); "results" are those with a
 measured shift. Clusters are landmark-frames (``frame``, ``item``): one landmark in one frame is seen by every
@@ -35,11 +36,6 @@ import numpy as np
 
 from renderlab.stats.bootstrap import MAD_TO_SIGMA, cluster_bootstrap
 
-#: the budget's terms in the order of its tables and figure
-TERMS_ORDER = ("all_off", "sensor_noise", "mapping_error", "albedo_error", "photometric_law", "apriori_pose",
-               "camera_knowledge", "sun_knowledge", "maplet_spacing", "peak_step", "shadow_approximation",
-               "quadrature_sum", "all_on")
-
 CONFIDENCE = 0.95
 AXES = ("s", "l", "both")
 STATS = ("robust_sigma", "std", "bias_rms", "noise_sd")
@@ -60,13 +56,16 @@ class Sample:
 
 
 def columns(table) -> dict:
-    """The budget measurement table as numpy columns, with ``cluster`` (int per landmark-frame) and ``n_clusters``."""
+    """The budget measurement table as numpy columns (``config``, ``method``, ``reason``; ``run``, ``frame``,
+    ``item``; ``has_result``, ``truth_visible``; ``err_s``, ``err_l``, ``crlb_s``, ``crlb_l`` and every other
+    floating-point column as float), with ``cluster`` (int per landmark-frame) and ``n_clusters``."""
     out = {}
     for name in ("config", "method", "reason"):
         out[name] = np.asarray(table.column(name).to_pylist(), dtype=object)
     for name in ("run", "frame", "item"):
         out[name] = np.asarray(table.column(name).to_numpy(zero_copy_only=False), np.int64)
-    for name in ("err_s", "err_l", "crlb_s", "crlb_l", "gsd_ratio", "shadow_fraction"):
+    floats = [f.name for f in table.schema if str(f.type) in ("float", "double", "halffloat")]
+    for name in dict.fromkeys(("err_s", "err_l", "crlb_s", "crlb_l", *floats)):
         out[name] = np.asarray(table.column(name).to_numpy(zero_copy_only=False), float)
     for name in ("has_result", "truth_visible"):
         out[name] = np.asarray(table.column(name).to_numpy(zero_copy_only=False), bool)

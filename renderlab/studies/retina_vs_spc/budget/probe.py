@@ -1,4 +1,4 @@
-"""Why Retina is not at the CRLB on exact models: its template sampling, measured (:mod:`.budget`).
+"""Why Retina is not at the CRLB on exact models: its template sampling, measured (:mod:`.runner`).
 
 With every error source off (McEwen truth = the onboard law, exact maplets, no knowledge error, no sensor
 noise) the remaining error is deterministic: the template predicted from the maplet differs from the truth

@@ -1,14 +1,17 @@
-"""The error budget's raw tables (:mod:`.budget`): write them into a folder, read them back.
+"""The raw tables of a one-at-a-time error budget (:mod:`renderlab.campaign.oat_budget`): write them into a
+folder, read them back, merge a partial rerun into them.
 
-``tables/budget_measurements.parquet`` keeps the columns the budget is computed from (one row per landmark
-attempted per frame, method and run, plus ``config``), ``tables/budget_configs.parquet`` one row per
-configuration (``config``, ``source``, ``description``, ``runs``, ``overrides`` as JSON text),
-``tables/budget_perturbations.parquet`` each run's drawn knowledge errors, ``budget.json`` the command.
+``tables/budget_measurements.parquet`` keeps the columns a budget is computed from (one row per item attempted per
+frame, method and run, plus ``config``), ``tables/budget_configs.parquet`` one row per configuration (``config``,
+``source``, ``description``, ``runs``, ``overrides`` as JSON text), ``tables/budget_perturbations.parquet`` each
+run's drawn knowledge errors, ``budget.json`` the command. Which measurement columns are kept, and which of them a
+rerun of some methods must reproduce, is the study's :class:`OatTables`.
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 from renderlab.campaign import store
@@ -17,36 +20,60 @@ from renderlab.errors import UserError
 TABLES = "tables"
 MEASUREMENTS, CONFIGS, PERTURBATIONS = "budget_measurements", "budget_configs", "budget_perturbations"
 MANIFEST = "budget.json"
-
-#: the measurement columns kept
-COLUMNS = ("config", "run", "frame", "item", "method", "peak", "truth_s", "truth_l", "err_s", "err_l", "has_result",
-           "reason", "outlier", "truth_visible", "score", "search_px", "n_pixels", "gsd_ratio", "phase_deg",
-           "shadow_fraction", "pred_shadow_fraction", "crlb_s", "crlb_l", "range_m")
+#: largest |new − old| of a paired column (px, m, deg, ...; the CRLB relative) still counted as the same truth
+PAIR_TOL, PAIR_TOL_CRLB_REL = 1e-9, 1e-9
 
 
-def write_tables(out: Path, configs: list[dict], measurements, perturbations, manifest: dict) -> None:
-    """Write the three tables and ``budget.json`` into ``out`` (staged: all or nothing)."""
+@dataclass(frozen=True)
+class OatTables:
+    """A study's budget tables: the measurement ``columns`` kept, the truth ``paired`` columns a ``--methods``
+    rerun must reproduce on every (config, run, frame, item) it shares with the table, and the ``make`` command
+    named when a folder is not a budget folder."""
+
+    columns: tuple[str, ...]
+    paired: tuple[str, ...]
+    make: str
+
+    def write(self, out: Path, configs: list[dict], measurements, perturbations, manifest: dict) -> None:
+        write_tables(out, configs, measurements, perturbations, manifest, self.columns)
+
+    def read(self, folder: Path) -> tuple:
+        return read_tables(folder, self.make)
+
+    def merge(self, out: Path, configs: list[dict], meas, pert, manifest: dict, methods=None) -> None:
+        merge_tables(out, configs, meas, pert, manifest, methods, self.columns, self.paired)
+
+
+def _config_table(configs: list[dict]):
     import pyarrow as pa
+
+    return pa.table({"config": pa.array([c["config"] for c in configs], pa.string()),
+                     "source": [c["source"] for c in configs], "description": [c["description"] for c in configs],
+                     "runs": pa.array([int(c["runs"]) for c in configs], pa.int64()),
+                     "overrides": [json.dumps(c["overrides"], sort_keys=True) for c in configs]})
+
+
+def write_tables(out: Path, configs: list[dict], measurements, perturbations, manifest: dict,
+                 columns: tuple[str, ...]) -> None:
+    """Write the three tables (measurements: ``columns`` only) and ``budget.json`` into ``out`` (staged: all or
+    nothing)."""
     import pyarrow.parquet as pq
 
-
-    missing = [c for c in COLUMNS if c not in measurements.column_names]
+    missing = [c for c in columns if c not in measurements.column_names]
     if missing:
         raise UserError(f"error budget: the measurement table lacks {missing[0]!r}")
-    cfg = pa.table({"config": [c["config"] for c in configs], "source": [c["source"] for c in configs],
-                    "description": [c["description"] for c in configs],
-                    "runs": pa.array([int(c["runs"]) for c in configs], pa.int64()),
-                    "overrides": [json.dumps(c["overrides"], sort_keys=True) for c in configs]})
+    cfg = _config_table(configs)
     with store.staged_folder(Path(out), "the error budget") as stage:
         (stage / TABLES).mkdir()
-        pq.write_table(measurements.select(list(COLUMNS)), stage / TABLES / f"{MEASUREMENTS}.parquet")
+        pq.write_table(measurements.select(list(columns)), stage / TABLES / f"{MEASUREMENTS}.parquet")
         pq.write_table(cfg, stage / TABLES / f"{CONFIGS}.parquet")
         pq.write_table(perturbations, stage / TABLES / f"{PERTURBATIONS}.parquet")
         (stage / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n", encoding="utf-8")
 
 
-def read_tables(folder: Path) -> tuple:
-    """(measurements, configs) pyarrow tables of a budget folder; UserError naming what is missing."""
+def read_tables(folder: Path, make: str) -> tuple:
+    """(measurements, configs) pyarrow tables of a budget folder; UserError naming what is missing (and ``make``,
+    the command that makes such a folder)."""
     import pyarrow.parquet as pq
 
     d = Path(folder) / TABLES
@@ -55,7 +82,7 @@ def read_tables(folder: Path) -> tuple:
         p = d / f"{name}.parquet"
         if not p.is_file():
             raise UserError(f"{folder}: no {TABLES}/{name}.parquet (not an error-budget folder; make one with "
-                            "python -m renderlab.studies.retina_vs_spc.budget run)")
+                            f"{make})")
         try:
             out.append(pq.read_table(p))
         except Exception as err:  # pyarrow raises several types for a damaged file
@@ -65,14 +92,7 @@ def read_tables(folder: Path) -> tuple:
     return out[0], out[1]
 
 
-#: truth columns a ``--methods`` run must reproduce on every (config, run, frame, item) it shares with the table
-PAIRED_COLUMNS = ("truth_s", "truth_l", "truth_visible", "gsd_ratio", "phase_deg", "shadow_fraction", "crlb_s",
-                  "crlb_l", "range_m")
-#: largest |new − old| of a paired column (px, m, deg, ...; the CRLB relative) still counted as the same truth
-PAIR_TOL, PAIR_TOL_CRLB_REL = 1e-9, 1e-9
-
-
-def paired_check(old, new) -> dict:
+def paired_check(old, new, paired: tuple[str, ...]) -> dict:
     """{column: max |new − old|} (``crlb_*``: relative) over the keys (config, run, frame, item) the new rows share
     with ``old``'s rows of one other method, and ``perturbations``: whether their knowledge draws agree; UserError
     when a key is missing or a value differs beyond :data:`PAIR_TOL` (the new rows would not be paired)."""
@@ -93,7 +113,7 @@ def paired_check(old, new) -> dict:
             raise UserError(f"--methods: {m}'s rows do not cover the same landmark-frames as {ref_method[0]}'s "
                             f"({len(missing)} new keys, {len(keys)} vs {o.num_rows} rows)")
         j = np.array([index[k] for k in keys])
-        for c in PAIRED_COLUMNS:
+        for c in paired:
             a = np.asarray(o.column(c).to_numpy(zero_copy_only=False), float)[j]
             b = np.asarray(n.column(c).to_numpy(zero_copy_only=False), float)
             if not np.array_equal(np.isfinite(a), np.isfinite(b)):
@@ -115,7 +135,8 @@ def _eq(table, column: str, value):
     return pc.equal(table.column(column).cast("string"), value)
 
 
-def merge_tables(out: Path, configs: list[dict], meas, pert, manifest: dict, methods=None) -> None:
+def merge_tables(out: Path, configs: list[dict], meas, pert, manifest: dict, methods, columns: tuple[str, ...],
+                 paired: tuple[str, ...]) -> None:
     """Replace the rows of ``configs`` in ``out``'s three tables by the new ones (other configurations and tables
     untouched; each file written to a temporary sibling, then renamed) and add the command to ``budget.json``
     under ``incremental``. ``methods``: replace only these methods' measurement rows of ``configs`` (keep the
@@ -124,18 +145,15 @@ def merge_tables(out: Path, configs: list[dict], meas, pert, manifest: dict, met
     import pyarrow.compute as pc
     import pyarrow.parquet as pq
 
-    names = pa.array([c["config"] for c in configs], pa.string())
-    new_cfg = pa.table({"config": names, "source": [c["source"] for c in configs],
-                        "description": [c["description"] for c in configs],
-                        "runs": pa.array([int(c["runs"]) for c in configs], pa.int64()),
-                        "overrides": [json.dumps(c["overrides"], sort_keys=True) for c in configs]})
+    new_cfg = _config_table(configs)
+    names = new_cfg.column("config").combine_chunks()
     tables = {n: pq.read_table(Path(out) / TABLES / f"{n}.parquet") for n in (MEASUREMENTS, CONFIGS, PERTURBATIONS)}
     drop = {n: pc.is_in(t.column("config").cast(pa.string()), value_set=names) for n, t in tables.items()}
-    new = {MEASUREMENTS: meas.select(list(COLUMNS)), CONFIGS: new_cfg, PERTURBATIONS: pert}
+    new = {MEASUREMENTS: meas.select(list(columns)), CONFIGS: new_cfg, PERTURBATIONS: pert}
     if methods:
         old = tables[MEASUREMENTS]
         mine = pc.is_in(old.column("method").cast(pa.string()), value_set=pa.array(list(methods), pa.string()))
-        paired = paired_check(old.filter(pc.and_(drop[MEASUREMENTS], pc.invert(mine))), new[MEASUREMENTS])
+        paired = paired_check(old.filter(pc.and_(drop[MEASUREMENTS], pc.invert(mine))), new[MEASUREMENTS], paired)
         _same_draws(tables[PERTURBATIONS].filter(drop[PERTURBATIONS]), pert)
         drop = {MEASUREMENTS: pc.and_(drop[MEASUREMENTS], mine)}
         manifest = {**manifest, "methods": list(methods), "paired_max_abs_diff": paired}

@@ -1,4 +1,4 @@
-"""Is the error budget's registration CRLB biased by the Monte-Carlo noise of its truth render? (:mod:`.budget`)
+"""Is the error budget's registration CRLB biased by the Monte-Carlo noise of its truth render? (:mod:`.runner`)
 
 The budget's CRLB per landmark-frame (``crlb_s``/``crlb_l``, :func:`.run.landmark_extras`) is
 :func:`renderlab.campaign.scoring.registration_crlb` of the truth image's expected DN over the landmark's
@@ -32,7 +32,7 @@ runs saw) in every estimate. The rows go to ``tables/budget_crlb.parquet`` (one 
 estimate); :func:`report_rows` turns them and the budget's sensor-noise-alone rows into the rms noise sd /
 CRLB with the budget's bound and with the clean one (``report/budget_crlb.csv``)::
 
-    python -m renderlab.studies.retina_vs_spc.budget_crlb results/error_budget
+    python -m renderlab.studies.retina_vs_spc.budget.crlb results/error_budget
     .venv/bin/renderlab report results/error_budget
 """
 
@@ -49,6 +49,7 @@ import numpy as np
 
 from estimators.retina import CameraPoseEstimate, TemplateOptions, build_mesh, render_template
 from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.oat_tables import TABLES
 from renderlab.campaign.reexpose import frame_sensor_options
 from renderlab.campaign.scoring import dn_variance, image_gradients, registration_crlb, template_shift_covariance
 from renderlab.errors import UserError
@@ -58,9 +59,8 @@ from renderlab.geometry.rotations import rotation_from_quat_xyzw
 from renderlab.measurement.runner import MeasureOptions, onboard_photometry
 from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
 from renderlab.sensor.model import SensorOptions, expected_dn
-from renderlab.studies.retina_vs_spc import budget_stats as S
-from renderlab.studies.retina_vs_spc.budget_plan import budget_configs
-from renderlab.studies.retina_vs_spc.budget_tables import TABLES, read_tables
+from renderlab.stats import oat_budget as S
+from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES, budget_configs
 from renderlab.worlds.ev5.catalog import read_catalog
 
 TABLE = "budget_crlb"
@@ -213,7 +213,7 @@ def _bounds(table) -> dict:
 
 
 def _with_bound(cols: dict, bound: dict) -> dict:
-    """``cols`` (:func:`.budget_stats.columns`) with ``crlb_s``/``crlb_l`` replaced by ``bound`` per landmark-frame
+    """``cols`` (:func:`renderlab.stats.oat_budget.columns`) with ``crlb_s``/``crlb_l`` replaced by ``bound`` per landmark-frame
     (NaN where the probe has none)."""
     out = dict(cols)
     keys = list(zip(cols["frame"].tolist(), cols["item"].tolist()))
@@ -242,7 +242,7 @@ def _ratio_rows(bounds: dict) -> list[dict]:
 def report_rows(meas, configs, probe, gross_px: float = 1.0, n_boot: int = 1000, seed: int = 20) -> list[dict]:
     """Rows of ``report/budget_crlb.csv``: the CRLB ratios (:func:`_ratio_rows`) and, per method and GSD band,
     the sensor-noise-alone rms noise sd / CRLB with the budget's bound (the table's columns) and with each probe
-    estimate (interval: resampling the per landmark-frame-axis ratios, as in :func:`.budget_stats.summary_row`)."""
+    estimate (interval: resampling the per landmark-frame-axis ratios, as in :func:`renderlab.stats.oat_budget.summary_row`)."""
     bounds = _bounds(probe)
     out = _ratio_rows(bounds) + [_noise_row(probe)]
     runs = dict(zip(configs.column("config").to_pylist(), configs.column("runs").to_pylist()))
@@ -310,7 +310,7 @@ def markdown(rows: list[dict]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m renderlab.studies.retina_vs_spc.budget_crlb",
+    p = argparse.ArgumentParser(prog="python -m renderlab.studies.retina_vs_spc.budget.crlb",
                                 description="the budget's CRLB from its 8-spp truth render against clean renders")
     p.add_argument("folder", type=Path, help="an error-budget folder (its tables/ get budget_crlb.parquet)")
     p.add_argument("--scenario", type=Path, default=None, help="base scenario (default: FOLDER/scenario.toml)")
@@ -321,7 +321,7 @@ def main(argv: list[str] | None = None) -> int:
         import pyarrow.parquet as pq
 
 
-        read_tables(args.folder)  # a budget folder, before anything renders
+        BUDGET_TABLES.read(args.folder)  # a budget folder, before anything renders
         if min(args.high_spp) < 1:
             raise UserError(f"--high-spp must be positive, got {args.high_spp}")
         scenario, base_dir = load_scenario(args.scenario or args.folder / "scenario.toml")
