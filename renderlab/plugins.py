@@ -46,6 +46,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "coastline_ekf": "renderlab.studies.coastline_ekf:STUDY",
         "unknown_satellite": "renderlab.studies.unknown_satellite:STUDY",
         "descent_navigation": "renderlab.studies.descent_navigation:STUDY",
+        "descent_gnc": "renderlab.studies.descent_gnc:STUDY",
         "planet_opnav": "renderlab.studies.planet_opnav:STUDY",
     }),
     "worlds": ("renderlab.worlds", {  # renderlab.contracts.world.WorldKind objects
@@ -60,6 +61,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "unknown_satellite": "renderlab.studies.unknown_satellite.config:UnknownSatelliteStudyConfig",
         "retina_vs_spc": "renderlab.studies.retina_vs_spc.config:RetinaVsSpcConfig",
         "descent_navigation": "renderlab.studies.descent_navigation.config:DescentNavigationConfig",
+        "descent_gnc": "renderlab.studies.descent_gnc.config:DescentGncConfig",
         "planet_opnav": "renderlab.studies.planet_opnav.config:PlanetOpNavConfig",
     }),
     "centre_limb_methods": ("renderlab.centre_limb_methods", {  # the centre_limb kind's methods (its method_group)

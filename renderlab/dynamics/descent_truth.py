@@ -105,6 +105,7 @@ class ContactSurface:
             # cone around the centroid direction holding the face, widened by 1e-9 rad against rounding
             self.mesh = (tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], c, np.cos(np.arccos(
                 np.clip(cos_half, -1, 1)) + 1e-9))
+            self.r_max = float(np.linalg.norm(v, axis=1).max())   # the mesh's bounding sphere about the centre
 
     def site_altitude(self, r) -> float | None:
         """Height above the DEM along the site normal, or None when ``r`` is not over the patch."""
@@ -134,6 +135,16 @@ class ContactSurface:
             raise UserError("contact surface: a ray from the body centre misses the shape mesh (not star-shaped "
                             "about its centre, or not closed)")
         return float(t[hit].max())
+
+    def event_altitude(self, r) -> float:
+        """A continuous-where-it-matters function with the sign of the altitude, for contact detection: the altitude
+        over the site DEM or, off the site, outside the mesh's bounding sphere the distance to that sphere (a
+        positive lower bound of the altitude, without the ray cast), else the altitude."""
+        if self.site_altitude(r) is None and self.mesh is not None:
+            rn = float(np.linalg.norm(r))
+            if rn > self.r_max:
+                return rn - self.r_max
+        return self.altitude(r)
 
     def altitude(self, r) -> float:
         """Altitude of ``r`` (3,) above the surface, m (module docstring)."""
@@ -202,7 +213,7 @@ class DescentTruth:
             surface = self.surface
 
             def touch(t, x, _a):
-                return surface.altitude(x[:3])
+                return surface.event_altitude(x[:3])
 
             touch.terminal, touch.direction = True, -1.0
             events = touch

@@ -1,0 +1,160 @@
+"""Study ``descent_gnc``: each landmark method flies its own closed GN&C loop down to contact, the open-loop replay
+beside it on the same draws.
+
+One Monte Carlo run (:func:`run`): the world is loaded once per process
+(:func:`renderlab.campaign.cache.loaded_world`); the run's seed gives two children — the navigation draws (initial
+estimate x̂0 = x0 + N(0, P0), star tracker per image, accelerometer per control period, sensor noise per image) and
+the thruster draws (bias, misalignment, per-command errors) — and **every method's flight uses the same two**
+(paired: the same draws per run index across methods and modes). Per method the closed loop
+(:func:`~renderlab.studies.descent_gnc.render_loop.fly_closed_loop`): guidance on the method's own filter, truth
+integrated under the commanded and corrupted thrust to contact, each image rendered where that flight's vehicle
+really is. Then the replay (:func:`~renderlab.studies.descent_gnc.replay.fly_replay`): guidance on the truth, one
+image per camera time shared by all methods' filters. The nominal (perfect navigation, ideal thrusters) is flown once
+per process: the control error is the true position minus the nominal one at the same time.
+
+Tables (:mod:`.tables`): ``gnc_images`` (one row per run, method, mode and image) and ``gnc_runs`` (one row per run,
+method and mode: touchdown, the filter's claim, Δv, propellant, track loss, timings); reported by :mod:`.report`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from renderlab import plugins
+from renderlab.errors import UserError
+from renderlab.studies.descent_gnc.config import DescentGncConfig
+
+TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
+_NOMINAL: dict = {}
+
+
+def section(scenario) -> DescentGncConfig:
+    """The scenario's ``[descent_gnc]`` section (defaults when absent)."""
+    return getattr(scenario, "descent_gnc", None) or DescentGncConfig()
+
+
+def check(scenario) -> None:
+    """Refuse what the study cannot run, before any output: world, trajectory, truth perturbations, names."""
+    if scenario.world.kind != "ev5" or scenario.trajectory.kind != "ev5_descent":
+        raise UserError(f"study descent_gnc needs world.kind 'ev5' with an 'ev5_descent' trajectory, got "
+                        f"'{scenario.world.kind}'")
+    p = scenario.perturbations
+    on = [n for n in TRUTH_PERTURBATIONS if getattr(p, n, None) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
+    if on:
+        raise UserError(f"study descent_gnc flies its own true trajectories; perturbations.{on[0]} is not supported "
+                        "(the study disperses the initial estimate, the sensors and the thrusters)")
+    cfg = section(scenario)
+    for name in cfg.methods:
+        plugins.landmark_methods.get(name, where="descent_gnc.methods: ")
+    plugins.guidance.get(cfg.guidance, where="descent_gnc.guidance: ")
+
+
+def loop_options(cfg: DescentGncConfig, spp=None):
+    """The :class:`~renderlab.studies.descent_gnc.render_loop.ClosedLoopOptions` of the section."""
+    from renderlab.studies.descent_gnc.render_loop import ClosedLoopOptions
+
+    return ClosedLoopOptions(
+        control_period_s=cfg.control_period_s, camera_period_s=cfg.camera_period_s, sigma_px=cfg.sigma_px,
+        star_tracker_sigma_rad=math.radians(cfg.star_tracker_sigma_arcsec / 3600.0),
+        accel_sigma_mps2=cfg.accel_sigma_mps2, initial_position_sigma_m=cfg.initial_position_sigma_m,
+        initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps, gm_filter_m3_s2=cfg.gm_filter_m3_s2,
+        q_acc_m2_s3=cfg.q_acc_m2_s3, max_landmarks=cfg.max_landmarks, gsd_ratio_range=tuple(cfg.gsd_ratio_range),
+        n_sigma=cfg.n_sigma, min_search_px=cfg.min_search_px, max_search_px=cfg.max_search_px, spp=spp,
+        sigma_ground_m=cfg.sigma_ground_m, widen_factors=tuple(cfg.widen_factors),
+        nis_reject_probability=cfg.nis_reject_probability, track_loss_images=cfg.track_loss_images)
+
+
+def thruster_options(cfg: DescentGncConfig):
+    from estimators.gnc import ThrusterOptions
+
+    return ThrusterOptions(mass_kg=cfg.mass_kg, max_accel_mps2=cfg.max_accel_mps2,
+                           min_impulse_bit_ns=cfg.min_impulse_bit_ns, scale_bias_sigma=cfg.scale_bias_sigma,
+                           scale_sigma=cfg.scale_sigma,
+                           misalignment_sigma_rad=math.radians(cfg.misalignment_sigma_deg),
+                           pointing_sigma_rad=math.radians(cfg.pointing_sigma_deg), isp_s=cfg.isp_s)
+
+
+class Setup:
+    """What every flight of a world shares: the renderer, truth dynamics, waypoints, start state, guidance maker."""
+
+    def __init__(self, renderer, cfg: DescentGncConfig):
+        from renderlab.dynamics.descent_truth import ContactSurface, DescentTruth, make_gravity
+        from renderlab.studies.descent_gnc.waypoints import arrm_waypoints
+        from renderlab.worlds.ev5.descent import DescentProfile
+
+        model = renderer.plan.model
+        self.renderer, self.cfg, self.site = renderer, cfg, model.site
+        self.omega = 2.0 * math.pi / model.spin.period_s
+        self.t0, self.x0, self.waypoints = arrm_waypoints(
+            DescentProfile(renderer.scenario.trajectory), self.omega, model.site, target_xy=cfg.target_xy_m,
+            touchdown_speed_mps=cfg.touchdown_speed_mps)
+        gravity = make_gravity(cfg.gravity, gm_m3_s2=cfg.gm_true_m3_s2, j2=cfg.j2_true, r_ref_m=cfg.r_ref_m,
+                               vertices=model.shape.vertices, faces=model.shape.faces)
+        self.truth = DescentTruth(gravity, self.omega, ContactSurface(model.shape.vertices, model.shape.faces,
+                                                                      model.site))
+        self.t_max = self.waypoints[-1].t_s + cfg.t_max_after_target_s
+
+    def guidance(self):
+        from renderlab.contracts.guidance import GuidanceOptions
+
+        return plugins.guidance.get(self.cfg.guidance)(GuidanceOptions(
+            self.waypoints, self.cfg.gm_filter_m3_s2, (0.0, 0.0, self.omega), self.cfg.control_period_s,
+            self.cfg.max_accel_mps2))
+
+    def thrusters(self, seed: int | None):
+        """A fresh thruster set drawing from ``seed`` (None: ideal, no errors)."""
+        from estimators.gnc import ThrusterModel, ThrusterOptions
+
+        opts = thruster_options(self.cfg) if seed is not None else ThrusterOptions(mass_kg=self.cfg.mass_kg,
+                                                                                   isp_s=self.cfg.isp_s)
+        return ThrusterModel(opts, np.random.default_rng(0 if seed is None else seed))
+
+    def nominal(self, key: str):
+        """The nominal flight (perfect navigation, ideal thrusters), flown once per process and world."""
+        from renderlab.studies.descent_gnc.loop import fly
+
+        if key not in _NOMINAL:
+            _NOMINAL.clear()
+            _NOMINAL[key] = fly(self.truth, self.guidance(), self.t0, self.x0,
+                                control_period_s=self.cfg.control_period_s, t_max_s=self.t_max,
+                                thrusters=self.thrusters(None))
+        return _NOMINAL[key]
+
+
+def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
+    """One run of ``descent_gnc`` → ``{"gnc_images": table, "gnc_runs": table}`` (module docstring)."""
+    from renderlab.campaign.cache import loaded_world, truth_key
+    from renderlab.scenario import scenario_from_dict, truth_dict
+    from renderlab.studies.descent_gnc.render_loop import fly_closed_loop
+    from renderlab.studies.descent_gnc.replay import fly_replay
+    from renderlab.studies.descent_gnc.tables import Recorder
+
+    check(scenario)
+    cfg = section(scenario)
+    truth_sc = scenario_from_dict(truth_dict(scenario.to_dict()), "descent_gnc truth scenario")
+    renderer = loaded_world(truth_sc, Path(base_dir))
+    setup = Setup(renderer, cfg)
+    nominal = setup.nominal(truth_key(truth_sc.to_dict()) + cfg.model_dump_json())
+    ss_nav, ss_thr = seed_sequence.spawn(2)
+    nav_seed, thr_seed = int(ss_nav.generate_state(1)[0]), int(ss_thr.generate_state(1)[0])
+    opts = loop_options(cfg)
+    rec = Recorder(scenario.name, int(run_index), setup, nominal, opts)
+    for method in cfg.methods:
+        thr = setup.thrusters(thr_seed)
+        t_start = time.perf_counter()
+        flown = fly_closed_loop(renderer, method, setup.guidance(), truth=setup.truth, t0_s=setup.t0, x0=setup.x0,
+                                t_max_s=setup.t_max, seed=nav_seed, options=opts, thrusters=thr)
+        rec.add(method, "closed", flown, thr, time.perf_counter() - t_start)
+    if cfg.replay:
+        thr = setup.thrusters(thr_seed)
+        t_start = time.perf_counter()
+        flown = fly_replay(renderer, list(cfg.methods), setup.guidance(), truth=setup.truth, t0_s=setup.t0,
+                           x0=setup.x0, t_max_s=setup.t_max, seed=nav_seed, options=opts, thrusters=thr)
+        wall = (time.perf_counter() - t_start) / len(cfg.methods)
+        for method in cfg.methods:
+            rec.add(method, "replay", flown[method], thr, wall)
+    return rec.tables()
