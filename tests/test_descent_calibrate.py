@@ -1,5 +1,5 @@
 """The landmark error model fit (renderlab.studies.descent_navigation.calibrate) and the common-share / N_eff scores
-(renderlab.studies.descent_navigation.independence) on synthetic errors drawn from the models they assume, with
+(renderlab.stats.independence) on synthetic errors drawn from the models they assume, with
 known parameters (seeded)."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from renderlab.stats.independence import common_share, n_effective, state_common_share
 from renderlab.studies.descent_navigation.calibrate import fit_method
-from renderlab.studies.descent_navigation.independence import common_share, n_effective, state_common_share
 
 
 def test_fit_recovers_a_known_ground_offset_and_pixel_noise():

@@ -2,7 +2,7 @@
 *true* pose on one truth set's cached DN images, every landmark in view whose GSD ratio is in the study's range,
 with the truth set's maplet catalogue and with error-free maplets (the catalogue rebuilt with ``mapping_error_m =
 albedo_error_rms = 0``, :mod:`renderlab.campaign.maplets`); prints per image the similarity fit of the errors
-(:func:`renderlab.studies.descent_navigation.independence.pattern_rows`' model: scale about the landmarks' centroid)
+(:func:`renderlab.stats.independence.pattern_rows`' model: scale about the landmarks' centroid)
 and their rms. A diagnostic, not a study: search distance 8 px, no filter. With a campaign's
 ``descent_landmarks.parquet`` (LANDMARKS), only the landmarks that campaign's METHOD kept at the image in at least
 half its runs (the few the study selects, :func:`kept_items`): the true-pose share of that campaign's

@@ -13,7 +13,7 @@ import numpy as np
 
 from renderlab.report.style import fmt, method_colors, plt, save
 from renderlab.stats.bootstrap import cluster_bootstrap
-from renderlab.studies.descent_navigation.independence import (
+from renderlab.stats.independence import (
     band_summary,
     independence_rows,
     pattern_rows,

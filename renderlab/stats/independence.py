@@ -1,5 +1,5 @@
-r"""Are the runs of a descent campaign independent? The share of the error common to all runs, and the χ² bands it
-implies, from the tables alone.
+r"""Are the runs of a campaign independent? The share of the error common to all runs, and the χ² bands it implies,
+from the filter and landmark tables alone (a descent campaign's, :mod:`renderlab.studies.descent_navigation`).
 
 An ANEES band χ²(6N)/N assumes N independent runs. When part of the error is the same in every run (one map, one
 set of truth images, a method's rendering error fixed by the geometry), the runs are correlated and the plain band
@@ -30,7 +30,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from renderlab.studies.descent_navigation.scoring import chi2_band_sum, columns, tracked
+from renderlab.stats.consistency import chi2_band_sum, columns, tracked
 
 WHITE = tuple(f"white_{k}" for k in range(6))
 
@@ -86,7 +86,7 @@ def landmark_shares(lc: dict, method: str, frame: int) -> dict:
 
 
 def tracked_landmarks(ftab, ltab):
-    """The landmark rows of the (method, run) pairs that kept track (as the filter scores: :func:`.scoring.tracked`)."""
+    """The landmark rows of the (method, run) pairs that kept track (as the filter scores: :func:`renderlab.stats.consistency.tracked`)."""
     import pyarrow as pa
 
 
