@@ -101,10 +101,10 @@ def test_campaign_and_report(repo, tmp_path):
     for name in again.column_names:                                  # run 2 replays alone, bit for bit
         np.testing.assert_array_equal(again[name].to_numpy(), t[name].to_numpy())
     page = make_report(out, tmp_path / "report").read_text()
-    for f in ("coastline_filter_coastline_errors.png", "coastline_filter_coastline_errors.svg",
-              "coastline_filter_coastline_consistency.png", "coastline_filter_coastline_consistency.svg",
+    for f in ("coastline_filter_coastline_errors.png", "coastline_filter_coastline_consistency.png",
               "coastline_filter_coastline_steady_state.csv"):
         assert (tmp_path / "report" / f).is_file()
+    assert not list((tmp_path / "report").glob("*.svg")), "SVG only under renderlab report --svg"
     # the study reports its filter table itself (Study.own_tables): no generic section duplicating it
     assert not (tmp_path / "report" / "coastline_filter_errors.png").exists() and "Filter: coastline_filter" not in page
     assert "ANEES inside its 99" in page and "χ² band low (99 %)</th><th" in page
@@ -176,8 +176,8 @@ def test_report_section_flags_the_published_image_in_the_loop_inconsistency(repo
     assert body.index("χ² band low") < body.index("χ² band high")
     assert "25 of 32 runs drawn" in body and "time (s)" in body
     for f in ("errors", "consistency"):
-        for ext in ("png", "svg"):
-            assert (tmp_path / f"coastline_filter_coastline_{f}.{ext}").stat().st_size > 10_000
+        assert (tmp_path / f"coastline_filter_coastline_{f}.png").stat().st_size > 10_000
+        assert not (tmp_path / f"coastline_filter_coastline_{f}.svg").exists()
 
 
 def test_truth_model_from_the_scenario_reaches_the_geometric_study():

@@ -249,7 +249,7 @@ def test_publish_writes_the_published_layout_and_its_report(tmp_path):
     assert is_published(tmp_path)
     rep = tmp_path / "report"
     for name in ("summary.csv", "table1.md", "index.html", "i45_h500_coastline_errors.png",
-                 "i45_h500_coastline_errors.svg", "i45_h500_coastline_consistency.png"):
+                 "i45_h500_coastline_consistency.png"):
         assert (rep / name).stat().st_size > 0, name
     assert (rep / "i45_h500_coastline_errors.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     row = next(csv.DictReader(open(rep / "summary.csv")))

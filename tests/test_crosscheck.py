@@ -127,9 +127,11 @@ def test_crosscheck_command_on_tiny_analytic_scene(tmp_path):
     md = (out / "crosscheck.md").read_text()
     assert md.startswith("# Mitsuba vs Cycles: analytic_sphere_box") and md.count("**PASS**") == 6 + 2
     assert "| hit-point gap at the landmark truth pixels, max | ≤ 0.05 px | – | – px | n/a (no pixels) |" in md
-    assert main(["report", str(out), "--out", str(tmp_path / "again")]) == 0
+    assert main(["report", str(out), "--out", str(tmp_path / "again"), "--svg"]) == 0
     assert (tmp_path / "again" / "crosscheck.md").read_text() == md
-    assert (tmp_path / "again" / "crosscheck.svg").read_text().startswith("<?xml")
+    assert (tmp_path / "again" / "crosscheck.svg").read_text().startswith("<?xml")  # SVG on demand (--svg)
+    assert (tmp_path / "again" / "crosscheck.png").read_bytes() == (out / "crosscheck.png").read_bytes()
+    assert not (out / "crosscheck.svg").exists()
     images = pq.read_table(out / "crosscheck_images.parquet")
     assert images.column("frame").to_pylist() == [0, 1] and len(images.column("gap_px")[0]) == 96 * 72
 
@@ -259,4 +261,4 @@ def test_figure_fits_scales_and_leaves_out_empty_panels(tmp_path):
                      "frame 2: no pixel where both renderers hit the same body: hit-point gap left out",
                      "frame 2: no cast-shadow edge, so no shadow-edge shift: panel left out"]
     assert (tmp_path / "crosscheck.png").stat().st_size > 10_000
-    assert (tmp_path / "crosscheck.svg").read_text().startswith("<?xml")
+    assert not (tmp_path / "crosscheck.svg").exists(), "SVG only under renderlab report --svg"

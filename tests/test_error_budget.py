@@ -121,8 +121,9 @@ def test_quadrature_check_passes_additive_sources_and_flags_an_interaction(inter
     noise = next(r for r in rows if r["statistic"] == "noise_sd" and r["term"] == "b" and r["axis"] == "both"
                  and r["subset"] == "all")
     assert float(noise["lo"]) < 0.08 < float(noise["hi"])  # the drawn noise inside its interval
-    assert {p.name for p in (tmp_path / "b" / "report").iterdir()} >= {"error_budget.png", "error_budget.svg",
-                                                                        "budget_table.md", "budget_summary.csv"}
+    assert {p.name for p in (tmp_path / "b" / "report").iterdir()} >= {"error_budget.png", "budget_table.md",
+                                                                        "budget_summary.csv"}
+    assert not list((tmp_path / "b" / "report").glob("*.svg")), "SVG only with renderlab report --svg"
 
 
 def test_report_refuses_a_folder_without_tables(tmp_path):

@@ -43,8 +43,7 @@ def test_report_from_tables(tmp_path, capsys):
             assert float(r["bias_px_lo"]) <= float(r["bias_px"]) <= float(r["bias_px_hi"])
     page = (rep / "index.html").read_text()
     imgs = re.findall(r'src="([^"]+\.png)"', page)
-    svgs = re.findall(r'href="([^"]+\.svg)"', page)
-    assert len(svgs) == len(imgs) and all((rep / n).read_text().lstrip().startswith("<?xml") for n in svgs)
+    assert not re.findall(r'href="([^"]+\.svg)"', page) and not list(rep.glob("*.svg")), "SVG only with --svg"
     assert len(imgs) >= 3 and any("fig12" in n for n in imgs)  # the no-result figure only when a row has none
     for name in imgs:
         img = cv2.imread(str(rep / name))
@@ -53,3 +52,14 @@ def test_report_from_tables(tmp_path, capsys):
     assert (rep / "measurements_breakdown.csv").is_file() and (rep / "summary.csv").is_file()
     assert main(["report", str(tmp_path / "nowhere"), "--out", str(rep)]) == 2
     assert "not a campaign folder" in capsys.readouterr().err
+    # --svg: an SVG beside every PNG, linked from its caption; the PNGs the same bytes as without it
+    assert main(["report", str(camp), "--out", str(tmp_path / "rep_svg"), "--svg"]) == 0
+    page_svg = (tmp_path / "rep_svg" / "index.html").read_text()
+    svgs = re.findall(r'href="([^"]+\.svg)"', page_svg)
+    assert sorted(svgs) == sorted(n.replace(".png", ".svg") for n in imgs)
+    assert all((tmp_path / "rep_svg" / n).read_text().lstrip().startswith("<?xml") for n in svgs)
+    assert all((tmp_path / "rep_svg" / n).read_bytes() == (rep / n).read_bytes() for n in imgs)
+    capsys.readouterr()
+    assert main(["report", str(camp), "--out", str(tmp_path / "rep_x"), "--svg", "--tables-only"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--svg" in err and not (tmp_path / "rep_x").exists()

@@ -5,7 +5,7 @@
 - campaign folder (``campaign.json`` and ``runs/``): scenario, study, runs finished / failed / missing, root
   seed, size on disk and the tables of the finished runs with their row counts;
 - published study folder (:func:`renderlab.campaign.publish.is_published`): the same, plus the headline rows
-  of ``report/summary.csv`` when there is one.
+  of ``report/summary.csv`` (else of the report's one ``*_summary.csv``) when there is one.
 
 Nothing is written. Reading only metadata (Parquet footers, JSON), it is quick on any size of folder.
 """
@@ -199,6 +199,8 @@ def run(args) -> int:
     else:
         lines = campaign_lines(path, published=kind == "published")
         summary = path / "report" / "summary.csv"
+        own = sorted((path / "report").glob("*_summary.csv")) if not summary.is_file() else []
+        summary = own[0] if len(own) == 1 else summary  # a study's one summary under its own name
         if kind == "published" and summary.is_file():
             lines += [""] + headline_lines(summary)
     print("\n".join(lines))

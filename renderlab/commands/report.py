@@ -1,4 +1,4 @@
-"""``renderlab report CAMPAIGN_DIR [--out DIR] [--tables-only]`` (summary CSVs, figures and index.html from a campaign's tables; for a
+"""``renderlab report CAMPAIGN_DIR [--out DIR] [--tables-only | --svg]`` (summary CSVs, figures and index.html from a campaign's tables; for a
 registered result-folder kind — a ``renderlab crosscheck`` folder, an error budget — its own report from its
 tables, :mod:`renderlab.contracts.result_folder`) and
 ``renderlab publish CAMPAIGN_DIR --out RESULTS_DIR`` (the raw tables as a study folder, then its report)."""
@@ -18,6 +18,9 @@ def add_parser(subparsers) -> None:
     p.add_argument("--tables-only", action="store_true",
                    help="write the CSV and text outputs only, no PNG/SVG figure: checks quickly that a published "
                         "folder's numbers follow from its tables")
+    p.add_argument("--svg", action="store_true",
+                   help="also write each figure as SVG beside its PNG, linked from the page (on demand: published "
+                        "folders keep PNG only)")
     q = subparsers.add_parser("publish", help="copy a campaign's raw tables into a study folder (tables/*.parquet, "
                                               "campaign.json, runs.json) and write its report there")
     q.add_argument("campaign", metavar="CAMPAIGN_DIR", help="folder made by renderlab campaign")
@@ -75,12 +78,18 @@ def _publish(src: Path, out: Path) -> int:
 
 
 def run(args) -> int:
+    from renderlab.contracts.result_folder import tables_only, with_svg
+    from renderlab.errors import UserError
+
     if getattr(args, "publish", False):
         return _publish(Path(args.campaign), Path(args.out))
+    if getattr(args, "tables_only", False) and getattr(args, "svg", False):
+        raise UserError("--svg draws figures and --tables-only draws none: give one of them")
     if getattr(args, "tables_only", False):
-        from renderlab.contracts.result_folder import tables_only
-
         with tables_only():
+            return _report(args)
+    if getattr(args, "svg", False):
+        with with_svg():
             return _report(args)
     return _report(args)
 

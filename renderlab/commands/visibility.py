@@ -117,6 +117,8 @@ def _plot(rows, path, opt) -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from renderlab.contracts.result_folder import figure_png
+
     incs = sorted({r["inclination_deg"] for r in rows})
     fovs = sorted({r["fov_deg"] for r in rows})
     key = "fraction_usable" if "fraction_usable" in rows[0] else "fraction_coast"
@@ -141,5 +143,7 @@ def _plot(rows, path, opt) -> None:
     extra = (" daylight" if opt.daylight_only else "") + (f" clouds {opt.cloud_cover:.2f}" if opt.cloud_cover else "")
     ax.set_title(f"{opt.altitude_m / 1e3:.0f} km, {opt.hours:g} h from {opt.epoch_utc}, every {opt.cadence_s:g} s{extra}",
                  fontsize=9)
-    fig.savefig(path, dpi=120, format="png")
-    plt.close(fig)
+    try:
+        path.write_bytes(figure_png(fig))  # the lab's one figure writer (100-dpi palette PNG)
+    finally:
+        plt.close(fig)

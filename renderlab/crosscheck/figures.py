@@ -4,16 +4,16 @@ A crosscheck folder holds two raw tables: ``crosscheck.parquet`` (one row per fr
 :class:`renderlab.crosscheck.FrameAgreement`; the page title in its schema metadata) and
 ``crosscheck_images.parquet`` (for the frames the figure draws: both renderers' radiance, the hit-point gap and
 the shadow-edge shift images, float32, row-major). :func:`write_report` makes ``crosscheck.md`` and
-``crosscheck.png`` / ``.svg`` from these two tables alone, so the run and ``renderlab report FOLDER`` give the
-same files.
+``crosscheck.png`` (and ``.svg`` under ``renderlab report --svg``) from these two tables alone, so the run and
+``renderlab report FOLDER`` give the same files.
 
 The page: the targets (:data:`~renderlab.crosscheck.agreement.TARGETS`) with the worst frame and PASS / FAIL, then one row per frame with its verdict.
 The figure: per frame, Mitsuba, Cycles, the relative radiance difference, the hit-point gap and the shadow-edge
 shift, each difference on a colour scale fitted to its data, with the target in the title (PASS / FAIL) and
 marked on the colour bar where it falls inside the scale. A panel with nothing to show (a frame without a
 cast-shadow edge, or without a common hit) is left out with a one-line note in its place; :func:`figure` returns
-those notes. Saved as PNG (150 dpi) and SVG, like the reports (this module sits below :mod:`renderlab.report` in
-the layers, so it does not import its style).
+those notes. Saved by the lab's one figure writer (:func:`renderlab.contracts.result_folder.save_figure`, like the
+reports; this module sits below :mod:`renderlab.report` in the layers, so it does not import its style).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderlab.contracts.result_folder import figures_wanted
+from renderlab.contracts.result_folder import figures_wanted, save_figure
 from renderlab.crosscheck.agreement import TARGETS, FrameAgreement, radiometric_agreement
 from renderlab.errors import UserError
 
@@ -124,7 +124,8 @@ def figure(rows, images: list[dict], path: Path, targets: dict, max_frames: int 
     images : list of dict
         Per-frame images of :func:`renderlab.crosscheck.agreement.frame_agreement` (``Lm, Lc, rel, gap, shift``).
     path : Path
-        ``<stem>.png``; ``<stem>.svg`` is written beside it.
+        ``<stem>.png`` (:func:`~renderlab.contracts.result_folder.save_figure`; ``<stem>.svg`` beside it under
+        ``renderlab report --svg``).
     targets : dict
         ``rad_median_rel``, ``geo_max_px``, ``shadow_p99_px`` (:data:`renderlab.crosscheck.agreement.TARGETS`).
     max_frames : int
@@ -140,7 +141,6 @@ def figure(rows, images: list[dict], path: Path, targets: dict, max_frames: int 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    plt.rcParams["svg.hashsalt"] = "renderlab"  # SVG ids the same from run to run
     pick = _pick(len(rows), max_frames)
     fig, axes = plt.subplots(len(pick), 5, figsize=(18, 3.3 * len(pick)), squeeze=False, constrained_layout=True)
     notes: list[str] = []
@@ -158,10 +158,7 @@ def figure(rows, images: list[dict], path: Path, targets: dict, max_frames: int 
     fig.suptitle("Mitsuba vs Cycles: each difference on a colour scale fitted to its data; targets: median "
                  f"radiometric ≤ {100 * targets['rad_median_rel']:g} %, hit-point gap ≤ {targets['geo_max_px']:g} px, "
                  f"shadow-edge p99 ≤ {targets['shadow_p99_px']:g} px", fontsize=10)
-    stem = Path(path).with_suffix("")
-    fig.savefig(stem.with_suffix(".png"), dpi=150)
-    fig.savefig(stem.with_suffix(".svg"), metadata={"Date": None})
-    plt.close(fig)
+    save_figure(fig, Path(path).with_suffix(""))
     return notes
 
 
@@ -288,7 +285,7 @@ def _load(folder: Path):
 
 
 def write_report(folder: Path, out_dir: Path) -> list[Path]:
-    """``crosscheck.md`` and ``crosscheck.png`` / ``.svg`` of ``folder`` into ``out_dir``, from the folder's two
+    """``crosscheck.md`` and ``crosscheck.png`` (``.svg`` under ``--svg``) of ``folder`` into ``out_dir``, from its two
     tables alone (the page only under :func:`~renderlab.contracts.result_folder.tables_only`); every file is written
     under a hidden name first and renamed into place when all are done."""
     import os
@@ -307,7 +304,7 @@ def write_report(folder: Path, out_dir: Path) -> list[Path]:
         names = ["crosscheck.md"]
         if figures_wanted():  # not under renderlab report --tables-only
             figure(drawn, images, stage / "crosscheck.png", TARGETS, max_frames=len(drawn))
-            names += ["crosscheck.png", "crosscheck.svg"]
+            names += sorted(p.name for p in stage.glob("crosscheck.*") if p.suffix in (".png", ".svg"))
         done = []
         for name in names:
             os.replace(stage / name, out_dir / name)

@@ -1,7 +1,7 @@
 """The figure of a one-at-a-time error budget (:mod:`renderlab.stats.oat_budget`): per statistic a bar chart of
 the budget terms per method, with 95 % joint cluster-bootstrap intervals, the median registration CRLB and 2 × CRLB as lines, and PASS/FAIL
 of the quadrature check (sum within 20 % of all on) over each method's sum bar. The report style of
-:mod:`renderlab.report.style` (Okabe-Ito colours per method); PNG + SVG."""
+:mod:`renderlab.report.style` (Okabe-Ito colours per method); PNG (SVG with ``--svg``)."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ PANELS = (("robust_sigma", "robust σ of the error"), ("bias_rms", "per-landmark
 
 
 def budget_figure(summary: list[dict], terms: list[dict], stem: Path, terms_order: tuple[str, ...]) -> list[str]:
-    """Draw the figure into ``stem``.png/.svg (subset all, both axes pooled; the bars in ``terms_order``); returns the
-    file names."""
+    """Draw the figure into ``stem``.png (subset all, both axes pooled; the bars in ``terms_order``); returns the file
+    names."""
     rows = [r for r in terms if r["subset"] == "all" and r["axis"] == "both"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
     labels = [t for t in terms_order if any(r["term"] == t for r in rows)]

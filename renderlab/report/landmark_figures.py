@@ -1,6 +1,6 @@
 """Figures of landmark measurement tables (matplotlib, Agg), drawn from the tables only, in the report style
 (:mod:`renderlab.report.style`: one colour per method everywhere, units on every axis, a legend wherever more than
-one line is drawn, PNG + SVG).
+one line is drawn, PNG; SVG with ``renderlab report --svg``).
 
 - :func:`fig12`: Δsample vs Δline per method on shared axes, the bias (mean) point and robust 1σ/3σ ellipses
   (Wright et al., Fig. 12), with the count of points outside the axes printed in each panel.

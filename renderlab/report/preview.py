@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.contracts.result_folder import save_figure
+
 #: imshow keywords of every image panel (module docstring)
 SMOOTH = {"interpolation": "antialiased", "interpolation_stage": "rgba"}
 
@@ -55,7 +57,7 @@ def truthset_preview(ts, out_png: Path, *, frame: int = 0, residual: np.ndarray 
         ax.axis("off")
     if title:
         fig.suptitle(title, fontsize=11)
+    out_png = Path(out_png)
     out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=90)
-    plt.close(fig)
-    return out_png
+    save_figure(fig, out_png.with_suffix(""))  # the lab's one figure writer (100-dpi palette PNG)
+    return out_png.with_suffix(".png")

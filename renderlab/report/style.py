@@ -1,5 +1,6 @@
 """One report style for every study: a colour-blind-safe palette with one colour per method everywhere, figures
-saved as PNG and SVG, labels with units, pass/fail badges for banded quantities.
+saved by the lab's one figure writer (100-dpi palette PNG; SVG with ``renderlab report --svg``,
+:func:`renderlab.contracts.result_folder.save_figure`), labels with units, pass/fail badges for banded quantities.
 
 Palette: Okabe & Ito (2008), "Color Universal Design" — distinguishable under the common colour-vision
 deficiencies. A method keeps its colour across every figure of a report (its index in the sorted method list).
@@ -11,7 +12,7 @@ import html
 import math
 from pathlib import Path
 
-from renderlab.contracts.result_folder import figures_wanted
+from renderlab.contracts.result_folder import save_figure
 
 OKABE_ITO = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442", "#000000")
 
@@ -52,24 +53,16 @@ def plt():
     import matplotlib.pyplot as pyplot
 
     pyplot.rcParams.update({"font.size": 10, "axes.titlesize": 10, "axes.labelsize": 10, "legend.fontsize": 9,
-                            "xtick.labelsize": 9, "ytick.labelsize": 9, "svg.hashsalt": "renderlab",
+                            "xtick.labelsize": 9, "ytick.labelsize": 9,
                             "axes.formatter.useoffset": False})
     return pyplot
 
 
-def save(fig, path_stem: Path) -> list[str]:
-    """Save ``fig`` as ``<stem>.png`` (150 dpi) and ``<stem>.svg``; returns the two file names. Under
-    ``renderlab report --tables-only`` (:func:`renderlab.contracts.result_folder.tables_only`) nothing is drawn or
-    written: the figure is closed and the names are returned all the same."""
-    pyplot = plt()
-    stem = Path(path_stem)
-    if not figures_wanted():
-        pyplot.close(fig)
-        return [stem.with_suffix(".png").name, stem.with_suffix(".svg").name]
-    fig.savefig(stem.with_suffix(".png"), dpi=150)
-    fig.savefig(stem.with_suffix(".svg"), metadata={"Date": None})
-    pyplot.close(fig)
-    return [stem.with_suffix(".png").name, stem.with_suffix(".svg").name]
+def save(fig, path_stem: Path) -> list[str | None]:
+    """Save ``fig`` as ``<stem>.png`` (and ``<stem>.svg`` under ``renderlab report --svg``) through the lab's one
+    figure writer, :func:`renderlab.contracts.result_folder.save_figure`; returns the PNG's and the SVG's file name
+    (None when no SVG is written)."""
+    return save_figure(fig, path_stem)
 
 
 def badge(inside: bool | None, text: str = "") -> str:

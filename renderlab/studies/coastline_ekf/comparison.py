@@ -11,7 +11,7 @@ the same orbit, image times, σθ, P0, star tracker and seeds:
 
 :func:`report_sections` writes ``comparison.csv`` (one row per mode: final RMS error and filter σ per RIC axis,
 the run-mean error, ANEES per time against its 99 % χ²(6N)/N band, the summed NIS against χ²(N Σ 2m_k); image
-modes also the median LOS error of the matched points) and ``comparison.{png,svg}``, from those tables alone.
+modes also the median LOS error of the matched points) and ``comparison.png``, from those tables alone.
 
 References
 ----------
@@ -84,7 +84,7 @@ def _final(table, column: str) -> np.ndarray:
 
 
 def plot_comparison(summaries: dict, stem: Path) -> list[str]:
-    """RMS position error and filter σ per RIC axis, and ANEES with its 99 % band, for every mode (PNG + SVG)."""
+    """RMS position error and filter σ per RIC axis, and ANEES with its 99 % band, for every mode (PNG; SVG under ``--svg``)."""
     plt = style.plt()
     fig, axs = plt.subplots(1, 4, figsize=(16, 4.4), constrained_layout=True)
     for j, (mode, s) in enumerate(summaries.items()):
@@ -117,7 +117,7 @@ def plot_comparison(summaries: dict, stem: Path) -> list[str]:
 
 
 def report_sections(tables: dict, stage: Path) -> list[tuple[str, str]]:
-    """The comparison section (``comparison.csv``, ``comparison.{png,svg}``) when ``geometric_filter`` is present."""
+    """The comparison section (``comparison.csv``, ``comparison.png``) when ``geometric_filter`` is present."""
     if "geometric_filter" not in tables or "coastline_filter" not in tables:
         return []
     rows, summaries = [], {}

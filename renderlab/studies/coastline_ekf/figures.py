@@ -1,5 +1,5 @@
 """Figures of the coastline-EKF Monte Carlo in the style of Straub & Christian Figs. 5-9, in the report style
-(:mod:`renderlab.report.style`: Okabe–Ito colours, units on every axis, a legend, PNG + SVG).
+(:mod:`renderlab.report.style`: Okabe–Ito colours, units on every axis, a legend, PNG; SVG with ``renderlab report --svg``).
 
 Each error figure has the radial, in-track and cross-track axes as rows and position (m) / velocity (mm/s) as
 columns: a sample of run errors (thin), the Monte Carlo ±3σ (black), the filter's ±3σ (dashed; RMS of the runs'
@@ -72,7 +72,7 @@ def plot_errors(runs_table, summary, path: Path, title: str, n_sample_runs: int 
     summary : pyarrow.Table
         :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary` of all runs (``n_runs`` of them).
     path : Path
-        ``<stem>.png``; ``<stem>.svg`` is written beside it.
+        ``<stem>.png`` (``<stem>.svg`` beside it under ``renderlab report --svg``).
     title : str
         First line of the figure title.
     n_sample_runs : int
@@ -83,7 +83,7 @@ def plot_errors(runs_table, summary, path: Path, title: str, n_sample_runs: int 
     Returns
     -------
     list of str
-        The PNG and SVG file names.
+        The PNG and SVG file names (the SVG's None when none is written).
     """
     plt = style.plt()
     div, tname = _unit(summary, unit)
@@ -140,7 +140,7 @@ def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | 
     summary : pyarrow.Table
         :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary`.
     path : Path
-        ``<stem>.png``; ``<stem>.svg`` is written beside it.
+        ``<stem>.png`` (``<stem>.svg`` beside it under ``renderlab report --svg``).
     title : str
         Figure title.
     unit : (divisor, name), optional
@@ -149,7 +149,7 @@ def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | 
     Returns
     -------
     list of str
-        The PNG and SVG file names.
+        The PNG and SVG file names (the SVG's None when none is written).
     """
     plt = style.plt()
     div, tname = _unit(summary, unit)

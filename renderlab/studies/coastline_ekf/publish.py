@@ -7,7 +7,7 @@ Runs every orbit's Monte Carlo and writes the published layout of :mod:`.publish
 totals, the first 25 runs' rows), then the report from those tables alone (``renderlab report OUT`` makes it
 again): ``report/summary.csv`` (steady-state 3σ per axis for MC, filter and PCRB; χ² totals; timing),
 ``report/table1.md`` (Table 1's layout, ours beside the paper's), per orbit ``<case>_coastline_errors`` (Figs. 5-9
-style) and ``<case>_coastline_consistency`` (PNG + SVG) and ``index.html``. ``--keep-runs`` also publishes every
+style) and ``<case>_coastline_consistency`` (PNG) and ``index.html``. ``--keep-runs`` also publishes every
 run's rows (``tables/coastline_runs.parquet``, ≈5 MB per 200 runs of one orbit), from which the report then
 recomputes the per-time summary.
 """

@@ -146,7 +146,7 @@ def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | No
     table : pyarrow.Table
         The study's filter table, all runs on one time grid.
     stage : Path
-        Report folder: ``<name>_coastline_{errors,consistency}.{png,svg}`` and
+        Report folder: ``<name>_coastline_{errors,consistency}.png`` and
         ``<name>_coastline_steady_state.csv`` are written there.
     pcrb_sigma : ndarray (K, 6), optional
         PCRB σ per RIC axis.
@@ -179,7 +179,7 @@ def summary_blocks(name: str, summary, sample, nis: dict, stage: Path, figure_ti
     Parameters
     ----------
     name : str
-        File prefix: ``<name>_coastline_{errors,consistency}.{png,svg}`` are written into ``stage``.
+        File prefix: ``<name>_coastline_{errors,consistency}.png`` are written into ``stage``.
     summary : pyarrow.Table
         :func:`~renderlab.studies.coastline_ekf.scoring.per_time_summary` of all runs (PCRB columns optional).
     sample : pyarrow.Table

@@ -1,6 +1,6 @@
 """Report section of ``descent_navigation`` (the lab's report style, :mod:`renderlab.report.style`): from the
 ``descent_filter`` and ``descent_landmarks`` tables alone, ``descent_summary.csv`` (one row per method),
-``descent_timeseries.csv`` (per method and image), and three figures (PNG + SVG): position and velocity error vs
+``descent_timeseries.csv`` (per method and image), and three figures (PNG; SVG with ``--svg``): position and velocity error vs
 time with the filter's 3σ, and ANEES / ANIS vs time with their 95 % χ² bands and pass/fail marks
 (:mod:`.scoring` says how each number is made); the independence scores (:mod:`.report_independence`) and, for
 injected-error sources, the bias sweep (:mod:`.report_sources`)."""
@@ -169,7 +169,7 @@ def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
         more_html, more = sources_section(ftab, summary, out_dir, _write_csv)
         extra += more_html
         figs += more
-    imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f.endswith(".png"))
+    imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f and f.endswith(".png"))
     note = ("<p>ANEES/6 and ANIS/dof: 1 is consistent; intervals are 95 % bootstraps over whole runs (the images of "
             "a run are correlated; when every run flies the same onboard map they leave out the map-to-map "
             "variation). \"Touchdown\" in the CSV columns is a proxy: the position error norm at the last image, "

@@ -2,7 +2,7 @@
 ``descent_independence.csv`` (per method and image: the share of the error common to all runs, N_eff and the
 effective χ² bands beside the plain ones, :mod:`.independence`), ``descent_bands.csv`` (per method: share of images
 inside each band), ``descent_bias_by_tier.csv`` (kept-landmark bias and rms per method and maplet tier), ``descent_pattern.csv``
-(the scale / rotation / shift common to an image's landmark errors) and the figure ``descent_independence`` (PNG + SVG)."""
+(the scale / rotation / shift common to an image's landmark errors) and the figure ``descent_independence`` (PNG)."""
 
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ its band χ²₀.₀₂₅,₀.₉₇₅(6N)/(6N) — the runs are independent h
 accelerometer and injected-error draws; nothing rendered is shared), which the study's independence score checks
 (:mod:`.independence`) — and the touchdown position error (median, RMS, p95) against the filter's 3σ, with the
 mean error and the filter's RMS 1σ per site axis (east, north, up: a bias moves the mean).
-``descent_sources.csv`` holds the table; ``descent_bias_sweep.png/.svg`` draws ANEES/6 and the touchdown error
+``descent_sources.csv`` holds the table; ``descent_bias_sweep.png`` draws ANEES/6 and the touchdown error
 against the common bias μ (the sources that inject only μ), the other sources as reference lines.
 """
 

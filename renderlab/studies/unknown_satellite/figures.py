@@ -11,7 +11,7 @@
 
 Everything is drawn from the campaign's tables (``scores``, ``stage1_history``, ``stage2``) in the report style
 (:mod:`renderlab.report.style`: titled figures, units on every axis, legends, integer run ticks, plain numbers on
-log axes, PNG + SVG). Body-frame quantities are drawn with the principal axes relabelled to the truth's (the
+log axes, PNG; SVG with ``renderlab report --svg``). Body-frame quantities are drawn with the principal axes relabelled to the truth's (the
 ``*_aligned`` columns) when the tables have them; the raw ones only where they differ.
 """
 
@@ -319,7 +319,8 @@ CAPTIONS = {
 
 
 def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satellite_") -> list[dict]:
-    """Draw the figures that the tables allow (PNG + SVG); return ``{"name", "png", "svg", "caption"}`` each."""
+    """Draw the figures that the tables allow (PNG; SVG under ``--svg``); return ``{"name", "png", "svg", "caption"}``
+    each (``svg`` None when none is written)."""
     out_dir = Path(out_dir)
     done = []
     sc, hist, s2 = tables.get("scores"), tables.get("stage1_history"), tables.get("stage2")

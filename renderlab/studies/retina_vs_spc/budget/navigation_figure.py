@@ -2,7 +2,7 @@
 3-D position error of each budget term (primary mapping ``altitude``, 95 % paired run-bootstrap intervals) with
 the other mappings as markers (the bracket) and PASS/FAIL of the quadrature check over the sum bar; bottom, the
 validation: rendered campaign vs geometric all-on (each mapping), rms 3-D and median |δr| with intervals.
-The report style of :mod:`renderlab.report.style` (Okabe-Ito colours per method); PNG + SVG."""
+The report style of :mod:`renderlab.report.style` (Okabe-Ito colours per method); PNG (SVG with ``--svg``)."""
 
 from __future__ import annotations
 
@@ -79,7 +79,7 @@ def _validation(ax, val, methods, colors):
 
 
 def navigation_figure(terms: list[dict], val: list[dict], stem: Path) -> list[str]:
-    """Draw the figure into ``stem``.png/.svg (statistic rms_3d); returns the file names."""
+    """Draw the figure into ``stem``.png (statistic rms_3d); returns the file names."""
     rows = [r for r in terms if r["statistic"] == "rms_3d"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
     labels = [t for t in term_order(rows) if t != "sum_over_all_on"]

@@ -12,10 +12,10 @@
   ``no_shadows`` configuration, ``shadow_approximation`` (all off vs no cast shadows, :mod:`.shadows`);
 * ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
   residual of the exact models comes from; and the sensor-noise-alone rms noise sd / CRLB in the same groups;
-* ``budget_table.md`` — the README's tables; ``error_budget.png``/``.svg`` — the figure;
+* ``budget_table.md`` — the README's tables; ``error_budget.png`` — the figure (``.svg`` with ``--svg``);
 * with ``tables/budget_navigation.parquet`` (:mod:`.navigation`): ``budget_navigation.csv`` (each
   source's contribution to the descent filter's touchdown-proxy error), ``budget_navigation_validation.csv``
-  (geometric all-on vs the rendered closed-loop campaign) and ``budget_navigation.png``/``.svg``
+  (geometric all-on vs the rendered closed-loop campaign) and ``budget_navigation.png``
   (:mod:`.navigation_report`);
 * with ``tables/budget_crlb.parquet`` (:mod:`.crlb`): ``budget_crlb.csv`` — the budget's CRLB (from its
   8-spp truth render) against clean renders' bound, and the sensor-noise-alone noise / CRLB with each bound.

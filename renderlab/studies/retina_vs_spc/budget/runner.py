@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
 
             out = write_report(args.folder)
             print(f"renderlab: wrote {out} (budget_summary.csv, budget_terms.csv, budget_table.md, "
-                  "error_budget.png/.svg)")
+                  "error_budget.png)")
     except UserError as err:
         print(f"renderlab: error: {err}", file=sys.stderr)
         return 2
