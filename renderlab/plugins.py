@@ -203,19 +203,34 @@ DEFAULT_STUDY: dict[str, str] = {"analytic": "analytic_pointing", "ev5": "retina
                                  "microsat": "unknown_satellite"}
 
 
+def observable(name: str):
+    """The observable kind registered as ``name``, checked: an
+    :class:`~renderlab.contracts.observable.ObservableKind` whose ``name`` is its registry name (else one
+    :class:`~renderlab.errors.UserError` line naming the kind and what was registered)."""
+    from renderlab.contracts.observable import ObservableKind
+
+    kind = observables.get(name)
+    if not isinstance(kind, ObservableKind) or kind.name != name:
+        what = type(kind).__name__ if not isinstance(kind, ObservableKind) else f"ObservableKind '{kind.name}'"
+        raise UserError(f"observable kind '{name}': the registered object is {what}, not an ObservableKind named "
+                        f"'{name}' (renderlab.contracts.observable)")
+    return kind
+
+
 def observable_kinds() -> list:
-    """Every registered :class:`~renderlab.contracts.observable.ObservableKind`: the lab's own in the order of
-    :data:`BUILTIN` (landmark, filter, pose, centre_limb), then the others by name (the order that breaks ties)."""
+    """Every registered :class:`~renderlab.contracts.observable.ObservableKind` (:func:`observable`): the lab's own in
+    the order of :data:`BUILTIN` (landmark, filter, pose, centre_limb), then the others by name (the order that breaks
+    ties)."""
     order = list(BUILTIN["observables"][1])
     names = sorted(observables.names(), key=lambda n: (order.index(n) if n in order else len(order), n))
-    return [observables.get(n) for n in names]
+    return [observable(n) for n in names]
 
 
 def method_registry(kind) -> Registry:
     """The registry of an observable kind's methods (a kind or its name): the one whose entry-point group is the
     kind's ``method_group`` (``landmark`` → :data:`landmark_methods`, ``filter`` → :data:`filters`), else a new
     ``<kind>_methods`` registry made on first use and kept in :data:`REGISTRIES`."""
-    kind = observables.get(kind) if isinstance(kind, str) else kind
+    kind = observable(kind) if isinstance(kind, str) else kind
     for reg in REGISTRIES.values():
         if reg.group == kind.method_group:
             return reg

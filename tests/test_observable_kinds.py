@@ -234,6 +234,27 @@ def test_check_method_bad_input_is_one_line(capsys):
     assert "has no conformance harness" in capsys.readouterr().err
     assert main(["check-method", "bright_spot", "renderlab.measurement.builtin_methods:RetinaMethod"]) == 2
     assert "is not a bright_spot method" in capsys.readouterr().err
+    assert main(["check-method", "bright_spot", "peak_pixle"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown bright_spot method 'peak_pixle'" in err and "did you mean 'peak_pixel'" in err
+
+
+def test_a_broken_kind_registration_is_one_line(capsys):
+    """An entry point naming something else than an ObservableKind of its name: one line, exit 2."""
+    plugins.observables.register("wrong", target="renderlab_toy_kind.kind:SpotReason")
+    try:
+        assert main(["check-method", "wrong", "x"]) == 2
+        assert "observable kind 'wrong': the registered object is EnumType" in capsys.readouterr().err
+    finally:
+        plugins.observables.unregister("wrong")
+    from renderlab_toy_kind.kind import BRIGHT_SPOT
+
+    plugins.observables.register("renamed", BRIGHT_SPOT)
+    try:
+        assert main(["check-method", "renamed", "x"]) == 2
+        assert "not an ObservableKind named 'renamed'" in capsys.readouterr().err
+    finally:
+        plugins.observables.unregister("renamed")
 
 
 # ------------------------------------------------------------------------------------------------ no kind lists

@@ -46,7 +46,7 @@ def score_table(table, *, confidence: float = 0.95) -> list[dict]:
     from renderlab import plugins
 
     name = kind(table)
-    scorer = None if name == "other" else plugins.observables.get(name).part("scorer")
+    scorer = None if name == "other" else plugins.observable(name).part("scorer")
     return [] if scorer is None else list(scorer(table, confidence=confidence))
 
 

@@ -23,7 +23,7 @@ def run(args) -> int:
     from renderlab.errors import UserError
     from renderlab.inputs import short
 
-    kind = plugins.observables.get(args.kind)
+    kind = plugins.observable(args.kind)
     harness = kind.part("conformance")
     if harness is None:
         raise UserError(f"observable kind '{kind.name}' has no conformance harness")

@@ -52,4 +52,4 @@ def reason_values(kind: str) -> tuple[str, ...]:
     """The allowed ``reason`` strings of a registered observable kind, in priority order."""
     from renderlab import plugins
 
-    return plugins.observables.get(kind).reason_values()
+    return plugins.observable(kind).reason_values()

@@ -116,7 +116,7 @@ def core_schema(kind: str) -> pa.Schema:
     """The columns every table of a registered kind has."""
     from renderlab import plugins
 
-    schema = plugins.observables.get(kind).core_schema()
+    schema = plugins.observable(kind).core_schema()
     if schema is None:
         raise ValueError(f"observable kind {kind!r} has no result schema")
     return schema
@@ -126,7 +126,7 @@ def known_schema(kind: str) -> pa.Schema:
     """Every column the readers of a registered kind know (core and optional), with its type."""
     from renderlab import plugins
 
-    return plugins.observables.get(kind).known_columns()
+    return plugins.observable(kind).known_columns()
 
 
 #: columns the campaign engine adds to every table: they tell no kind apart

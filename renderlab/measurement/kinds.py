@@ -17,7 +17,7 @@ from renderlab.errors import UserError
 def make_kind_method(kind, method, *args, **kwargs):
     """A method of ``kind`` from its registered name (``factory(*args, **kwargs)``), or ``method`` itself when it is
     already an object that follows the kind's protocol."""
-    kind = plugins.observables.get(kind) if isinstance(kind, str) else kind
+    kind = plugins.observable(kind) if isinstance(kind, str) else kind
     if isinstance(method, str):
         return plugins.method_registry(kind).get(method, where=f"{kind.name}: ")(*args, **kwargs)
     if plugins.kind_of_method(method) is not kind:
@@ -30,7 +30,7 @@ def measure_frames(kind, method, frames, *, campaign: str = "", run: int = 0):
     """``method`` (name or object) of the registered ``kind`` (name or object) over ``frames`` by the kind's
     ``runner``: a ``pyarrow.Table`` of the kind (``campaign`` and ``run`` filled where the rows lack them; columns the
     rows add beyond the kind's known schema appended). ``ValueError`` names a broken reason or a missing column."""
-    kind = plugins.observables.get(kind) if isinstance(kind, str) else kind
+    kind = plugins.observable(kind) if isinstance(kind, str) else kind
     runner, schema = kind.part("runner"), kind.known_columns()
     if runner is None or schema is None:
         raise UserError(f"observable kind '{kind.name}' has no generic runner or result schema")

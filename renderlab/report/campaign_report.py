@@ -99,7 +99,7 @@ def _write_all(tables, stage: Path, manifest: dict, confidence) -> tuple[list[di
         if name in getattr(found, "own_tables", ()):
             continue
         kind = scoring.table_kind(t)
-        report_section = None if kind == "other" else plugins.observables.get(kind).part("report_section")
+        report_section = None if kind == "other" else plugins.observable(kind).part("report_section")
         if report_section is None:
             continue
         sec, rows, head = report_section(name, t, stage, context)
