@@ -28,7 +28,7 @@ def main() -> None:
     from renderlab.scenario import load_scenario
     from renderlab.worlds.earth import make_plan
     from renderlab.worlds.earth.gshhg import load_gshhg
-    from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, visibility_sweep, visible_images
+    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep, visible_images
 
     T = time.perf_counter
     import numpy as np

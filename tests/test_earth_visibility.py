@@ -16,10 +16,10 @@ import earth_fixtures
 import numpy as np
 import pytest
 
-from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, nadir_track, visibility_sweep, visible_images
 from renderlab.worlds.earth import wgs84
 from renderlab.worlds.earth.clouds import CloudField
 from renderlab.worlds.earth.sun import sun_eci
+from renderlab.worlds.earth.visibility import VisibilityOptions, nadir_track, visibility_sweep, visible_images
 
 gshhg = earth_fixtures.gshhg
 OPT = VisibilityOptions(hours=4.0, cadence_s=60.0, epoch_utc="2024-06-21T10:00:00Z")   # 240 images
@@ -27,7 +27,7 @@ OPT = VisibilityOptions(hours=4.0, cadence_s=60.0, epoch_utc="2024-06-21T10:00:0
 
 @pytest.fixture(scope="module")
 def coast_points(gshhg):
-    from renderlab.studies.coastline_ekf.database import coastline_points
+    from renderlab.worlds.earth.coast_points import coastline_points
 
     return coastline_points(1000.0)
 

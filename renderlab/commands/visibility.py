@@ -65,7 +65,7 @@ def _check(args) -> tuple[list[float], list[float]]:
 
 
 def run(args) -> int:
-    from renderlab.studies.coastline_ekf.visibility import VisibilityOptions, visibility_sweep
+    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep
     from renderlab.worlds.earth.gshhg import load_gshhg
 
     incs, fovs = _check(args)

@@ -38,8 +38,7 @@ from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF
 from renderlab.dynamics.orbits import MU_EARTH, nadir_attitude, state_from_elements
 from renderlab.dynamics.truth_orbit import propagate_for  # RK4 two-body/J2, or zonal_dop853 if asked
 from renderlab.errors import UserError
-
-from .database import coastline_points
+from renderlab.worlds.earth.coast_points import coastline_points
 
 __all__ = ["CoastlineGeometricOptions", "Geometry", "PAPER_ORBITS", "paper_orbit", "truth_geometry",
            "draws_for_runs", "measurements", "run_batch", "run", "ric_axes", "FILTER_COLUMNS"]
