@@ -9,8 +9,11 @@ Three measurements, one run, the load average printed before and after:
   *same geometry* — the static bodies and this frame's tiles merged into one loaded scene — timed after a warm-up
   call. Also the one-scene design (``MitsubaBackend.tile_design = "merged"``: the tiles written
   into the scene that holds the asteroid, so Mitsuba rebuilds the whole structure) on the same frames.
-  Then the frame as ``renderlab render`` makes it (the API frame + the EXR (ZIP) and PNG files written) against
-  ``mi.render`` (``direct``) of a 1.31 M-triangle sphere (trimesh icosphere, 8 subdivisions) filling the frame.
+  Then the frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: the API frame + the
+  EXR (``render.exr_compression``) and PNG files, written in the loop or, the default, by the writer's background
+  thread while the next frame renders; ``--repeats`` interleaved passes of each) against ``mi.render``
+  (``direct``) of a 1.31 M-triangle sphere (trimesh icosphere, 8 subdivisions) filling the frame, timed between
+  the passes. ``--skip-api`` renders every frame once (warm-up) and measures only this.
 * **descent-navigation world** (``results/descent_navigation/scenario.toml`` at 256², 16 spp): every frame of its
   descent through ``Renderer.frame`` in memory, twice (planned poses, then poses moved 0.3 m as a flown trajectory
   would), frames per second and the distribution of frame times.
@@ -18,6 +21,7 @@ Three measurements, one run, the load average printed before and after:
 Usage::
 
     .venv/bin/python benchmarks/bench_frame_api.py [--frames 4] [--size 1024] [--spp 16] [--skip-full] [--skip-descent]
+        [--skip-api] [--repeats 2]
 
 The world cache is ``$RENDERLAB_CACHE`` (default ``~/.cache/renderlab``): the first run builds and stores the worlds.
 """
@@ -63,6 +67,10 @@ def full_ev5(args) -> None:
     from renderlab.pipeline.frame_api import Renderer
 
     r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, args.frames) + args.set)
+    if args.skip_api:  # every frame once first (kernels, tile meshes), as the API part leaves them
+        for k in range(r.n_frames):
+            r.frame(k)
+        return bar_vs_sphere(args, r, r.backend.mi)
     merged = _merged_backend(r)  # the floor's one-scene geometry
     mi = merged.mi
     rows = []
@@ -93,40 +101,68 @@ def full_ev5(args) -> None:
 
 
 def bar_vs_sphere(args, r, mi) -> None:
-    """A frame as ``renderlab render`` makes it (API frame + files) vs mi.render of a 1.31 M-triangle sphere."""
+    """Frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: API frame + files, the
+    files in the loop or in the background thread) vs mi.render of a 1.31 M-triangle sphere."""
+    floors = [sphere_floor(mi, args.size, args.spp)]
+    runs: dict[bool, list] = {False: [], True: []}
+    for _rep in range(args.repeats):
+        for background in (False, True):
+            runs[background].append(_truthset_frames(r, background))
+            floors.append(sphere_floor(mi, args.size, args.spp))
+    floor = float(np.median(floors))
+    print(f"  mi.render direct of a 1.31 M-triangle sphere (f = {args.size / 2 / np.tan(np.radians(8.0)):.0f} px): "
+          f"median {floor:.2f} s ({np.round(floors, 2).tolist()}), load average {os.getloadavg()[0]:.1f}")
+    for background, label in ((False, "files written in the loop"), (True, "files written in the background")):
+        t = np.median(np.array(runs[background]), axis=0)  # per frame, median over the repeats
+        rat = (t[1:] if len(t) > 1 else t) / floor
+        print(f"  renderlab-render frame ({label}) / sphere: median {np.median(rat):.2f}x (frames 1..), mean "
+              f"{t.mean() / floor:.2f}x over all frames; frames {np.round(t, 2).tolist()} s "
+              f"(each run: {[np.round(x, 2).tolist() for x in runs[background]]})", flush=True)
+
+
+def _truthset_frames(r, background: bool) -> list[float]:
+    """Seconds per frame of a truth set written by ``write_frames`` (frame k: from the start of its render to the
+    start of the next; the last frame's includes the manifest, tables, contact sheet and the final rename)."""
+    from renderlab.pipeline import write_frames
+
+    stamps, orig = [], r.render_spec
+
+    def render_spec(spec, ss, **kw):
+        stamps.append(time.perf_counter())
+        return orig(spec, ss, **kw)
+
+    r.render_spec = render_spec
+    head = {"scenario": r.scenario.to_dict(), "seed": r.scenario.render.seed, "render_frame": r.plan.render_frame}
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            write_frames(Path(tmp) / "ts", r, r.plan.frames, [r.seed_for(s.index) for s in r.plan.frames], head=head,
+                         background=background)
+            stamps.append(time.perf_counter())
+    finally:
+        del r.render_spec
+    return np.diff(stamps).tolist()
+
+
+def sphere_floor(mi, size: int, spp: int) -> float:
+    """Seconds of a warm ``mi.render`` (``direct``) of a 1.31 M-triangle sphere (trimesh icosphere, 8 subdivisions)
+    filling a ``size``² frame."""
     import drjit as dr
     import trimesh
-
-    from renderlab.files.truthset import TruthSetWriter
 
     sph = trimesh.creation.icosphere(subdivisions=8, radius=1.0)
     scene = mi.load_dict({"type": "scene", "sun": {"type": "directional", "direction": [0.3, 0.2, -1.0]},
                           "body": {"type": "ply", "filename": _ply(sph)}})
-    f = args.size / 2 / np.tan(np.radians(8.0))
     sensor = mi.load_dict({"type": "perspective", "fov_axis": "x", "fov": 16.0,
                            "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 8.5], target=[0, 0, 0], up=[0, 1, 0]),
-                           "sampler": {"type": "independent", "sample_count": args.spp},
-                           "film": {"type": "hdrfilm", "width": args.size, "height": args.size,
+                           "sampler": {"type": "independent", "sample_count": spp},
+                           "film": {"type": "hdrfilm", "width": size, "height": size,
                                     "rfilter": {"type": "box"}, "pixel_format": "luminance"}})
     integ = mi.load_dict(DIRECT)
-    with tempfile.TemporaryDirectory() as tmp:
-        w = TruthSetWriter(Path(tmp) / "ts", {"scenario": r.scenario.to_dict()}).__enter__()
-        ours, floor = [], []
-        for k in range(len(r.plan.frames)):
-            t0 = time.perf_counter()
-            fr = r.frame(k)
-            w.add_frame(k, fr.time_s, fr.aovs.exr_channels(), fr.dn, fr.meta, dn_bits=r.options.bits)
-            ours.append(time.perf_counter() - t0)
-            for s in range(2):
-                t0 = time.perf_counter()
-                dr.eval(mi.render(scene, sensor=sensor, integrator=integ, spp=args.spp, seed=s))
-                dr.sync_thread()
-            floor.append(time.perf_counter() - t0)
-        w.__exit__(None, None, None)
-    rat = np.array(ours[1:] or ours) / np.array(floor[1:] or floor)
-    print(f"  renderlab-render frame (API + EXR/PNG written) / mi.render of a {len(sph.faces) / 1e6:.2f} M-triangle "
-          f"sphere (f = {f:.0f} px): median {np.median(rat):.2f}x (frames {np.round(ours, 2).tolist()} s vs "
-          f"{np.round(floor, 2).tolist()} s)")
+    for s in range(2):
+        t0 = time.perf_counter()
+        dr.eval(mi.render(scene, sensor=sensor, integrator=integ, spp=spp, seed=s))
+        dr.sync_thread()
+    return time.perf_counter() - t0
 
 
 def _ply(mesh) -> str:
@@ -179,6 +215,8 @@ def main() -> None:
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--skip-full", action="store_true")
     ap.add_argument("--skip-descent", action="store_true")
+    ap.add_argument("--skip-api", action="store_true", help="full EV5: only the renderlab-render bar")
+    ap.add_argument("--repeats", type=int, default=2, help="renderlab-render passes per file mode (interleaved)")
     ap.add_argument("--set", action="append", default=[], help="KEY=VALUE override of the world(s) measured")
     args = ap.parse_args()
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}", flush=True)

@@ -9,10 +9,13 @@
 #      and Mitsuba's path in the lab path and in mi.render, and Mitsuba's own direct integrator, side by side;
 #   4. the warm frame API on the GPU: its tests and the tiled site in a second scene forced on CUDA
 #      (RENDERLAB_MITSUBA_TILE_DESIGN=two: does OptiX trace two scenes in one kernel, and do the images equal the
-#      one-scene design's?), then benchmarks/bench_frame_api.py on the descent-navigation world.
+#      one-scene design's?), then benchmarks/bench_frame_api.py on the descent-navigation world;
+#   5. frame files written by the background writer equal the sequential ones on CUDA (tests/test_background_writes.py),
+#      and where a full EV5 frame's time goes on the GPU (benchmarks/bench_frame_breakdown.py, 1024², 16 spp, 4 frames:
+#      is the tile scene's structure build of the 171 m frame, seconds on 2 CPU cores, still the largest stage?).
 # Needs the project environment (./setup.sh) and a CUDA driver. Figures go to $OUT (default $TMPDIR/renderlab_gpu_check);
 # exit status 0 when everything passed, 1 when a step failed, 2 when there is no usable GPU.
-# Run from anywhere:  bash benchmarks/gpu_check.sh        (about 5 minutes; each step has its own timeout)
+# Run from anywhere:  bash benchmarks/gpu_check.sh        (about 10 minutes, more when the EV5 world is not cached yet; each step has its own timeout)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 PY=${PY:-.venv/bin/python}
@@ -42,5 +45,8 @@ step frame_api_tests 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest -q -p n
 step two_scenes_on_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda RENDERLAB_MITSUBA_TILE_DESIGN=two $PY -m pytest -q \
   -p no:cacheprovider tests/test_mitsuba_two_scene.py
 step frame_api_bench_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_frame_api.py --skip-full
+step background_writes_cuda 120 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest -q -p no:cacheprovider \
+  tests/test_background_writes.py
+step frame_breakdown_cuda 600 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_frame_breakdown.py --frames 4
 echo "gpu_check: $([ $status = 0 ] && echo PASSED || echo FAILED); figures in $OUT/"
 exit $status

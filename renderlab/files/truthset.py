@@ -12,6 +12,7 @@ inputs give bit-identical files.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -25,8 +26,10 @@ import numpy as np
 from renderlab.contracts.file_models import TruthManifest
 from renderlab.contracts.schemas import TRUTH_TABLES, read_parquet
 from renderlab.errors import UserError
+from renderlab.files.background import BackgroundJobs
 from renderlab.files.imageio import (  # noqa: F401
     _MAX_EXACT_ID,
+    _check_dn,
     decode_ids,
     encode_ids,
     frame_exr_header,
@@ -92,6 +95,12 @@ class TruthSetWriter:
         ``format`` and ``frames`` are set by the writer.
     overwrite : bool, optional
         Replace an existing non-empty ``out_dir`` (only at the final rename).
+    exr_compression : str, optional
+        Lossless EXR compression (:data:`renderlab.files.imageio.EXR_COMPRESSIONS`).
+    background : bool, optional
+        Write each frame's files in a background thread (:mod:`renderlab.files.background`), so that the caller
+        renders the next frame meanwhile: the same bytes, the first write error raised by a later ``add_frame``,
+        :meth:`flush` or the commit. The arrays given to :meth:`add_frame` must then not be modified afterwards.
 
     Examples
     --------
@@ -99,8 +108,11 @@ class TruthSetWriter:
     ...     w.add_frame(0, 0.0, channels, dn, {"camera": cam, "pose": pose})
     """
 
-    def __init__(self, out_dir, manifest_head: dict, *, overwrite: bool = False, exr_compression: str = "zip"):
+    def __init__(self, out_dir, manifest_head: dict, *, overwrite: bool = False, exr_compression: str = "zip",
+                 background: bool = False):
         self.out_dir = Path(out_dir).absolute()
+        self.background = bool(background)
+        self._jobs: BackgroundJobs | None = None
         self.exr_compression = exr_compression  # lossless (renderlab.files.imageio.EXR_COMPRESSIONS)
         if not isinstance(manifest_head, dict):
             raise TypeError("manifest_head must be a dict")
@@ -145,18 +157,30 @@ class TruthSetWriter:
             raise UserError(f"cannot create output directory next to {self.out_dir}: "
                             f"{exc.strerror or exc}") from None
         self._staging = parent / name
+        if self.background:
+            self._jobs = BackgroundJobs(depth=1)
         return self
 
     def __exit__(self, exc_type, exc, tb) -> bool:
         staging, self._staging = self._staging, None
+        jobs, self._jobs = self._jobs, None
         if staging is None:
             return False
         try:
+            if jobs is not None:  # the frames' files written (or, after an error, nothing more started)
+                jobs.close(cancel=exc_type is not None)
             if exc_type is None:
                 self._commit(staging)
         finally:
+            if jobs is not None:
+                jobs.close(cancel=True)  # stopped before the staging folder goes
             shutil.rmtree(staging, ignore_errors=True)  # no-op after a successful rename
         return False
+
+    def flush(self) -> None:
+        """Wait for the frame files being written in the background; raise the first error of a write."""
+        if self._jobs is not None:
+            self._jobs.flush()
 
     def _require_open(self) -> Path:
         if self._staging is None:
@@ -214,6 +238,7 @@ class TruthSetWriter:
         shape = np.shape(channels["P.X"])
         if np.shape(dn) != shape:
             raise ValueError(f"frame {index}: dn shape {np.shape(dn)} differs from EXR {shape}")
+        dn = _check_dn(dn, bits)  # here, in the caller's thread, also when the files are written in the background
         clash = {"index", "time_s", "exr", "dn", "dn_preview"} & set(frame_meta)
         if clash:
             raise ValueError(f"frame_meta must not set {sorted(clash)}")
@@ -225,10 +250,12 @@ class TruthSetWriter:
                                   render_frame=rf.get("name") if isinstance(rf, dict) else None)
         for rel in rels.values():
             self._claim(rel)
-        write_exr(staging / rels["exr"], {**channels, "id": ids}, header, compression=self.exr_compression)
-        write_dn_png(staging / rels["dn"], dn, bits)
-        (staging / "dn_preview").mkdir(exist_ok=True)
-        write_dn_preview(staging / rels["dn_preview"], dn, bits)
+        job = functools.partial(_write_frame_files, staging, rels, {**channels, "id": ids}, header,
+                                self.exr_compression, dn, bits)
+        if self._jobs is None:
+            job()
+        else:
+            self._jobs.submit(job)
         self._frames[index] = record
         return record
 
@@ -253,7 +280,8 @@ class TruthSetWriter:
         return rel
 
     def manifest(self) -> dict:
-        """The manifest as it would be written now (frames sorted by index)."""
+        """The manifest as it would be written now (frames sorted by index), once the frames' files are written."""
+        self.flush()
         return {"format": FORMAT, **self._head,
                 "frames": [self._frames[i] for i in sorted(self._frames)]}
 
@@ -274,6 +302,15 @@ class TruthSetWriter:
                             f"{exc.strerror or exc}") from None
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+
+
+def _write_frame_files(staging: Path, rels: dict, channels: dict, header: dict, compression: str,
+                       dn: np.ndarray, bits: int) -> None:
+    """A frame's EXR, DN PNG and preview PNG (in the loop, or in the writer's background thread)."""
+    write_exr(staging / rels["exr"], channels, header, compression=compression)
+    write_dn_png(staging / rels["dn"], dn, bits)
+    (staging / "dn_preview").mkdir(exist_ok=True)
+    write_dn_preview(staging / rels["dn_preview"], dn, bits)
 
 
 # -------------------------------------------------------------------------------------- reader

@@ -57,13 +57,14 @@ def render_truthset(
 
 
 def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dict,
-                 overwrite: bool = False, progress: bool = False) -> Path:
+                 overwrite: bool = False, progress: bool = False, background: bool = True) -> Path:
     """The truth-set loop shared by :func:`render_truthset` and the per-pose truth cache
     (:func:`renderlab.campaign.cache.render_frames`): each frame spec and its ``SeedSequence`` through
     :meth:`Renderer.render_spec <renderlab.pipeline.frame_api.Renderer.render_spec>` (auto-exposure on the set's first frame, or per frame), and
     the frame, the plan's metadata and truth tables and a contact sheet written into a truth set at ``out_dir``
     (staged: all or nothing); a warning names the frames with more than 1 % saturated pixels. ``head`` is the
-    manifest's head."""
+    manifest's head. ``background``: frame k's files are written in a thread while frame k+1 renders (the same
+    bytes, :mod:`renderlab.files.background`)."""
     from tqdm import tqdm
 
     plan = renderer.plan
@@ -75,7 +76,7 @@ def write_frames(out_dir: Path, renderer, specs: list, seeds: list, *, head: dic
             if writer is None:
                 backend = renderer.backend
                 info = {"name": backend.name, "version": backend.version, "variant": backend.variant}
-                writer = TruthSetWriter(out_dir, {**head, "renderer": info}, overwrite=overwrite,
+                writer = TruthSetWriter(out_dir, {**head, "renderer": info}, overwrite=overwrite, background=background,
                                         exr_compression=renderer.scenario.render.exr_compression).__enter__()
                 plan.write_static(writer)
             writer.add_frame(spec.index, float(spec.pose.time_s), frame.aovs.exr_channels(), frame.dn,
