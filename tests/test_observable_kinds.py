@@ -81,6 +81,23 @@ def test_the_labs_kinds_are_registry_objects():
     assert reason_values("filter") == tuple(r.value for r in FilterReason)
 
 
+@pytest.mark.parametrize("name", plugins.observables.names())
+def test_every_registered_kinds_references_load(name):
+    """Every part a kind names loads and is what the lab will call (a typo in a reference fails here, not in a
+    report); its protocol's methods tell it apart from every other kind's (``--plugin`` needs that)."""
+    kind = plugins.observable(name)
+    core, known = kind.core_schema(), kind.known_columns()
+    assert core is None or (isinstance(core, pa.Schema) and isinstance(known, pa.Schema)
+                            and set(core.names) <= set(known.names) and {"has_result", "reason"} <= set(core.names))
+    for part in ("runner", "scorer", "report_section", "conformance"):
+        assert kind.part(part) is None or callable(kind.part(part)), part
+    need = plugins.protocol_methods(kind.protocol)
+    assert need
+    others = [k.name for k in plugins.observable_kinds() if k.name != name
+              and plugins.protocol_methods(k.protocol) == need]
+    assert not others, f"{name} and {others} have the same protocol methods {sorted(need)}"
+
+
 def _probe_kind():
     """A kind registered at run time (no entry point, no lab edit): schema, reasons and a protocol of its own."""
     from enum import Enum
