@@ -170,3 +170,19 @@ def test_closed_loop_example_runs_at_a_tiny_size(monkeypatch):
         assert math.isfinite(row["nees"]) and row["nees"] > 0, text
     assert 0 < res.band[0] < 6 < res.band[1] and math.isfinite(res.anees)
     assert "ANEES" in text and "chi-square band" in text
+
+
+def test_closed_loop_monte_carlo_scores_nees_per_step_over_independent_runs(monkeypatch):
+    from scipy.stats import chi2
+
+    spec = importlib.util.spec_from_file_location("basilisk_mars_opnav", REPO / "examples" / "basilisk_mars_opnav.py")
+    ex = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, ex)
+    spec.loader.exec_module(ex)
+    opts = ex.Options(size=64, steps=3, spp=1, seed=5)
+    mc = ex.monte_carlo(opts, 2)
+    one = [ex.run(ex.Options(size=64, steps=3, spp=1, seed=s)) for s in (5, 6)]     # the same runs, one by one
+    per_step = np.mean([[r["nees"] for r in res.rows] for res in one], axis=0)
+    assert np.allclose(mc.anees, per_step, rtol=1e-12)
+    assert mc.band == pytest.approx((chi2.ppf(0.025, 12) / 2, chi2.ppf(0.975, 12) / 2))
+    assert np.array_equal(mc.inside, (mc.anees >= mc.band[0]) & (mc.anees <= mc.band[1]))

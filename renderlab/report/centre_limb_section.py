@@ -91,7 +91,7 @@ def sentence(method: str, rows: list[dict], cells: list[dict]) -> str:
     """One conclusion sentence for a method from its summary rows (group ``all``) and cells."""
     q = {r["quantity"]: r for r in rows if r["method"] == method and r["group"] == "all"}
     mine = [c for c in cells if c["method"] == method and math.isfinite(c["bias_s_px"])]
-    parts = [f"<b>{method}</b>: results on {100 * q['result_rate']['estimate']:.0f} % of the images"]
+    parts = [f"<b>{method}</b>: results on {100 * q['result_rate']['estimate']:.1f} % of the images"]
     if mine:
         worst = max(mine, key=lambda c: math.hypot(c["bias_s_px"], c["bias_l_px"]) / c["radius_px"])
         parts.append(f"centre bias up to {math.hypot(worst['bias_s_px'], worst['bias_l_px']):.2f} px "
@@ -105,7 +105,8 @@ def sentence(method: str, rows: list[dict], cells: list[dict]) -> str:
     if a and a["n"]:
         word = "consistent" if a["inside"] else ("over-confident" if a["estimate"] > a["band_hi"] else "conservative")
         parts.append(f"its own centre covariance is {word} (ANEES {a['estimate']:.3g}, band "
-                     f"[{a['band_lo']:.3g}, {a['band_hi']:.3g}])")
+                     f"[{a['band_lo']:.3g}, {a['band_hi']:.3g}]; median NEES {q['median_nees_centre']['estimate']:.3g}"
+                     f" against χ²₂'s 1.39)")
     return "; ".join(parts) + "."
 
 
@@ -131,14 +132,22 @@ def _summary_html(rows: list[dict], group: str) -> str:
     return html_table(out, SUMMARY_COLUMNS, left=("method",))
 
 
+def _g(v: float) -> str:
+    return f"{v:.3g}" if math.isfinite(v) else "–"
+
+
 def _nees_html(rows: list[dict]) -> str:
+    med = {(r["method"], r["quantity"]): r for r in rows if r["group"] == "all"}
     out = []
     for r in rows:
         if r["group"] == "all" and r["quantity"].startswith("anees") and r["n"] > 0:
-            out.append({**r, "ci": style.ci(r["estimate"], r["lo"], r["hi"], digits=3, signed=False),
+            m = med[(r["method"], "median_nees_" + r["quantity"][6:])]
+            out.append({**r, "ci": f"{_g(r['estimate'])} [{_g(r['lo'])}, {_g(r['hi'])}]",
+                        "median": f"{_g(m['estimate'])} [{_g(m['lo'])}, {_g(m['hi'])}]",
                         "band": f"[{r['band_lo']:.3g}, {r['band_hi']:.3g}]", "badge": style.badge(r["inside"])})
     return html_table(out, [("method", "method"), ("what", "statistic"), ("n", "images"),
-                            ("ci", "ANEES [95 % interval]"), ("band", "χ² band (95 %)"), ("badge", "PASS/FAIL")],
+                            ("ci", "ANEES [95 % interval]"), ("band", "χ² band (95 %)"), ("badge", "PASS/FAIL"),
+                            ("median", "median NEES [95 %] (χ²: 1.39 / 2.37)")],
                       left=("method", "what"), raw=("badge",))
 
 

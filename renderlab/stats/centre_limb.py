@@ -15,7 +15,8 @@ Summary (:func:`score_table`), per method, for all rows and per photometric law 
   grid cell's own mean, scaled by √(n_c/(n_c − 1)) (the within-cell scatter: Monte Carlo noise, the bias removed);
   ``los_rms_urad`` the total RMS line-of-sight error;
 * **ANEES** = mean NEES with the two-sided χ² band ``[χ²_{kN}(α/2), χ²_{kN}(1−α/2)]/N`` of N independent
-  k-dof values and PASS/FAIL (``inside``);
+  k-dof values and PASS/FAIL (``inside``); beside it the median NEES (a consistent covariance gives the χ²_k
+  median, 1.386 for k = 2 and 2.366 for k = 3; the mean is dominated by the worst images);
 * ``result_rate`` and, per no-result reason, its rate.
 
 Intervals: percentile **cluster bootstrap** over grid cells (``cell``: the images of one cell share a geometry and
@@ -40,6 +41,8 @@ QUANTITIES = {
     "bias_range_rel": ("—", "mean relative range error"), "noise_range_rel": ("—", "within-cell relative range scatter"),
     "anees_centre": ("—", "ANEES of the centre covariance (2 dof)"),
     "anees_position": ("—", "ANEES of the position covariance (3 dof)"),
+    "median_nees_centre": ("—", "median NEES of the centre covariance (χ²₂ median 1.386)"),
+    "median_nees_position": ("—", "median NEES of the position covariance (χ²₃ median 2.366)"),
 }
 
 
@@ -128,6 +131,7 @@ def summarize(d: dict, sel: np.ndarray, method: str, group: str, confidence: flo
         lo, hi = chi2_band(k, iv.n, confidence)
         rows.append(_row(method, group, q, iv, band_lo=lo, band_hi=hi,
                          inside=(bool(lo <= iv.estimate <= hi) if iv.n else None)))
+        rows.append(_row(method, group, f"median_{col}", cluster_bootstrap(d[col][sel], cl, "median", **kw)))
     for reason in sorted(set(d["reason"][sel]) - {"ok"}):
         iv = cluster_bootstrap_rate(d["reason"][sel] == reason, cl, **kw)
         rows.append(_row(method, group, f"rate_{reason}", iv, what=f"share of images with no result: {reason}"))
@@ -147,8 +151,15 @@ def score_table(table, *, confidence: float = 0.95) -> list[dict]:
 
 
 def cell_table(d: dict) -> list[dict]:
-    """Per method and cell: the cell's grid values, result count, mean centre/range errors, noise, mean NEES."""
+    """Per method and cell: the cell's grid values, result count, mean centre/range errors and their standard
+    deviations, mean NEES, the median |centre error| (px), the share of images with |centre error| > 3 px and the
+    median relative range error."""
     rows = []
+    e = np.hypot(d["err_s"], d["err_l"])
+
+    def med(v):
+        return float(np.median(v[np.isfinite(v)])) if np.isfinite(v).any() else math.nan
+
     for m in sorted(set(d["method"])):
         for c in np.unique(d["cell"][d["method"] == m]):
             s = (d["method"] == m) & (d["cell"] == c)
@@ -169,5 +180,8 @@ def cell_table(d: dict) -> list[dict]:
                          "bias_s_px": mean("err_s"), "bias_l_px": mean("err_l"), "sd_s_px": sd("err_s"),
                          "sd_l_px": sd("err_l"), "bias_range_rel": mean("range_err_rel"),
                          "sd_range_rel": sd("range_err_rel"), "mean_nees_centre": mean("nees_centre"),
-                         "mean_nees_position": mean("nees_position")})
+                         "mean_nees_position": mean("nees_position"), "median_err_px": med(e[s]),
+                         "share_err_over_3px": (float(np.mean(e[s][np.isfinite(e[s])] > 3.0))
+                                                if np.isfinite(e[s]).any() else math.nan),
+                         "median_range_err_rel": med(d["range_err_rel"][s])})
     return rows
