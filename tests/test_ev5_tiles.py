@@ -169,6 +169,22 @@ def test_height_error_bound_vs_vertical_ray_casts(model, row, col, level):
     assert bound > 0
 
 
+@pytest.mark.parametrize("shape,stride", [((33, 33), 2), ((33, 33), 32), ((17, 49), 4), ((65, 33), 8)])
+def test_border_error_equals_the_full_computation_and_a_1d_oracle(shape, stride):
+    """The skirts' border bound computed on the border alone: bit for bit the border part of the full-tile
+    computation, and |h − linear interpolation of the decimated border| (numpy.interp) along the four sides."""
+    from renderlab.worlds.ev5.tiles import border_error, decimation_error
+
+    h = np.random.default_rng(stride).normal(0.0, 0.3, shape).cumsum(0).cumsum(1)
+    full, border = decimation_error(h, stride)
+    assert border_error(h, stride) == border and 0 < border <= full
+    sides = [h[0], h[-1], h[:, 0], h[:, -1]]
+    oracle = max(np.abs(s - np.interp(np.arange(len(s)), np.arange(len(s))[::stride], s[::stride])).max()
+                 for s in sides)
+    assert border == pytest.approx(oracle, rel=1e-12, abs=1e-12)
+    assert border_error(h, 1) == 0.0
+
+
 def test_cache_key_hit_miss_and_corrupt_file(cache_env, tmp_path):
     """Key: changed by a key that shapes the site, not by the LOD or catalog keys. Cache: a second build is a
     hit with the same arrays as an uncached build; a corrupt array file is detected and rebuilt."""

@@ -63,23 +63,36 @@ class TileKey:
         return f"r{self.row}c{self.col}L{self.level}"
 
 
+def _coarse(h: np.ndarray, stride: int, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Height of the stride-decimated triangulated grid of ``h`` at fine vertices (row ``v``, column ``u``)."""
+    c = h[::stride, ::stride]
+    i, j = np.minimum(u // stride, c.shape[1] - 2), np.minimum(v // stride, c.shape[0] - 2)
+    FX, FY = (u - i * stride) / stride, (v - j * stride) / stride
+    h00, h01, h10, h11 = c[j, i], c[j, i + 1], c[j + 1, i], c[j + 1, i + 1]
+    return np.where(FX >= FY, h00 + FX * (h01 - h00) + FY * (h11 - h01), h00 + FY * (h10 - h00) + FX * (h11 - h10))
+
+
 def decimation_error(h: np.ndarray, stride: int) -> tuple[float, float]:
     """(max over the tile, max over its border) of |h − h_L| at the fine vertices of the tile ``h``
     ((ny, nx), sides divisible by ``stride``), h_L the stride-decimated triangulated grid."""
     ny, nx = h.shape
     if stride == 1:
         return 0.0, 0.0
-    c = h[::stride, ::stride]
-    u, v = np.arange(nx), np.arange(ny)
-    i, j = np.minimum(u // stride, c.shape[1] - 2), np.minimum(v // stride, c.shape[0] - 2)
-    fx, fy = (u - i * stride) / stride, (v - j * stride) / stride
-    I, J = np.meshgrid(i, j)
-    FX, FY = np.meshgrid(fx, fy)
-    h00, h01, h10, h11 = c[J, I], c[J, I + 1], c[J + 1, I], c[J + 1, I + 1]
-    coarse = np.where(FX >= FY, h00 + FX * (h01 - h00) + FY * (h11 - h01), h00 + FY * (h10 - h00) + FX * (h11 - h10))
-    d = np.abs(h - coarse)
+    V, U = np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij")
+    d = np.abs(h - _coarse(h, stride, V, U))
     border = max(d[0].max(), d[-1].max(), d[:, 0].max(), d[:, -1].max())
     return float(d.max()), float(border)
+
+
+def border_error(h: np.ndarray, stride: int) -> float:
+    """The border part of :func:`decimation_error` (the same arithmetic, at the border vertices only)."""
+    ny, nx = h.shape
+    if stride == 1:
+        return 0.0
+    u, v = np.arange(nx), np.arange(ny)
+    V = np.concatenate([np.zeros(nx, np.int64), np.full(nx, ny - 1), v, v])
+    U = np.concatenate([u, u, np.zeros(ny, np.int64), np.full(ny, nx - 1)])
+    return float(np.abs(h[V, U] - _coarse(h, stride, V, U)).max())
 
 
 def _pow2_divisor_level(n: int, cap: int) -> int:
@@ -115,6 +128,7 @@ class TiledSite:
                 t = h[e[r]:e[r + 1] + 1, e[c]:e[c + 1] + 1]
                 self.zrange[r, c] = float(t.min()), float(t.max())
         self._err: dict[tuple[int, int, int], tuple[float, float]] = {}
+        self._border: dict[tuple[int, int, int], float] = {}  # border bounds of the levels below a tile's own
 
     # ------------------------------------------------------------------ geometry of the tiles
     def max_level(self, row: int, col: int) -> int:
@@ -146,8 +160,20 @@ class TiledSite:
             self._err[k] = decimation_error(h, 2 ** key.level)
         return self._err[k]
 
+    def border_error(self, key: TileKey) -> float:
+        """The height error bound of ``key``'s level along the tile's border, m (``error(key)[1]``, computed on the
+        border alone unless the tile's full bound is known)."""
+        k = (key.row, key.col, key.level)
+        if k in self._err:
+            return self._err[k][1]
+        if k not in self._border:
+            e = self.edges
+            h = np.asarray(self.site.heights_m[e[key.row]:e[key.row + 1] + 1, e[key.col]:e[key.col + 1] + 1], float)
+            self._border[k] = border_error(h, 2 ** key.level)
+        return self._border[k]
+
     def skirt_depth(self, key: TileKey) -> float:
-        eb = max(self.error(TileKey(key.row, key.col, lv))[1] for lv in range(key.level + 1))
+        eb = max(self.border_error(TileKey(key.row, key.col, lv)) for lv in range(key.level + 1))
         return 2.0 * eb + self.site.cell_m
 
     # ------------------------------------------------------------------ per frame
