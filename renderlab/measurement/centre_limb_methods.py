@@ -13,7 +13,8 @@ name               method
 =================  =========================================================================================
 
 A factory takes an optional options object of the estimator (``CentroidOptions``, ``EllipseOptions``,
-``HorizonOptions``); None gives the defaults.
+``HorizonOptions``); None gives the defaults. They are registered for the ``centre_limb`` kind
+(:func:`renderlab.plugins.method_registry`), beside Basilisk's modules (:mod:`renderlab.basilisk.opnav_methods`).
 """
 
 from __future__ import annotations
@@ -100,5 +101,5 @@ class HorizonOpNavMethod(_Adapter):
         super().__init__(HorizonOpNav(options or HorizonOptions()))
 
 
-#: name → factory of the lab's centre/limb methods (until the registry of observable kinds holds them)
+#: name → factory of the lab's centre/limb methods (registered as ``renderlab.plugins.method_registry("centre_limb")``)
 BUILTIN = {m.name: m for m in (RawCentroidMethod, PhaseCentroidMethod, LimbEllipseMethod, HorizonOpNavMethod)}
