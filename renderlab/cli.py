@@ -29,6 +29,7 @@ import sys
 from pathlib import Path
 
 from renderlab import __version__
+from renderlab.commands import cost
 from renderlab.commands.cost import check_path, load_checked
 from renderlab.errors import UserError
 
@@ -186,7 +187,6 @@ def sweep_out(out, *, own: bool = False) -> None:
 # ----------------------------------------------------------------------------------------- commands
 def cmd_render(args) -> int:
     from renderlab import plugins
-    from renderlab.commands import cost
 
     if args.renderer is not None:
         plugins.renderers.get(args.renderer, where="--renderer: ")  # a registered name, checked before anything

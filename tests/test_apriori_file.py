@@ -11,8 +11,8 @@ import shutil
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from test_measure import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
-from test_measure_images import _write_inputs
+from terrain_fixtures import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
+from terrain_fixtures import write_inputs as _write_inputs
 
 from renderlab.cli import main
 from renderlab.measurement import apriori

@@ -220,3 +220,15 @@ def test_package_root_holds_at_most_twelve_modules():
     """The root of ``renderlab`` keeps the entry points and the lowest layers; everything else lives in a subpackage."""
     root = sorted(p.name for p in (REPO / "renderlab").glob("*.py"))
     assert len(root) <= 12, root
+
+
+def test_no_test_file_imports_another_test_file():
+    """Shared fixtures and helpers live in helper modules (``*_fixtures.py``, ``oracles.py``, ...), not in test files:
+    importing a test file runs its module-level code twice and ties two test files together."""
+    hits = []
+    for p in sorted((REPO / "tests").glob("test_*.py")):
+        for node in ast.walk(ast.parse(p.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else [])
+            hits += [f"{p.name} imports {n}" for n in names if n.split(".")[0].startswith("test_")]
+    assert hits == []

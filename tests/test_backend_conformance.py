@@ -26,9 +26,9 @@ import numpy as np
 import pytest
 from conftest import REPO, scenario_dict
 from oracles import camera_rays, hit_box, hit_plane_z0, hit_sphere
+from renderer_params import RENDERERS
 from scipy import ndimage
 
-from renderlab import plugins
 from renderlab.errors import UserError
 from renderlab.photometry import make_law
 
@@ -49,23 +49,6 @@ BOX_BODIES = [
     {"name": "box", "shape": "box", "center_m": [0, 0, 0.6], "size_m": [1.2, 1.2, 1.2], "law": "lambert", "albedo": 0.3}]
 
 
-def _renderer_params():
-    out = []
-    for name in plugins.renderers.names():
-        marks = []
-        if name == "cycles":
-            try:
-                import importlib.util
-
-                have = importlib.util.find_spec("bpy") is not None
-            except (ImportError, ValueError):
-                have = False
-            marks = [] if have else [pytest.mark.skip(reason="cycles needs the bpy package")]
-        out.append(pytest.param(name, marks=marks))
-    return out
-
-
-RENDERERS = _renderer_params()
 
 
 def _scenes() -> dict[str, dict]:

@@ -3,7 +3,7 @@ excluded) to each other and to the in-process executor, for the same seed."""
 
 from __future__ import annotations
 
-from test_campaign_engine import SCENE, TINY, tables_equal
+from campaign_fixtures import SCENE, TINY, tables_equal
 
 from renderlab.campaign import store
 from renderlab.campaign.executors import DaskExecutor, InProcessExecutor

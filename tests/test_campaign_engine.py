@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+from campaign_fixtures import SCENE, TINY, tables_equal
 
 from renderlab.campaign import store
 from renderlab.campaign.executors import InProcessExecutor, execute_run
@@ -20,23 +21,11 @@ from renderlab.campaign.perturb import draw_perturbation, perturb_camera
 from renderlab.campaign.plan import make_plan, run_seed_sequence
 from renderlab.campaign.runner import run_campaign
 from renderlab.cli import main
-from renderlab.contracts.schemas import TIMING_COLUMNS
 from renderlab.errors import UserError
 from renderlab.scenario import load_scenario
 from renderlab.scenario.campaign import PerturbationConfig
 
 REPO = Path(__file__).resolve().parents[1]
-SCENE = REPO / "scenes" / "analytic_sphere_box.toml"
-TINY = ["camera.width=64", "camera.height=48", "camera.fx=66", "camera.fy=65", "camera.cx=32", "camera.cy=23",
-        "render.spp=4", "trajectory.frames=1", "perturbations.position_sigma_m=[0.1,0.1,0.1]",
-        "perturbations.attitude_sigma_deg=0.5", "perturbations.focal_length_sigma_frac=0.01",
-        "perturbations.principal_point_sigma_px=0.3", "perturbations.sun_direction_sigma_deg=2"]
-
-
-def tables_equal(a, b) -> bool:
-    """Same rows and values, timing columns excluded."""
-    keep = [c for c in a.column_names if c not in TIMING_COLUMNS]
-    return a.column_names == b.column_names and a.select(keep).equals(b.select(keep))
 
 
 def flaky_study(scenario, base_dir, run_index, seed_sequence, workdir):

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pyarrow.parquet as pq
-from test_campaign_engine import SCENE, TINY, tables_equal
+from campaign_fixtures import SCENE, TINY, tables_equal
 
 from renderlab.campaign import store
 from renderlab.cli import main

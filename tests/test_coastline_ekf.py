@@ -8,25 +8,18 @@ import math
 
 import numpy as np
 import pytest
+from coastline_fixtures import A_1000, circular_state, random_filter_problem
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from estimators.coastline.dynamics import MU_EARTH, dynamics_jacobian, propagate_state_stm, two_body_rhs
-from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions
 from estimators.coastline.los import los_jacobian_position, los_predict, small_rotation_matrices
 from renderlab.errors import UserError
-
-A_1000 = 6378137.0 + 1.0e6
-
-
-def _circular_state(a=A_1000, inc=math.radians(45.0)):
-    v = math.sqrt(MU_EARTH / a)
-    return np.array([a, 0.0, 0.0, 0.0, v * math.cos(inc), v * math.sin(inc)])
 
 
 def test_dynamics_jacobian_eq13_matches_central_differences():
     rng = np.random.default_rng(3)
-    x = _circular_state() + np.r_[rng.normal(0, 5e4, 3), rng.normal(0, 50, 3)]
+    x = circular_state() + np.r_[rng.normal(0, 5e4, 3), rng.normal(0, 50, 3)]
     F = dynamics_jacobian(x)
     Ffd = np.empty((6, 6))
     steps = np.r_[np.full(3, 1.0), np.full(3, 1e-3)]
@@ -41,7 +34,7 @@ def test_dynamics_jacobian_eq13_matches_central_differences():
 
 def test_los_jacobian_eq17_matches_central_differences():
     rng = np.random.default_rng(4)
-    r = _circular_state()[:3]
+    r = circular_state()[:3]
     o = r * (6378137.0 / np.linalg.norm(r)) + rng.normal(0, 2e5, (5, 3))
     T = Rotation.from_rotvec(rng.normal(0, 1, 3)).as_matrix()
     e_c, e_i, rho = los_predict(r[None], o, T)
@@ -56,7 +49,7 @@ def test_los_jacobian_eq17_matches_central_differences():
 
 
 def test_state_and_stm_match_solve_ivp_and_finite_differences():
-    x0 = _circular_state()
+    x0 = circular_state()
     period = 2 * math.pi * math.sqrt(A_1000**3 / MU_EARTH)
     x1, phi = propagate_state_stm(x0[None], period, max_step_s=10.0)
     ref = solve_ivp(lambda t, x: two_body_rhs(x), (0, period), x0, method="DOP853", rtol=1e-13, atol=1e-8)
@@ -72,24 +65,12 @@ def test_state_and_stm_match_solve_ivp_and_finite_differences():
     assert np.allclose(phi600[0], fd, rtol=1e-5, atol=1e-7)
 
 
-def _random_filter_problem(seed, N=4, m=5, sigma_att=3e-5, method="woodbury"):
-    rng = np.random.default_rng(seed)
-    x = np.tile(_circular_state(), (N, 1)) + np.c_[rng.normal(0, 500, (N, 3)), rng.normal(0, 0.005, (N, 3))]
-    L = rng.normal(size=(N, 6, 6)) * np.r_[np.full(3, 300.0), np.full(3, 0.3)][None, :, None]
-    P0 = L @ np.swapaxes(L, 1, 2) + np.diag(np.r_[np.full(3, 100.0), np.full(3, 1e-4)])
-    o = x[0, :3] * (6378137.0 / A_1000) + rng.normal(0, 1.5e5, (m, 3))
-    T = np.tile(Rotation.from_rotvec(rng.normal(0, 1, 3)).as_matrix(), (N, 1, 1))
-    y = los_predict(x[:, :3] + rng.normal(0, 300, (N, 3)), o, T)[0]
-    f = BatchCoastlineEKF(x, P0, EKFOptions(sigma_theta_rad=4e-4, sigma_attitude_rad=sigma_att, gain_method=method))
-    return f, y, o, T
-
-
 @pytest.mark.parametrize("sigma_att", [0.0, 3e-5])
 def test_modified_gain_eq19_equals_pseudo_inverse_update(sigma_att):
     """Both implementations of eq. 19 give the gain P Hᵀ S⁺, the Joseph covariance and the NIS νᵀS⁺ν that a
     plain numpy.linalg.pinv computation gives."""
-    fw, y, o, T = _random_filter_problem(7, sigma_att=sigma_att)
-    fd, *_ = _random_filter_problem(7, sigma_att=sigma_att, method="direct")
+    fw, y, o, T = random_filter_problem(7, sigma_att=sigma_att)
+    fd, *_ = random_filter_problem(7, sigma_att=sigma_att, method="direct")
     x_prior, P_prior = fw.x.copy(), fw.P.copy()
     rw, rd = fw.update(y, o, T), fd.update(y, o, T)
     m = len(o)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_coastline_ekf import _random_filter_problem
+from coastline_fixtures import random_filter_problem
 
 from estimators.coastline.ekf import BatchCoastlineEKF, EKFOptions
 from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF, tangent_basis
@@ -14,7 +14,7 @@ from estimators.coastline.sqrt_ekf import SqrtBatchCoastlineEKF, tangent_basis
 
 @pytest.mark.parametrize("sigma_att, q", [(0.0, 0.0), (3e-5, 0.0), (3e-5, 1e-9)])
 def test_sqrt_filter_equals_joseph_filter(sigma_att, q):
-    fj, y, o, T = _random_filter_problem(11, sigma_att=sigma_att)
+    fj, y, o, T = random_filter_problem(11, sigma_att=sigma_att)
     opts = EKFOptions(sigma_theta_rad=4e-4, sigma_attitude_rad=sigma_att, q_acc_m2_s3=q)
     fj = BatchCoastlineEKF(fj.x, fj.P, opts)
     fs = SqrtBatchCoastlineEKF(fj.x, fj.P, opts)

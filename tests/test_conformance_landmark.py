@@ -9,7 +9,7 @@ from importlib.metadata import entry_points
 
 import numpy as np
 import pytest
-from test_measure import truthset  # noqa: F401  (the module-scoped fixture: two Mitsuba frames, three maplets)
+from terrain_fixtures import truthset  # noqa: F401  (the module-scoped fixture: two Mitsuba frames, three maplets)
 
 from renderlab import plugins
 from renderlab.contracts.landmark import LandmarkMethodOptions, LandmarkResult

@@ -7,15 +7,9 @@ import copy
 
 import numpy as np
 import pytest
+from tiny_ev5 import TINY_WORLD
 
 from renderlab.errors import UserError
-
-TINY_WORLD = {
-    "kind": "ev5", "seed": 11, "facet_m": 4.0,
-    "site": {"extent_m": 30.0, "cell_m": 0.05, "taper_m": 1.0, "crater_max_m": 3.0, "boulder_min_m": 0.3},
-    "landmarks": [{"name": "regional", "count": 10, "spacing_m": 0.2, "size": 21, "radius_m": 5.5},
-                  {"name": "site", "count": 10, "spacing_m": 0.1, "size": 21, "radius_m": 2.5}],
-}
 
 
 def world_cfg(**over):

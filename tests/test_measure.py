@@ -6,49 +6,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pyarrow as pa
 import pytest
-from test_retina_render import CAMERA, SUN, make_maplets, render_dn, terrain_dem, true_pose
+from terrain_fixtures import (
+    CAMERA,
+    truthset,  # noqa: F401  (the module-scoped fixture: two Mitsuba frames, three maplets)
+)
 
 from renderlab.contracts.schemas import LANDMARK_RUNNER
-
-
-@pytest.fixture(scope="module")
-def truthset(tmp_path_factory):
-    from scipy.spatial.transform import Rotation
-
-    from estimators.retina import CameraPoseEstimate, project_point
-    from renderlab.files.truthset import TruthSetWriter
-
-    dem = terrain_dem()
-    maplets = make_maplets(dem)
-    p0 = true_pose()
-    p1 = CameraPoseEstimate(p0.R_body_from_cam @ Rotation.from_rotvec([0.01, -0.02, 0.05]).as_matrix(),
-                            p0.position_m + np.array([0.3, 0.2, -0.5]))
-    out = tmp_path_factory.mktemp("ts") / "set"
-    rows = []
-    with TruthSetWriter(out, {"renderer": {"name": "mitsuba"}}) as w:
-        for k, pose in enumerate((p0, p1)):
-            rf, dn = render_dn(dem, pose, seed=k)
-            meta = {"camera": CAMERA.to_dict(),
-                    "pose": {"position_m": pose.position_m.tolist(),
-                             "quat_render_from_cam_xyzw": Rotation.from_matrix(pose.R_body_from_cam).as_quat().tolist()},
-                    "sun": {"direction_render": SUN.tolist(), "irradiance_w_m2": 1361.0},
-                    "sensor": {"bits": 10, "bias_dn": 16.0, "gain_e_per_dn": 20.0}}
-            w.add_frame(k, float(k), rf.exr_channels(), dn, meta)
-            for m in maplets:
-                s, l = project_point(CAMERA, pose, m.center_m)
-                rows.append({"frame": k, "landmark_id": m.landmark_id, "s": float(s), "l": float(l), "visible": True,
-                             "occluded": bool(k == 1 and m.landmark_id == 2), "incidence_deg": 40.0,
-                             "emission_deg": 20.0, "phase_deg": 50.0, "shadow_fraction": 0.05, "gsd_ratio": 0.9})
-        w.add_table("landmark_truth", pa.Table.from_pylist(rows))
-        try:
-            from renderlab.worlds.ev5.catalog import write_catalog
-        except ImportError:  # the EV5 world is not there yet: the CLI tests that need a catalog skip
-            pass
-        else:
-            write_catalog(w, maplets)
-    return out, maplets
 
 
 def _measure(path, maplets, method, seed, **kw):
@@ -60,7 +24,7 @@ def _measure(path, maplets, method, seed, **kw):
 
 
 @pytest.mark.parametrize("method", ["retina", "spc"])
-def test_measure_truthset_rows(truthset, method):
+def test_measure_truthset_rows(truthset, method):  # noqa: F811
     from renderlab.contracts.reasons import reason_values
     from renderlab.measurement.runner import MeasureOptions, draw_apriori
 
@@ -96,7 +60,7 @@ def test_measure_truthset_rows(truthset, method):
     assert set(t["n_sigma"]) == {3.0}
 
 
-def test_search_distance_is_n_sigma_of_the_projected_apriori_covariance(truthset):
+def test_search_distance_is_n_sigma_of_the_projected_apriori_covariance(truthset):  # noqa: F811
     """``search_px`` = ceil(n_σ · sqrt(λ_max)) of the pixel covariance at the a-priori pose (rebuilt from
     the recorded perturbation), for the default 3σ and a set 6σ."""
     from scipy.spatial.transform import Rotation
@@ -125,7 +89,7 @@ def test_search_distance_is_n_sigma_of_the_projected_apriori_covariance(truthset
     assert all(got[6.0, i] > got[3.0, i] for i in range(6))
 
 
-def test_measure_is_deterministic(truthset):
+def test_measure_is_deterministic(truthset):  # noqa: F811
     path, maplets = truthset
     a, b = _measure(path, maplets, "spc", 11), _measure(path, maplets, "spc", 11)
     c = _measure(path, maplets, "spc", 12)
@@ -141,7 +105,7 @@ def _cli(*argv):
     return main(list(argv))
 
 
-def test_cli_errors(truthset, tmp_path, capsys):
+def test_cli_errors(truthset, tmp_path, capsys):  # noqa: F811
     import shutil
 
     path, _ = truthset
@@ -164,7 +128,7 @@ def test_cli_errors(truthset, tmp_path, capsys):
                        or ".tmp-" in p.name for p in d.iterdir()), "nothing half-written"
 
 
-def test_cli_measure_end_to_end(truthset, tmp_path, capsys):
+def test_cli_measure_end_to_end(truthset, tmp_path, capsys):  # noqa: F811
     import pyarrow.parquet as pq
 
     path, _ = truthset
@@ -201,7 +165,7 @@ def test_options_validation():
         MeasureOptions(peak="centroid")
 
 
-def test_same_seed_gives_byte_identical_measure_files_with_separate_timings(truthset, tmp_path):
+def test_same_seed_gives_byte_identical_measure_files_with_separate_timings(truthset, tmp_path):  # noqa: F811
     path, _ = truthset
     if not (path / "landmarks.parquet").is_file():
         pytest.skip("no catalog writer")

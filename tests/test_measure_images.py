@@ -8,40 +8,12 @@ import json
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
-from test_measure import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
+from terrain_fixtures import truthset  # noqa: F401  (the tiny rendered terrain truth set, fixture)
+from terrain_fixtures import write_inputs as _write_inputs
 
 from renderlab.cli import main
 
 SHIFT = (2, 1)  # imposed (sample, line) shift, px
-
-
-def _write_inputs(tmp_path, ts_path, shift=(0, 0), fmt="png", name="img"):
-    import cv2
-
-    from renderlab.files.truthset import TruthSet
-
-    ts = TruthSet.open(ts_path)
-    dn = ts.load(0).dn.astype(np.uint16)
-    M = np.array([[1.0, 0.0, shift[0]], [0.0, 1.0, shift[1]]])
-    img = cv2.warpAffine(dn, M, (dn.shape[1], dn.shape[0]), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
-    if fmt == "png":
-        assert cv2.imwrite(str(tmp_path / f"{name}.png"), img)
-        fname = f"{name}.png"
-    else:
-        from astropy.io import fits
-
-        fits.PrimaryHDU(img.astype(np.int32)).writeto(tmp_path / f"{name}.fits")
-        fname = f"{name}.fits"
-    rec = ts.frames[0]
-    apriori = {"camera": rec["camera"], "bits": 10, "frame": "BODY",
-               "images": [{"file": fname, "epoch_utc": "2026-12-02T00:00:00Z",
-                           "position_m": rec["pose"]["position_m"],
-                           "quat_body_from_cam_xyzw": rec["pose"]["quat_render_from_cam_xyzw"],
-                           "sun_direction_body": rec["sun"]["direction_render"],
-                           "position_sigma_m": [0.2, 0.2, 0.2], "attitude_sigma_deg": [0.05, 0.05, 0.05]}]}
-    path = tmp_path / f"{name}_apriori.json"
-    path.write_text(json.dumps(apriori))
-    return path
 
 
 def _measure(tmp_path, ts_path, apriori, name, method="retina"):

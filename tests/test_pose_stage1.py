@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pose_fixtures import CAM, PTS, synthetic_sequence
 from scipy.stats import chi2
-from test_pose_stage2 import CAM, PTS, _synthetic_sequence
 
 from estimators.pose import (
     EstimationError,
@@ -41,7 +41,7 @@ SIGMA = 0.3
 
 @pytest.fixture(scope="module")
 def solved():
-    s = _synthetic_sequence(frames=60, dt=1.0, sigma=SIGMA, seed=3)
+    s = synthetic_sequence(frames=60, dt=1.0, sigma=SIGMA, seed=3)
     tracks = track_points(s["det"], TrackOptions(epsilon_px=15.0, min_track_frames=5))
     db = build_database(tracks, TrackOptions(min_track_frames=5))
     rng = np.random.default_rng(5)
@@ -161,7 +161,7 @@ def _sliding_sequence(frames=20, dt=1.0, sigma=0.3, seed=4):
     """The synthetic arc plus three tracks that are *not* rigid points: the sunlit pole of a 0.25 m
     sphere (moves over the body as the body turns under a fixed LVLH sun — a lit-edge photocentre), a
     blob sliding along the body x axis at 1 cm/s, and one oscillating ±6 cm along z."""
-    s = _synthetic_sequence(frames=frames, dt=dt, sigma=sigma, seed=seed)
+    s = synthetic_sequence(frames=frames, dt=dt, sigma=sigma, seed=seed)
     sun = np.array([0.4, 0.7, 0.5]) / np.linalg.norm([0.4, 0.7, 0.5])
     rng = np.random.default_rng(seed + 100)
     for k in range(frames):
@@ -233,7 +233,7 @@ def test_short_arc_free_solve_unphysical_fallback_physical():
     log-ratio solve walks out of the physical set (I1 + I2 < I3); the fallback re-solve in the physical
     parametrisation ends inside it at the same cost level (a constrained minimum: cost ≥ the free one
     minus a little, and within χ²)."""
-    s = _synthetic_sequence(frames=15, dt=0.3, sigma=SIGMA, seed=2)
+    s = synthetic_sequence(frames=15, dt=0.3, sigma=SIGMA, seed=2)
     db = build_database(track_points(s["det"], TrackOptions(epsilon_px=15.0)), TrackOptions())
     out = {}
     for mode in ("log_ratio", "fallback"):

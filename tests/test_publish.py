@@ -6,7 +6,7 @@ from __future__ import annotations
 import shutil
 
 import pyarrow.parquet as pq
-from test_campaign_engine import SCENE, TINY
+from campaign_fixtures import SCENE, TINY
 
 from renderlab.cli import main
 

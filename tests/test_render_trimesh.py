@@ -113,7 +113,7 @@ MESH_FILES = {  # body name → (file, units, normals, centre)
 
 def _write_mesh_files(d):
     import trimesh
-    from test_mesh_io import write_quad_box, write_trimesh
+    from mesh_fixtures import write_quad_box, write_trimesh
 
     write_quad_box(d / "quad.obj")
     write_quad_box(d / "quad_ascii.ply")
@@ -297,7 +297,7 @@ print("RESULT " + json.dumps({
 
 def _save_blend_files(d):
     import cv2
-    from test_mesh_io import write_quad_box
+    from mesh_fixtures import write_quad_box
 
     write_quad_box(d / "quad_ascii.ply")
     (d / "ground.obj").write_text("v -4 -4 0\nv 4 -4 0\nv 4 4 0\nv -4 4 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"

@@ -9,8 +9,8 @@ import re
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+from campaign_fixtures import SCENE, TINY
 from scipy import stats
-from test_campaign_engine import SCENE, TINY
 
 from renderlab.cli import main
 

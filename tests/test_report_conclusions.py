@@ -69,7 +69,7 @@ def test_lambert_photocentre_against_integration():
 
 @pytest.fixture(scope="module")
 def analytic_report(tmp_path_factory):
-    from test_campaign_engine import SCENE
+    from campaign_fixtures import SCENE
 
     from renderlab.cli import main
 

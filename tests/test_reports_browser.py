@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from browser import check_report, find_chromium, screenshot
-from test_campaign_engine import SCENE, TINY
+from campaign_fixtures import SCENE, TINY
 
 from renderlab.cli import main
 

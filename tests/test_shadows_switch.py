@@ -19,9 +19,9 @@ import numpy as np
 import pytest
 from conftest import REPO, scenario_dict
 from oracles import camera_rays, hit_box, hit_plane_z0, hit_sphere
+from renderer_params import RENDERERS
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
-from test_backend_conformance import RENDERERS
 
 SCENE = REPO / "scenes" / "analytic_sphere_box.toml"
 

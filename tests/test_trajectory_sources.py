@@ -266,7 +266,7 @@ def test_look_at_attitude_and_camera_mount(sources):
 def test_ev5_frames_carry_epoch_utc():
     import copy
 
-    from test_ev5_world import TINY_WORLD
+    from tiny_ev5 import TINY_WORLD
 
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.base import make_plan

@@ -25,3 +25,11 @@ spacing_m = 0.1
 size = 15
 radius_m = 2.5
 """
+
+#: the tiny EV5 world as a scenario dict (4 m facets, a 30 m site at 5 cm cells, two tiers of 10 maplets of 21 × 21)
+TINY_WORLD = {
+    "kind": "ev5", "seed": 11, "facet_m": 4.0,
+    "site": {"extent_m": 30.0, "cell_m": 0.05, "taper_m": 1.0, "crater_max_m": 3.0, "boulder_min_m": 0.3},
+    "landmarks": [{"name": "regional", "count": 10, "spacing_m": 0.2, "size": 21, "radius_m": 5.5},
+                  {"name": "site", "count": 10, "spacing_m": 0.1, "size": 21, "radius_m": 2.5}],
+}

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from renderlab.commands import cost
+from renderlab.commands.cost import load_checked
+from renderlab.inputs import short
+
 
 def _int(lo: int):
     import argparse
 
     def parse(text: str) -> int:
-        from renderlab.inputs import short
-
         try:
             v = int(text)
         except ValueError:
@@ -28,8 +30,6 @@ MAX_CONNECT_TIMEOUT_S = 3600.0
 def _positive_float(text: str) -> float:
     import argparse
     import math
-
-    from renderlab.inputs import short
 
     try:
         v = float(text)
@@ -80,8 +80,6 @@ def run(args) -> int:
     from renderlab.campaign.executors import check_scheduler_options, check_workers, make_executor
     from renderlab.campaign.plan import make_plan
     from renderlab.campaign.runner import run_campaign
-    from renderlab.commands import cost
-    from renderlab.commands.cost import load_checked
     from renderlab.commands.inputs import check_scenario_inputs
     from renderlab.plugins import register_cli_plugins
 

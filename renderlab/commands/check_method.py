@@ -9,6 +9,9 @@ rule is printed on its own line; the exit code is 0 when the method conforms, 1 
 
 from __future__ import annotations
 
+from renderlab.errors import UserError
+from renderlab.inputs import short
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("check-method", help="run a method through its observable kind's conformance harness "
@@ -20,8 +23,6 @@ def add_parser(subparsers) -> None:
 def run(args) -> int:
     from renderlab import plugins
     from renderlab.commands.references import load_reference
-    from renderlab.errors import UserError
-    from renderlab.inputs import short
 
     kind = plugins.observable(args.kind)
     harness = kind.part("conformance")

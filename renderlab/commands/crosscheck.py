@@ -5,6 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from renderlab.commands import cost
+from renderlab.commands.cost import load_checked
+
 
 def _pos_int(text: str) -> int:
     try:
@@ -31,8 +34,6 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from renderlab.commands import cost
-    from renderlab.commands.cost import load_checked
     from renderlab.commands.inputs import check_scenario_inputs
 
     scenario, base = load_checked(args.scenario, args.overrides)

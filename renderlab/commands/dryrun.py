@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from renderlab.commands import cost
+from renderlab.commands.cost import _size as size
 from renderlab.errors import UserError
 
 #: radiance channels of a frame's EXR beside the AOVs (renderlab.files.truthset.AOV_CHANNELS)
@@ -19,8 +21,6 @@ _RADIANCE = {"mono": ("Y",), "rgb": ("R", "G", "B")}
 
 
 def _size(n: float) -> str:
-    from renderlab.commands.cost import _size as size
-
     return size(n)
 
 
@@ -63,8 +63,6 @@ def describe(scenario, est, *, renderer: str | None = None, runs: int = 1) -> li
 
 
 def _limits(est, out, allow_large: bool) -> str:
-    from renderlab.commands import cost
-
     try:
         cost.check(est, out=Path(out) if out else None, allow_large=allow_large, what="the request")
     except UserError as err:
@@ -75,7 +73,6 @@ def _limits(est, out, allow_large: bool) -> str:
 
 def render_dry_run(scenario, args) -> int:
     """Print what ``renderlab render`` would make (``args``: its parsed arguments); nothing is created."""
-    from renderlab.commands import cost
     from renderlab.files.truthset import TruthSetWriter
 
     out = Path(args.out)
@@ -113,7 +110,6 @@ def _finished_before(out: Path, plan, resume: bool) -> int:
 
 def campaign_dry_run(scenario, plan, args) -> int:
     """Print what ``renderlab campaign`` would run (``plan``: the validated plan); nothing is created."""
-    from renderlab.commands import cost
 
     out = Path(args.out)
     done = _finished_before(out, plan, args.resume)

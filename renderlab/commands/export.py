@@ -5,6 +5,10 @@ images for ``renderlab measure --images`` (:func:`renderlab.measurement.apriori.
 
 from __future__ import annotations
 
+from renderlab.commands.cost import check_path
+from renderlab.errors import UserError
+from renderlab.inputs import epoch_text, shown
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("export", help="write a truth set's true camera trajectory as CCSDS OEM/AEM files")
@@ -32,9 +36,6 @@ def _check_outputs(outs: list, overwrite: bool) -> None:
     import os
     from pathlib import Path
 
-    from renderlab.errors import UserError
-    from renderlab.inputs import shown
-
     seen = {}
     for flag, out in outs:
         real = os.path.realpath(out)
@@ -54,10 +55,7 @@ def _check_outputs(outs: list, overwrite: bool) -> None:
 def run(args) -> int:
     from pathlib import Path
 
-    from renderlab.commands.cost import check_path
-    from renderlab.errors import UserError
     from renderlab.files.truthset import TruthSet
-    from renderlab.inputs import epoch_text
     from renderlab.trajectory_io.export import export_truthset, kvn_text
 
     if not args.oem and not args.aem and not args.apriori:

@@ -15,7 +15,9 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+from renderlab.commands.cost import check_path
 from renderlab.errors import UserError
+from renderlab.inputs import LIMITS, check_regular
 
 HEADLINE_ROWS = 8
 _HEADLINE_NUMBERS = ("n_rows", "runs", "bias_px", "robust_sigma_px", "std_px", "gross_rate", "mean", "std",
@@ -47,8 +49,6 @@ def disk_usage(folder: Path) -> tuple[int, int]:
 def _rows(path: Path) -> int | None:
     """Rows a Parquet footer states, or None when the file is unreadable (or not a regular file: never opened)."""
     import pyarrow.parquet as pq
-
-    from renderlab.inputs import LIMITS, check_regular
 
     try:
         check_regular(path, "table", LIMITS["table"])
@@ -190,8 +190,6 @@ def headline_lines(summary: Path) -> list[str]:
 
 
 def run(args) -> int:
-    from renderlab.commands.cost import check_path
-
     path = check_path(args.path, "PATH")
     kind = folder_kind(path)
     if kind == "truthset":

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import math
 
-from renderlab.inputs import short
+from renderlab.errors import UserError
+from renderlab.inputs import LIMITS, check_regular, short, shown
 
 MAD_TO_SIGMA = 1.482602218505602  # σ of a normal distribution per unit median absolute deviation
 GROSS_PX = 1.0  # |err| above this on either axis is a gross error (the reports' default), px
@@ -61,8 +62,6 @@ def read_checked_catalog(folder):
 
     from renderlab.contracts.file_models import POSITION_MAX_M
     from renderlab.contracts.schemas import LANDMARK_CATALOG, read_parquet
-    from renderlab.errors import UserError
-    from renderlab.inputs import shown
     from renderlab.worlds.ev5.catalog import read_catalog
 
     table_path = Path(folder) / "landmarks.parquet"
@@ -82,7 +81,6 @@ def run(args) -> int:
 
     import numpy as np
 
-    from renderlab.errors import UserError
     from renderlab.files.truthset import TruthSet
     from renderlab.measurement.runner import MeasureOptions, make_method, measure_truthset, write_table
 
@@ -186,8 +184,6 @@ def _run_images(args, opts) -> int:
     """``--images APRIORI.json --catalog DIR --out FILE``: own images, no truth set."""
     from pathlib import Path
 
-    from renderlab.errors import UserError
-    from renderlab.inputs import LIMITS, check_regular
     from renderlab.measurement.apriori import check_frame
     from renderlab.measurement.images import measure_images, read_apriori
     from renderlab.measurement.runner import write_table

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from renderlab.errors import UserError
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("report", help="score a campaign (or a published study folder) and write summary "
@@ -79,7 +81,6 @@ def _publish(src: Path, out: Path) -> int:
 
 def run(args) -> int:
     from renderlab.contracts.result_folder import tables_only, with_svg
-    from renderlab.errors import UserError
 
     if getattr(args, "publish", False):
         return _publish(Path(args.campaign), Path(args.out))
@@ -97,7 +98,6 @@ def run(args) -> int:
 def _report(args) -> int:
     """``renderlab report``: a registered result-folder kind's report, else the campaign report."""
     from renderlab.campaign.publish import is_published
-    from renderlab.errors import UserError
     from renderlab.report.campaign_report import make_report
 
     src = Path(args.campaign)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import difflib
 from pathlib import Path
 
+from renderlab.commands.cost import check_path, frame_count
 from renderlab.errors import UserError
 
 
@@ -39,7 +40,6 @@ def scenario_file(text: str) -> Path:
         Neither a file nor a built-in name (with the closest built-in name, if any).
     """
     from renderlab.builtin import SCENES_DIR
-    from renderlab.commands.cost import check_path
 
     p = check_path(text, "SCENARIO")
     if p.exists():
@@ -71,7 +71,6 @@ def _studies_for(kind: str) -> list[str]:
 def scene_rows(check: bool = True) -> tuple[list[tuple[str, ...]], list[str]]:
     """(rows: name, world, trajectory, frames, studies, description; notes) of every built-in scenario."""
     from renderlab.builtin import SCENES_DIR
-    from renderlab.commands.cost import frame_count
     from renderlab.scenario import load_scenario, read_toml
 
     rows, notes = [], []

@@ -17,6 +17,8 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
+from renderlab.commands.cost import load_checked
+
 
 def add_parser(subparsers) -> None:
     p = subparsers.add_parser("show", help="print a scenario's resolved, validated configuration as TOML")
@@ -118,7 +120,6 @@ def scenario_toml(scenario, *, defaults: bool = True, header: list[str] = ()) ->
 
 def run(args) -> int:
     from renderlab import __version__
-    from renderlab.commands.cost import load_checked
     from renderlab.commands.scenes import scenario_file
 
     path = scenario_file(args.scenario)

@@ -17,6 +17,7 @@ from typing import Hashable
 import numpy as np
 
 from renderlab.dynamics.camera_paths import camera_path
+from renderlab.errors import UserError
 from renderlab.geometry.camera import CameraModel
 from renderlab.render.scene import FrameSpec, RenderedFrame, SceneDescription, SunSpec
 
@@ -69,7 +70,6 @@ class WorldPlan:
 
         This default serves worlds whose scene, camera model and sun are the same in every planned frame (the
         analytic world); others override it (EV5: the sun turned with the spin) or refuse, as here, with one line."""
-        from renderlab.errors import UserError
 
         f0 = self.frames[0]
         same = all(np.array_equal(f.sun.direction_render, f0.sun.direction_render)

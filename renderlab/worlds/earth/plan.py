@@ -34,6 +34,7 @@ from renderlab.worlds.earth import sun as sunmod
 from renderlab.worlds.earth import tiles, wgs84
 from renderlab.worlds.earth.clouds import CloudField
 from renderlab.worlds.earth.frame_orbit import FrameOrbit
+from renderlab.errors import UserError
 
 GROUND_ID, CLOUD_ID = 0, 1
 FRAMES = {"inertial": "GCRF", "earth_fixed": "ITRF", "render": "ENU_TILE", "camera": "CAMERA",
@@ -146,7 +147,6 @@ class EarthPlan(WorldPlan):
         return rng / max(cam.fx, cam.fy)
 
     def scene(self, key) -> SceneDescription:
-        from renderlab.errors import UserError
         from renderlab.worlds.earth.gshhg import load_gshhg
 
         k = int(key)

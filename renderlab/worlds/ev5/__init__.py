@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.errors import UserError
+
 GLOBAL_ID, SITE_ID = 0, 1
 #: spawn keys of the independent random streams under ``world.seed``
 STREAMS = {"shape": 0, "terrain": 1, "boulders": 2, "placement": 3, "mapping_error": 4}
@@ -91,7 +93,6 @@ def build_model(world, base_dir: Path) -> EV5Model:
     from the site with its own random streams, so it is the same either way.
     """
     from renderlab.dynamics.small_body import SpinState
-    from renderlab.errors import UserError
     from renderlab.photometry import make_law
     from renderlab.worlds.ev5.landmarks import build_catalog
     from renderlab.worlds.ev5.world_cache import cached_build
