@@ -138,3 +138,19 @@ def test_report_section_writes_figures_tables_and_verdicts(tmp_path):
     text = " ".join(b.get("html", "") + b.get("text", "") for b in section["blocks"])
     assert "FAIL" in text and "<b>m</b>" in text and "cluster bootstrap over the 4 grid cells" in text
     assert rows and head.startswith("centre_limb: 1 centre/limb methods")
+
+
+def test_the_generic_path_measures_the_kind_by_name():
+    from renderlab.campaign.scoring import table_kind
+    from renderlab.measurement.kinds import measure_frames
+
+    truth_sl, rng, frame = disc_case()
+    truth = {"centre_s": truth_sl[0], "centre_l": truth_sl[1], "limb_centre_s": math.nan,
+             "limb_centre_l": math.nan, "apparent_radius_px": 44.7, "range_m": rng, "los_cam_x": 0.0,
+             "los_cam_y": 0.0, "los_cam_z": 1.0, "phase_deg": 0.0}
+    t = measure_frames("centre_limb", "limb_ellipse", [MeasuredImage(frame, truth, {"cell": 3, "law": "lambert"})],
+                       campaign="c", run=2)
+    assert table_kind(t) == "centre_limb" and t.num_rows == 1
+    row = t.to_pylist()[0]
+    assert row["campaign"] == "c" and row["run"] == 2 and row["cell"] == 3 and row["law"] == "lambert"
+    assert math.hypot(row["centre_s"] - truth_sl[0], row["centre_l"] - truth_sl[1]) < 0.05
