@@ -4,7 +4,8 @@ From one ``centre_limb`` table alone (:mod:`renderlab.stats.centre_limb`): two f
 radii and the relative range error per grid cell against the phase angle, one panel per law; each method's ANEES
 against its χ² band — a table per method of bias, noise, line-of-sight and range errors with cluster-bootstrap
 intervals (cluster = grid cell), the ANEES with PASS/FAIL, the no-result reasons, and one conclusion sentence per
-method. CSV: ``<name>_centre_limb_summary.csv`` (the summary rows) and ``<name>_cells.csv`` (per method and cell).
+method. CSV: ``<name>_summary.csv`` (the summary rows; none go to the report's ``summary.csv``, which would copy it)
+and ``<name>_cells.csv`` (per method and cell).
 """
 
 from __future__ import annotations
@@ -165,12 +166,13 @@ def _reasons_html(d: dict) -> str:
 
 
 def report_section(name: str, table, out_dir: Path, context) -> tuple[dict, list[dict], str]:
-    """The kind's ``report_section`` (module docstring): (section, summary rows, headline)."""
+    """The kind's ``report_section`` (module docstring): (section, no summary rows — they are in
+    ``<name>_summary.csv`` —, headline)."""
     confidence = getattr(context, "confidence", 0.95)
     rows = score_table(table, confidence=confidence)
     d = derived(table)
     cells = _cells_with_radius(table, d)
-    write_csv(Path(out_dir) / f"{name}_centre_limb_summary.csv", rows)
+    write_csv(Path(out_dir) / f"{name}_summary.csv", rows)
     write_csv(Path(out_dir) / f"{name}_cells.csv", cells)
     fb, fn = bias_figure(cells, Path(out_dir) / f"{name}_bias"), nees_figure(rows, Path(out_dir) / f"{name}_nees")
     n_cells, n_draws = len(np.unique(d["cell"])), table.num_rows // max(len(np.unique(d["cell"])), 1)
@@ -200,9 +202,9 @@ def report_section(name: str, table, out_dir: Path, context) -> tuple[dict, list
         {"kind": "h3", "text": "Conclusions"},
     ]
     blocks += [{"kind": "text", "html": sentence(m, rows, cells)} for m in sorted(set(d["method"]))]
-    blocks.append({"kind": "links", "files": [f"{name}_centre_limb_summary.csv", f"{name}_cells.csv"]})
+    blocks.append({"kind": "links", "files": [f"{name}_summary.csv", f"{name}_cells.csv"]})
     best = min((r for r in rows if r["group"] == "all" and r["quantity"] == "los_rms_urad"
                 and math.isfinite(r["estimate"])), key=lambda r: r["estimate"], default=None)
     head = (f"{name}: {len(set(d['method']))} centre/limb methods on {n_cells} cells × {n_draws} draws; smallest "
             f"RMS line-of-sight error: {best['method']} ({best['estimate']:.0f} µrad)" if best else "")
-    return {"title": f"Centre/limb: {name}", "anchor": name, "blocks": blocks}, rows, head
+    return {"title": f"Centre/limb: {name}", "anchor": name, "blocks": blocks}, [], head
