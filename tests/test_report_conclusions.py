@@ -103,3 +103,16 @@ def test_analytic_report_opens_with_what_it_measures(analytic_report):
     if all(d["has_result"]):
         assert "Every row of every method has a result" in page
         assert not list((analytic_report / "rep").glob("*_reasons.png"))
+
+
+def test_crlb_note_says_which_bound_the_table_carries():
+    import pyarrow as pa
+
+    from renderlab.report.conclusions import CRLB_NOTE_CONTINUOUS, CRLB_NOTE_FINITE_DIFFERENCE, crlb_note
+
+    old = pa.table({"crlb_s": [0.01, 0.02], "crlb_l": [0.01, 0.02]})
+    assert crlb_note(old) == CRLB_NOTE_FINITE_DIFFERENCE and "finite-difference" in crlb_note(old)
+    new = old.append_column("crlb_bound", pa.array(["continuous", "continuous"]))
+    assert crlb_note(new) == CRLB_NOTE_CONTINUOUS and "continuous truth" in crlb_note(new)
+    mixed = old.append_column("crlb_bound", pa.array(["continuous", "finite_difference"]))
+    assert crlb_note(mixed) == CRLB_NOTE_FINITE_DIFFERENCE  # one note per table: the mixed one is not continuous

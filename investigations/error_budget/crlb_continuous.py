@@ -35,15 +35,15 @@ ROOT = HERE.parents[1]
 K, SPP, SEEDS = 4, 32, (11, 12)
 
 
-def fine_sets(all_off: dict, base_dir: Path, workdir: Path):
-    """The budget's own truth render and the two fine renders (cached)."""
+def fine_sets(truth: dict, base_dir: Path, workdir: Path):
+    """The campaign's own truth render (``truth``: a scenario dict) and the two fine renders (cached)."""
     from renderlab.campaign.cache import cached_truthset
     from renderlab.files.truthset import TruthSet
     from renderlab.scenario import scenario_from_dict, truth_dict
     from renderlab.studies.retina_vs_spc.crlb_truth import fine_truth_dict
 
-    budget = truth_dict(copy.deepcopy(all_off))
-    path, _ = cached_truthset(scenario_from_dict(budget, "budget all_off truth"), base_dir, workdir / "truth_cache")
+    budget = truth_dict(copy.deepcopy(truth))
+    path, _ = cached_truthset(scenario_from_dict(budget, "campaign truth"), base_dir, workdir / "truth_cache")
     fine = []
     for seed in SEEDS:
         d = fine_truth_dict(budget, K)
@@ -140,9 +140,10 @@ def restated(rows: list[dict], folder: Path) -> list[str]:
     return out
 
 
-def retina_vs_spc(rows: list[dict], folder: Path) -> list[str]:
-    """Robust σ / CRLB of ``results/retina_vs_spc`` (the report's statistics) with each bound, where its stored
-    bound is the budget's (same truth render: checked per landmark-frame)."""
+def retina_vs_spc(rows: list[dict], folder: Path, proxy: bool = False) -> list[str]:
+    """Robust σ / CRLB of a ``retina_vs_spc`` folder (the report's statistics) with the stored and the continuous
+    bound of ``rows`` per landmark-frame (the nominal truth render's; with ``proxy`` the campaign's runs rendered
+    their own perturbed truth, and the nominal bound stands in for each run's)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -159,16 +160,55 @@ def retina_vs_spc(rows: list[dict], folder: Path) -> list[str]:
     cont = np.array([[by[k]["cont_s"], by[k]["cont_l"]] if k in by else [np.nan, np.nan] for k in keys])
     t2 = t.set_column(t.column_names.index("crlb_s"), "crlb_s", pa.array(cont[:, 0]))
     t2 = t2.set_column(t2.column_names.index("crlb_l"), "crlb_l", pa.array(cont[:, 1]))
-    out = [f"stored bound of results/retina_vs_spc against this probe's finite-difference bound: max relative "
-           f"difference {same} over {int(ok.sum())} values (its runs draw the maplet spacing, which sets the "
-           "window: the continuous bound here is the nominal maplet's)", "",
-           "| method | axis | robust σ (px) | CRLB rms table (px) | robust σ / CRLB table | CRLB rms continuous (px) "
-           "| robust σ / CRLB continuous |", "|---|---|---|---|---|---|---|"]
-    a, b = method_summary(t), method_summary(t2)
-    for r, r2 in zip(a, b):
-        out.append(f"| {r['method']} | {r['axis']} | {r['robust_sigma_px']:.4f} | {r['crlb_rms_px']:.4f} | "
-                   f"{r['robust_sigma_over_crlb']:.1f} | {r2['crlb_rms_px']:.4f} | {r2['robust_sigma_over_crlb']:.1f} |")
+    how = ("the nominal render's continuous bound stands in for each run's own perturbed truth" if proxy
+           else "continuous: of the same scene rendered by today's code")
+    out = [f"stored bound of {folder.name} against the finite-difference bound of today's render of its nominal "
+           f"truth (same windows): relative difference {same} over {int(ok.sum())} values (the stored one is of "
+           f"the campaign's own render{'s at perturbed poses' if proxy else ', made by earlier render code'}); "
+           f"{how}", "",
+           "| subset | method | axis | robust σ (px) | CRLB rms table (px) | robust σ / CRLB table | CRLB rms continuous "
+           "(px) | robust σ / CRLB continuous |", "|---|---|---|---|---|---|---|---|"]
+    from renderlab.scenario import load_scenario
+    from renderlab.studies.retina_vs_spc.report import _config, well_measured_mask
+
+    cfg = _config(load_scenario(folder / "scenario.toml")[0].to_dict())
+    for subset, mask in (("all", None), ("well_measured", well_measured_mask(t, cfg))):
+        a, b = method_summary(t, mask, subset=subset), method_summary(t2, mask, subset=subset)
+        for r, r2 in zip(a, b):
+            out.append(f"| {subset} | {r['method']} | {r['axis']} | {r['robust_sigma_px']:.4f} | {r['crlb_rms_px']:.4f} | "
+                       f"{r['robust_sigma_over_crlb']:.1f} | {r2['crlb_rms_px']:.4f} | {r2['robust_sigma_over_crlb']:.1f} |")
     return out
+
+
+def write_rows(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def factor_lines(rows: list[dict]) -> list[str]:
+    """The ratios per landmark-frame and axis (median, p5, p95) and the footprint/render checks, as Markdown."""
+    def ratio(a, b, rs=rows):
+        return [r[f"{a}_{x}"] / r[f"{b}_{x}"] for r in rs for x in "sl"]
+
+    md = ["| ratio | median | p5 | p95 | n |", "|---|---|---|---|---|"]
+    for label, a, b in (("continuous / table (the restatement factor)", "cont", "table"),
+                        ("continuous with gain, offset / continuous", "cont_gain_offset", "cont"),
+                        ("one fine render / cross-product of two", "cont_one_render", "cont")):
+        m, p5, p95, n = _pct(ratio(a, b))
+        md.append(f"| {label} | {m:.3f} | {p5:.3f} | {p95:.3f} | {n} |")
+    inner = [r for r in rows if not r["at_image_edge"]]
+    m, p5, p95, n = _pct(ratio("cont", "table", inner))
+    md.append(f"| continuous / table, footprints ≥ 2 px from the image edge ({len(inner)} landmark-frames; at the "
+              f"edge the derivatives come from a mirrored extension) | {m:.3f} | {p5:.3f} | {p95:.3f} | {n} |")
+    fp = _pct([r["footprint_px"] / r["window_px"] for r in rows])
+    dd = _pct([r["fine_minus_budget_rms_dn"] for r in rows])
+    md += ["", f"footprint / window pixels: median {fp[0]:.2f} (p5 {fp[1]:.2f}, p95 {fp[2]:.2f}); fine render's block "
+           f"means − campaign render, rms per window: median {dd[0]:.2f} DN (p5 {dd[1]:.2f}, p95 {dd[2]:.2f}; the "
+           "campaign render's own Monte-Carlo noise)"]
+    return md
 
 
 def main(argv=None) -> int:
@@ -186,33 +226,29 @@ def main(argv=None) -> int:
     all_off = next(c for c in budget_configs(scenario.to_dict()) if c["config"] == "all_off")["scenario"]
     ts, fine = fine_sets(all_off, Path(base_dir), args.workdir)
     rows = bounds_table(ts, fine, SensorOptions(**scenario.sensor.options_dict()))
-    with open(args.out / "crlb_continuous.csv", "w", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    ratio = lambda a, b: [r[f"{a}_{x}"] / r[f"{b}_{x}"] for r in rows for x in "sl"]  # noqa: E731
     md = ["# The error budget's CRLB on the continuous truth (`crlb_continuous.py`)", "",
           f"{len(rows)} landmark-frames of the budget's all-off truth; fine renders {K}×{K} sub-pixels, {SPP} spp "
-          f"each, seeds {SEEDS}. Per landmark-frame and axis:", "",
-          "| ratio | median | p5 | p95 | n |", "|---|---|---|---|---|"]
-    for label, a, b in (("continuous / table (the restatement factor)", "cont", "table"),
-                        ("continuous with gain, offset / continuous", "cont_gain_offset", "cont"),
-                        ("one fine render / cross-product of two", "cont_one_render", "cont")):
-        m, p5, p95, n = _pct(ratio(a, b))
-        md.append(f"| {label} | {m:.3f} | {p5:.3f} | {p95:.3f} | {n} |")
-    inner = [r for r in rows if not r["at_image_edge"]]
-    m, p5, p95, n = _pct([r[f"cont_{x}"] / r[f"table_{x}"] for r in inner for x in "sl"])
-    md.append(f"| continuous / table, footprints ≥ 2 px from the image edge ({len(inner)} landmark-frames; at the "
-              f"edge the derivatives come from a mirrored extension) | {m:.3f} | {p5:.3f} | {p95:.3f} | {n} |")
-    fp = _pct([r["footprint_px"] / r["window_px"] for r in rows])
-    dd = _pct([r["fine_minus_budget_rms_dn"] for r in rows])
-    md += ["", f"footprint / window pixels: median {fp[0]:.2f} (p5 {fp[1]:.2f}, p95 {fp[2]:.2f}); fine render's block "
-           f"means − budget render, rms per window: median {dd[0]:.2f} DN (p5 {dd[1]:.2f}, p95 {dd[2]:.2f}; the "
-           "8-spp render noise is ≈ 6.5 DN)", "", "## Error budget: sensor noise alone, rms of noise sd / CRLB", ""]
+          f"each, seeds {SEEDS}. Per landmark-frame and axis:", ""]
+    md += factor_lines(rows)
+    md += ["", "## Error budget: sensor noise alone, rms of noise sd / CRLB", ""]
     md += restated(rows, args.folder)
     md += ["", "## results/retina_vs_spc: robust σ / CRLB rms", ""]
     md += retina_vs_spc(rows, args.folder.parent / "retina_vs_spc")
+    write_rows(args.out / "crlb_continuous.csv", rows)
+    # the truth-perturbed pair: its own scene (2 frames, 128 px); the nominal companion's render
+    tp = args.folder.parent / "retina_vs_spc_truth_perturbed"
+    sc2, base2 = load_scenario(tp / "nominal" / "scenario.toml")
+    ts2, fine2 = fine_sets(sc2.to_dict(), Path(base2), args.workdir)
+    rows2 = bounds_table(ts2, fine2, SensorOptions(**sc2.sensor.options_dict()))
+    write_rows(args.out / "crlb_continuous_truth_perturbed.csv", rows2)
+    md += ["", "## results/retina_vs_spc_truth_perturbed (its own scene: the nominal companion's truth render)", "",
+           f"{len(rows2)} landmark-frames.", ""]
+    md += factor_lines(rows2)
+    md += ["", "### nominal/ (the continuous bound of the same render)", ""]
+    md += retina_vs_spc(rows2, tp / "nominal")
+    md += ["", "### the perturbed campaign (each run its own truth render; the nominal render's continuous bound "
+           "per landmark-frame stands in for it)", ""]
+    md += retina_vs_spc(rows2, tp, proxy=True)
     (args.out / "crlb_continuous.md").write_text("\n".join(md) + "\n")
     print("\n".join(md))
     return 0

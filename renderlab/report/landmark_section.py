@@ -8,7 +8,7 @@ from pathlib import Path
 
 from renderlab.report import landmark_figures as figs
 from renderlab.report import landmark_stats as st
-from renderlab.report.conclusions import CRLB_CAVEAT, landmark_conclusions
+from renderlab.report.conclusions import crlb_note, landmark_conclusions
 from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import table as html_table
 from renderlab.report.style import ci
@@ -61,7 +61,7 @@ def subset_blocks(name: str, table, stage: Path, mask, subset: str, *, gross_px:
                           "median); points beyond the axes are drawn on the edge and counted in each panel."},
               {"kind": "table", "html": html_table(summary_cells(summary, gross_px), cols, left=("method",))},
               {"kind": "text", "html": f"Gross error: |err| > {gross_px:g} px on that axis, among results. "
-                                       f"Intervals: {why}." + (" " + CRLB_CAVEAT if "crlb" in dict(cols) else "")},
+                                       f"Intervals: {why}." + (" " + crlb_note(table) if "crlb" in dict(cols) else "")},
               {"kind": "text", "html": landmark_conclusions(summary, gross_px)}]
     if paired:
         prow = [{"pair": f"{p['method_b']} − {p['method_a']}", "n": p["n_pairs"],

@@ -26,12 +26,18 @@ from renderlab.campaign.crlb import ContinuousCrlb, continuous_crlb
 
 #: pixels kept around the footprint in the crop the Fourier derivatives are taken on
 MARGIN_PX = 6
+#: sub-pixels per pixel (each axis) and samples per sub-pixel of the campaigns' fine truth render: one 32-spp render's
+#: bound is within 0.994–1.005 (p5–p95) of the cross-product of two (``investigations/error_budget/crlb_continuous.md``)
+FINE_K, FINE_SPP = 4, 32
 
 
-def fine_truth_dict(truth: dict, k: int) -> dict:
+def fine_truth_dict(truth: dict, k: int = FINE_K, spp: int | None = FINE_SPP) -> dict:
     """A truth scenario's dict rendered at k × k sub-pixels per pixel: width/height and fx/fy × k, the principal
-    point on the same spot ((c + ½)·k − ½), and the site's tile levels unchanged (``lod_pixels`` × k)."""
+    point on the same spot ((c + ½)·k − ½), the site's tile levels unchanged (``lod_pixels`` × k), ``spp`` samples
+    per sub-pixel (None: the scenario's)."""
     d = copy.deepcopy(truth)
+    if spp is not None:
+        d["render"]["spp"] = int(spp)
     cam = d["camera"]
     if cam.get("distortion") or cam.get("model", "pinhole") != "pinhole" or cam.get("skew") or cam.get("skew_yx"):
         raise ValueError("fine_truth_dict needs an undistorted pinhole camera")
