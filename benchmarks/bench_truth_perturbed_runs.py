@@ -41,7 +41,7 @@ def main(argv=None) -> int:
     from renderlab.campaign.plan import run_seed_sequence
     from renderlab.pipeline.frame_api import Renderer
     from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
-    from renderlab.studies.retina_vs_spc.truth import perturbed_specs
+    from renderlab.campaign.run_truth import perturbed_specs
 
     sc, base = load_scenario(args.scenario, args.set)
     truth = scenario_from_dict(truth_dict(sc.to_dict()), "benchmark truth scenario")

@@ -179,9 +179,9 @@ def test_same_poses_give_byte_identical_files_and_nominal_poses_the_nominal_imag
     from renderlab.campaign.cache import cached_frames_truthset, cached_truthset
     from renderlab.campaign.perturb import draw_perturbation
     from renderlab.campaign.plan import run_seed_sequence
+    from renderlab.campaign.run_truth import perturbed_specs, run_truthset
     from renderlab.files.truthset import TruthSet
     from renderlab.scenario import load_scenario
-    from renderlab.studies.retina_vs_spc.truth import perturbed_specs, run_truthset
 
     d, _, pert = campaign
     sc, base = load_scenario(d / "tiny.toml")

@@ -5,7 +5,7 @@ and served by the truth cache (:mod:`renderlab.campaign.cache`, keyed by the sce
 ``perturbations`` and ``campaign`` sections). With them (``position_sigma_m``, ``position_cov_m2``,
 ``velocity_sigma_mps``, ``attitude_sigma_deg``) each run renders its own truth at its perturbed true poses,
 cached by the content of those poses, the world loaded once per worker process
-(:mod:`renderlab.studies.retina_vs_spc.truth`). What else differs between runs is what the onboard system
+(:mod:`renderlab.campaign.run_truth`). What else differs between runs is what the onboard system
 *believes* and the sensor noise:
 
 * a-priori pose per frame: position δt ~ N(0, diag σ_t²) (``apriori_position_sigma_m``, or the position
@@ -44,6 +44,7 @@ from renderlab import plugins
 from renderlab.campaign.maplets import respaced_maplets
 from renderlab.campaign.perturb import draw_perturbation, perturb_camera, perturb_sun
 from renderlab.campaign.reexpose import ReexposedTruthSet
+from renderlab.campaign.run_truth import run_truthset
 from renderlab.campaign.scoring import dn_variance, registration_crlb
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
@@ -51,7 +52,6 @@ from renderlab.measurement.runner import MeasureOptions, measure_truthset
 from renderlab.scenario import scenario_from_dict, truth_dict
 from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
-from renderlab.studies.retina_vs_spc.truth import run_truthset
 from renderlab.worlds.ev5.catalog import read_catalog
 
 

@@ -1,4 +1,5 @@
-"""The truth a ``retina_vs_spc`` run measures: the nominal render, or the run's own perturbed one.
+"""The truth a campaign run measures: the nominal render, or the run's own perturbed one (``retina_vs_spc`` and
+any study whose runs disperse the true trajectory or pointing).
 
 Without truth perturbations every run measures the nominal descent, rendered once (truth cache keyed by
 the scenario without its ``perturbations``/``campaign`` sections, :func:`renderlab.campaign.cache.cached_truthset`).
