@@ -80,12 +80,16 @@ def history_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
             if not rows:
                 continue
             t = [x["t_s"] for x in rows]
-            ax.plot(t, [x["est_h_rms_m"] for x in rows], ls, color=colors[m], lw=1.6, marker="o", ms=3,
+
+            def pos(key: str, rows=rows) -> list:
+                return [x[key] if x[key] > 0 else math.nan for x in rows]     # log axis: 0 (first image) not drawn
+
+            ax.plot(t, pos("est_h_rms_m"), ls, color=colors[m], lw=1.6, marker="o", ms=3,
                     label=f"estimation error, {mode}")
-            ax.plot(t, [x["ctl_h_rms_m"] for x in rows], ls, color="0.3", lw=1.2, marker="s", ms=3,
+            ax.plot(t, pos("ctl_h_rms_m"), ls, color="0.3", lw=1.2, marker="s", ms=3,
                     label=f"control error, {mode}")
             if mode == "closed":
-                ax.plot(t, [x["sig3_h_rms_m"] for x in rows], "--", color=colors[m], lw=0.8,
+                ax.plot(t, pos("sig3_h_rms_m"), "--", color=colors[m], lw=0.8,
                         label="filter 3σ (RMS), closed")
         ax.set_yscale("log")
         ax.set_ylim(bottom=1e-3)         # the replay meets its waypoints to ~1e-5 m: below the axis
