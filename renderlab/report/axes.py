@@ -6,6 +6,7 @@ whose first sample is off by metres would otherwise set the scale of a whole pan
 (a panel reaching −4 m for errors of centimetres). :func:`symmetric_limit` takes the ``coverage`` quantile of
 ``|value|`` instead, with a margin, and :func:`typical_limit` the scale of a typical time of a time series;
 :func:`note_outside` writes "k of N samples outside the axes" in the panel.
+:func:`plain_log` (log axis, plain tick labels) and :func:`integer_ticks` set tick styles the studies share.
 """
 
 from __future__ import annotations
@@ -77,3 +78,27 @@ def note_outside(ax, values, lo: float, hi: float, what: str = "samples", where:
         ax.text(x, y, text, transform=ax.transAxes, fontsize=7, ha=ha, va=va,
                 bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.7", "alpha": 0.85})
     return k
+
+
+def plain_log(ax, values=None, axis: str = "y") -> None:
+    """Log scale with plain tick labels (0.5, 2, 10); with ``values``, only when they span more than a decade
+    (else the axis stays linear)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    if values is not None:
+        v = np.asarray(values, float)
+        v = v[np.isfinite(v) & (v > 0)]
+        if len(v) < 2 or v.max() < 10 * v.min():
+            return
+    a = ax.yaxis if axis == "y" else ax.xaxis
+    (ax.set_yscale if axis == "y" else ax.set_xscale)("log")
+    a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    a.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    a.set_minor_formatter(NullFormatter())
+
+
+def integer_ticks(ax, axis: str = "x") -> None:
+    """Whole-number ticks on ``axis`` (counts: iterations, runs)."""
+    from matplotlib.ticker import MaxNLocator
+
+    (ax.xaxis if axis == "x" else ax.yaxis).set_major_locator(MaxNLocator(integer=True))

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
+from renderlab.report.axes import plain_log
 from renderlab.report.filter_section import time_unit
 
 __all__ = ["plot_errors", "plot_consistency", "time_unit"]
@@ -123,15 +124,6 @@ def _consistency_panel(ax, t, value, lo, hi, label: str, band_label: str, per_ti
     ax.grid(alpha=0.3)
 
 
-def _plain_log_y(ax) -> None:
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-    ax.set_yscale("log")
-    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-    ax.yaxis.set_minor_formatter(NullFormatter())
-
-
 def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | None = None) -> list[str]:
     """ANEES (6 dof) and ANIS per dof (2 dof per LOS) against time with their 99 % χ² bands.
 
@@ -161,7 +153,7 @@ def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | 
     axs[0].axhline(6.0, color="0.5", lw=0.8)
     axs[0].set_ylabel("ANEES (6 dof)")
     if np.nanmax(summary["anees"].to_numpy()) > 3 * np.nanmax(summary["anees_hi"].to_numpy()):
-        _plain_log_y(axs[0])  # far outside its band: a log axis keeps the band visible
+        plain_log(axs[0])  # far outside its band: a log axis keeps the band visible
     img = summary["n_meas"].to_numpy() > 0
     dof = 2 * summary["n_meas"].to_numpy()[img]
     _consistency_panel(axs[1], t[img], summary["anis"].to_numpy()[img] / dof, summary["anis_lo"].to_numpy()[img] / dof,

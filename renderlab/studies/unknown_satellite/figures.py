@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report import style
+from renderlab.report.axes import integer_ticks, plain_log
 from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
 #: scores summarised across runs: column → (score id in the unit of the summary, label, scale, unit, group)
@@ -118,27 +119,6 @@ def same_pairs(scores) -> set[str]:
     return out
 
 
-def _plain_log(ax, values, axis: str = "y") -> None:
-    """Log scale with plain tick labels (0.5, 2, 10) when the values span more than a decade, else linear."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-    v = np.asarray(values, float)
-    v = v[np.isfinite(v) & (v > 0)]
-    if len(v) < 2 or v.max() < 10 * v.min():
-        return
-    a = ax.yaxis if axis == "y" else ax.xaxis
-    (ax.set_yscale if axis == "y" else ax.set_xscale)("log")
-    a.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-    a.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
-    a.set_minor_formatter(NullFormatter())
-
-
-def _int_ticks(ax, axis: str = "x") -> None:
-    from matplotlib.ticker import MaxNLocator
-
-    (ax.xaxis if axis == "x" else ax.yaxis).set_major_locator(MaxNLocator(integer=True))
-
-
 def _by_run(t, cols):
     runs = _np(t, "run", np.int64)
     for r in np.unique(runs):
@@ -165,9 +145,9 @@ def fig5_convergence(hist, stem: Path) -> list[str]:
         n += 1
     for a, vals, ylabel, title in ((ax[0], er_all, "‖r0 error‖ (cm)", "(a) initial CM position"),
                                    (ax[1], ev_all, "‖v0 error‖ (cm/s)", "(b) initial CM velocity")):
-        _plain_log(a, np.concatenate(vals))
+        plain_log(a, np.concatenate(vals))
         _runs_line(a, n)
-        _int_ticks(a)
+        integer_ticks(a)
         a.set(xlabel="accepted iterate (count)", ylabel=ylabel, title=title)
         a.legend(fontsize=8)
         a.grid(alpha=0.3, which="both")
@@ -185,7 +165,7 @@ def fig6_inertia(hist, scores, stem: Path) -> list[str]:
     ax[0].plot([], [], color=c1, label="I1/I3 (one line per run)")
     ax[0].plot([], [], color=c2, label="I2/I3 (one line per run)")
     ax[0].axhline(0, color="k", lw=0.5)
-    _int_ticks(ax[0])
+    integer_ticks(ax[0])
     ax[0].set(xlabel="accepted iterate (count)", ylabel="ratio error (dimensionless)",
               title="(a) convergence, principal axes as estimated")
     al = "ratio_I1_I3_aligned" in scores.column_names
@@ -227,9 +207,9 @@ def fig7_points(hist, scores, stem: Path) -> list[str]:
         ax[0].plot(d["iteration"], 100 * d["err_points_rms_m"], color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
         vals.append(100 * d["err_points_rms_m"])
         n += 1
-    _plain_log(ax[0], np.concatenate(vals) if vals else [])
+    plain_log(ax[0], np.concatenate(vals) if vals else [])
     _runs_line(ax[0], n)
-    _int_ticks(ax[0])
+    integer_ticks(ax[0])
     ax[0].set(xlabel="accepted iterate (count)", ylabel="RMS point error, body frame (cm)", title="(a) convergence")
     runs = _np(scores, "run", np.int64)
     series = [("point_lvlh_err_rms_m", "o", "LVLH at the epoch (gauge-free)")]
@@ -243,8 +223,8 @@ def fig7_points(hist, scores, stem: Path) -> list[str]:
         ax[1].plot(runs, v, mk, color=style.OKABE_ITO[k], mfc="none" if k else None, label=lab)
         allv.append(v)
     ax[1].axhline(3.0, color="k", ls="--", lw=0.8, label="paper: 3 cm")
-    _plain_log(ax[1], np.concatenate(allv + [[3.0]]))
-    _int_ticks(ax[1])
+    plain_log(ax[1], np.concatenate(allv + [[3.0]]))
+    integer_ticks(ax[1])
     ax[1].set(xlabel="run (index)", ylabel="RMS point error (cm)", title="(b) final, per run")
     ax[0].legend(fontsize=8)
     ax[1].legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
@@ -298,7 +278,7 @@ def fig14_attitude(s2, stem: Path) -> list[str]:
         ax[1].plot(d["t_s"], d[att], color=style.OKABE_ITO[0], lw=0.5, alpha=0.5)
         n += 1
     _runs_line(ax[1], n)
-    _plain_log(ax[1], _np(s2, att))
+    plain_log(ax[1], _np(s2, att))
     ax[1].set(xlabel="time (s)", ylabel="attitude error (deg)",
               title="(b) principal-axes attitude" + (", axes relabelled" if att != "err_att_deg" else ""))
     for a in ax:
