@@ -1,11 +1,13 @@
 """The lab's one figure writer (:func:`renderlab.contracts.result_folder.save_figure`): a 100-dpi palette PNG that
 decodes (OpenCV, an independent decoder) to matplotlib's own anti-aliased drawing within a few levels, carries no
 text, time or size chunk, and is the same bytes for the same figure; SVG only inside ``with_svg``; nothing under
-``tables_only``."""
+``tables_only``. Every report module saves through it (no other ``savefig`` to a file in the package)."""
 
 from __future__ import annotations
 
+import ast
 import struct
+from pathlib import Path
 
 import numpy as np
 
@@ -17,6 +19,8 @@ from renderlab.contracts.result_folder import (
     with_svg,
 )
 from renderlab.report import style
+
+PACKAGE = Path(__file__).resolve().parents[1] / "renderlab"
 
 
 def _figure():
@@ -85,3 +89,12 @@ def test_svg_on_demand_and_nothing_under_tables_only(tmp_path):
     assert not (tmp_path / "c.png").exists()
     assert not style.plt().get_fignums(), "every figure closed"
 
+
+def test_no_other_figure_writer_in_the_package():
+    """Only the writer itself calls ``savefig``: every report, study and command goes through it."""
+    calls = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "savefig":
+                calls.append(path.relative_to(PACKAGE).as_posix())
+    assert sorted(set(calls)) == ["contracts/result_folder.py"], calls

@@ -5,9 +5,11 @@ Run from the folder that holds ``results/`` (the repository root, or a copy of i
 its folder as ``results/...`` exactly as the README command does::
 
     .venv/bin/python investigations/results_compaction/regenerate.py [--root DIR] [--skip results/a,results/b]
+                                                                     [--only results/c,results/d]
 
 The folders: every ``report/index.html``'s folder, every ``crosscheck.md``'s folder and the error budget (the
-result-folder kinds). Folders in ``--skip`` (other owners' new folders) are left alone.
+result-folder kinds). Folders in ``--skip`` (other owners' new folders) are left alone; with ``--only`` just the
+folders under those given (two invocations with complementary ``--only`` lists run side by side).
 """
 
 from __future__ import annotations
@@ -35,13 +37,17 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--root", default=".", help="folder that holds results/ (default: the current folder)")
     ap.add_argument("--skip", default="", help="comma-separated folders to leave alone")
+    ap.add_argument("--only", default="", help="comma-separated folders: regenerate only these and those under them")
     args = ap.parse_args()
     root = Path(args.root).resolve()
     skip = {s.rstrip("/") for s in args.skip.split(",") if s}
+    only = {s.rstrip("/") for s in args.only.split(",") if s}
     total = 0.0
     for f in folders(root):
         if any(f == s or f.startswith(s + "/") for s in skip):
             print(f"skip {f}", flush=True)
+            continue
+        if only and not any(f == s or f.startswith(s + "/") for s in only):
             continue
         t0 = time.perf_counter()
         proc = subprocess.run([str(RENDERLAB), "report", f], cwd=root, capture_output=True, text=True,

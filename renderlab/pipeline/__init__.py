@@ -113,13 +113,12 @@ def _rows_to_table(rows: list[dict]):
 
 def _contact_sheet_png(writer) -> bytes:
     """PNG bytes of a grid of the frames' sensor images (up to 16, evenly spaced), frame numbers on top."""
-    import io
-
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from renderlab.contracts.result_folder import figure_png
     from renderlab.files.imageio import read_dn_png
 
     frames = writer.manifest()["frames"]
@@ -134,7 +133,7 @@ def _contact_sheet_png(writer) -> bytes:
         dn = read_dn_png(writer.staging_dir / rec["dn"])
         ax.imshow(dn, cmap="gray", vmin=0, vmax=max(1, int(dn.max())), interpolation="nearest")
         ax.set_title(f"frame {rec['index']}  t={rec['time_s']:.1f} s", fontsize=8)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    return buf.getvalue()
+    try:
+        return figure_png(fig)  # the lab's one figure writer: 100-dpi palette PNG, the same bytes every run
+    finally:
+        plt.close(fig)
