@@ -37,7 +37,9 @@ class DescentGncConfig(Strict):
                                            "waypoint's time if there was no contact [s]")
     touchdown_speed_mps: Positive = Field(0.05, description="Target speed along the site normal at contact [m/s]")
     target_xy_m: tuple[Finite, Finite] = Field((0.0, 0.0), description="Landing target in site east, north [m]")
-    gravity: Literal["point_mass_j2", "polyhedron"] = Field("point_mass_j2", description="Truth gravity field")
+    gravity: Literal["point_mass_j2", "polyhedron"] = Field("point_mass_j2", description="Truth gravity field "
+                                                            "(polyhedron: needs a closed shape mesh; the EV5 "
+                                                            "world's decimated mesh is not closed)")
     gm_true_m3_s2: Positive = Field(2.9, description="Truth GM [m^3/s^2]")
     j2_true: Finite = Field(0.05, description="Truth J2 about the spin pole [-]")
     r_ref_m: Positive = Field(200.0, description="Reference radius of the truth J2 [m]")
