@@ -176,3 +176,35 @@ def test_ml_shift_on_poisson_read_noise_draws_reaches_the_bound(name):
     ratio = est.var(0, ddof=1) / bound ** 2
     assert np.all((ratio >= 0.95) & (ratio <= 1.1)), ratio
     assert np.all(np.abs(est.mean(0)) < 4 * bound / math.sqrt(DRAWS))  # unbiased within 4 standard errors
+
+
+def test_footprint_crop_gives_the_bound_of_the_whole_image():
+    """crlb_truth.footprint_bound takes a crop with a margin around the footprint: the same bound as the full image."""
+    from renderlab.studies.retina_vs_spc.crlb_truth import footprint_bound
+
+    tex = textures()["random"]
+    xx, yy, mask, xf, yf = grid()
+    var = tex.pixel(xx, yy)[0] + READ_E ** 2
+    fine = tex.fine(xf, yf, K)
+    fp = (10, 12, mask[6:16, 6:14])  # an irregular footprint away from the edges
+    full = np.zeros_like(mask)
+    full[10:20, 12:20] = fp[2]
+    crop = footprint_bound(fine, K, var, fp)
+    want = continuous_crlb(fine, K, var, full)
+    assert crop.pixels == want.pixels == int(fp[2].sum())
+    assert np.asarray(crop.sigma) == pytest.approx(want.sigma, rel=1e-3)
+
+
+def test_fine_truth_dict_keeps_the_pixel_grid_and_refuses_distortion():
+    from renderlab.studies.retina_vs_spc.crlb_truth import fine_truth_dict
+
+    d = {"camera": {"width": 64, "height": 48, "fx": 100.0, "fy": 100.0, "cx": 31.5, "cy": 23.5, "model": "pinhole",
+                    "distortion": {}}, "render": {"spp": 8}, "world": {"site": {"lod_pixels": 1.0}}}
+    f = fine_truth_dict(d, 4, 16)
+    c = f["camera"]
+    assert (c["width"], c["height"], c["fx"], c["cx"], c["cy"]) == (256, 192, 400.0, 127.5, 95.5)
+    assert f["render"]["spp"] == 16 and f["world"]["site"]["lod_pixels"] == 4.0 and d["camera"]["width"] == 64
+    # the pixel centre (31.5, 23.5) and sub-pixel centres map to the same ray: x_fine = (x + ½)·4 − ½
+    assert (c["cx"] + 0.5) / 4 - 0.5 == d["camera"]["cx"]
+    with pytest.raises(ValueError):
+        fine_truth_dict({**d, "camera": {**d["camera"], "distortion": {"k1": 0.1}}}, 4)

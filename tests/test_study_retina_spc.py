@@ -91,6 +91,7 @@ def test_both_methods_same_frames_same_apriori_and_truth_from_truth_table(campai
             assert (m["truth_s"][kr], m["truth_l"][kr]) == pytest.approx(tmap[key][:2], abs=1e-9)
         for c in ("range_m", "albedo_contrast", "phase_deg", "gsd_ratio", "crlb_s", "crlb_l"):
             assert np.all(np.isfinite(m[c])), c
+        assert set(m["crlb_bound"]) == {"continuous"}  # the bound of the continuous truth (renderlab.campaign.crlb)
         assert 40 < min(m["range_m"]) and max(m["range_m"]) < 80  # frames at 65 and 45 m altitude
     # different runs draw different a-priori poses
     assert meas[0]["apriori_dpos_x_m"][0] != meas[1]["apriori_dpos_x_m"][0]
