@@ -16,7 +16,11 @@ noise-free expected DN (4th-order stencil); σ² comes from the sensor model (sh
 When the expected image is itself a Monte-Carlo render (finite samples per pixel), its render noise adds
 gradient energy and the bound comes out too small; ``registration_crlb(..., independent=second_render)`` takes
 the cross-product of two independent renders' gradients, an unbiased estimate of the noise-free J
-(:func:`fisher_information`).
+(:func:`fisher_information`). This finite-difference bound of the sampled pixels is what the published tables made
+before :mod:`renderlab.campaign.crlb` carry (the error budget's CRLB probe reproduces them with it) and what the
+``analytic_pointing`` study still computes; on sub-pixel texture it misses gradient energy (too large: 2.1–16× the
+exact bound on the sub-pixel textures of ``tests/test_crlb_continuous.py``, 1.06× on its smooth blob). New ``retina_vs_spc`` runs use the
+bound of the continuous template over the estimator's pixels (:mod:`renderlab.campaign.crlb`).
 
 Filter tables (``run, t_s, err_*``, ``nees``, ``nis``): per error column mean/std/RMS after a settling
 time, and ANEES/ANIS with their two-sided χ² bounds (N runs × d degrees of freedom).
