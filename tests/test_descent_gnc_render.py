@@ -1,6 +1,6 @@
 """The closed GN&C loop with images on the tiny EV5 world (64 × 64 px, 2 spp): every camera time renders the true
-state through ``Renderer`` (the planned frame nearest in time gives the sun), a landmark method measures the image at
-the filter's a-priori pose, the descent EKF updates, the guidance flies on its estimate. Same seed: the same run byte
+state through ``Renderer`` at the true time (``spec_at``; the record names the planned frame nearest in time), a
+landmark method measures the image at the filter's a-priori pose, the descent EKF updates, the guidance flies on its estimate. Same seed: the same run byte
 for byte (trajectory and images); another seed (another initial navigation error): another true path and other
 images."""
 
@@ -71,7 +71,7 @@ def test_closed_loop_renders_the_true_state_and_replays_for_a_seed(renderer):
     b = _run(renderer, 1)
     c = _run(renderer, 2)
     assert len(a.images) == 3 and len(a.dn) == 3                   # camera at t0, t0 + 1, t0 + 2
-    # each image is rendered where the vehicle really is, from the planned frame nearest in time
+    # each image is rendered where the vehicle really is; its record names the planned frame nearest in time
     for rec in a.images:
         k = int(np.flatnonzero(np.isclose(a.flight.t_s, rec["t_s"]))[0])
         np.testing.assert_array_equal(rec["position_m"], a.flight.x_true[k, :3])
