@@ -11,11 +11,15 @@ script (small, committed):
 
 * ``crlb_continuous.csv`` — per landmark-frame: the table's bound, the continuous bound (shift only, with gain and
   offset nuisances, from one fine render alone), the footprint's and the window's pixel counts;
+* ``crlb_continuous_truth_perturbed.csv`` — the same for ``results/retina_vs_spc_truth_perturbed`` (its own scene:
+  the nominal companion's truth, which also stands in for the perturbed runs' own renders);
 * ``crlb_continuous.md`` — the restatement factor continuous / table per landmark-frame and axis (median, p5,
-  p95), and the "× CRLB" figures of the budget's README and of ``results/retina_vs_spc`` recomputed from their
-  tables with the continuous bound in place of the stored one (same statistics and intervals as the reports).
+  p95), and the "× CRLB" figures of the budget's README, of ``results/retina_vs_spc`` and of the truth-perturbed
+  pair recomputed from their tables with the continuous bound in place of the stored one (same statistics and
+  intervals as the reports).
 
-Usage (about 2 min of renders at load ≈ 3, cached under ``--workdir``)::
+Usage (1 min 49 s from an empty ``--workdir`` at load 2–8, renders cached there; a rerun writes byte-identical
+files)::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python investigations/error_budget/crlb_continuous.py
 """
