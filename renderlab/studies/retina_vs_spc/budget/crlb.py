@@ -1,8 +1,9 @@
 """Is the error budget's registration CRLB biased by the Monte-Carlo noise of its truth render? (:mod:`.runner`)
 
-The budget's CRLB per landmark-frame (``crlb_s``/``crlb_l``, :func:`.run.landmark_extras`) is
-:func:`renderlab.campaign.scoring.registration_crlb` of the truth image's expected DN over the landmark's
-footprint, J = Σ w ∇I ∇Iᵀ with w = 1/σ² the sensor's DN variance. The truth image is a render at
+The published budget's CRLB per landmark-frame (``crlb_s``/``crlb_l``, made by :func:`.run.landmark_extras` before
+it took the continuous bound of :mod:`renderlab.campaign.crlb`; restated in
+``investigations/error_budget/crlb_continuous.py``) is :func:`renderlab.campaign.scoring.registration_crlb` of the
+truth image's expected DN over a square window around the landmark, J = Σ w ∇I ∇Iᵀ with w = 1/σ² the sensor's DN variance. The truth image is a render at
 ``render.spp`` (8) random sub-pixel samples per pixel: the box-filtered radiance plus zero-mean render noise ε,
 independent between pixels. The gradients of one render then carry the noise's energy too,
 E[∇I ∇Iᵀ] = ∇Ī ∇Īᵀ + Cov(∇ε), so J is overstated and the bound understated — the more so where the terrain
@@ -85,8 +86,8 @@ def _truth_scenario(all_off: dict, spp: int | None, seed: int):
 
 
 def windows(ts, maplets) -> dict:
-    """{(frame, landmark_id): (frame position, (row slice, column slice))} — the CRLB windows of
-    :func:`.run.landmark_extras` (half-size ½·(maplet size − 1)/GSD ratio, ≥ 3 px, clipped; ≥ 7 px each way)."""
+    """{(frame, landmark_id): (frame position, (row slice, column slice))} — the CRLB windows of the published
+    budget's finite-difference bound (half-size ½·(maplet size − 1)/GSD ratio, ≥ 3 px, clipped; ≥ 7 px each way)."""
     truth = ts.read_table("landmark_truth").to_pydict()
     by_id = {int(m.landmark_id): m for m in maplets}
     index_of = {int(rec["index"]): k for k, rec in enumerate(ts.frames)}
