@@ -1,8 +1,9 @@
 """Scenario section ``[descent_gnc]`` of the closed-loop GN&C descent study. Light: pydantic.
 
 The truth gravity (``gravity``: point mass ``gm_true_m3_s2`` + J2 ``j2_true`` at ``r_ref_m``, or the polyhedron of
-the shape model scaled to ``gm_true_m3_s2``) is not the onboard one (point mass ``gm_filter_m3_s2`` in the filter and
-in the guidance's zero-effort prediction). The declared landmark noise is σ_i² = σ_px² + (σ_g / GSD_i)²:
+the world's closed, uncut body at ``gravity_facet_m``, :mod:`renderlab.worlds.ev5.gravity_mesh`, scaled to
+``gm_true_m3_s2``) is not the onboard one (point mass ``gm_filter_m3_s2`` in the filter and in the guidance's
+zero-effort prediction). The declared landmark noise is σ_i² = σ_px² + (σ_g / GSD_i)²:
 ``sigma_ground_m`` is the map error on the ground (the world's ``mapping_error_m``), which the 0.3 px alone does not
 cover at a few-cm GSD. Thrusters (:mod:`estimators.gnc.thrusters`): magnitude bias and per-command σ, a fixed
 misalignment and a per-command pointing σ, a minimum impulse bit, a thrust limit. Robustness: search distance
@@ -38,8 +39,10 @@ class DescentGncConfig(Strict):
     touchdown_speed_mps: Positive = Field(0.05, description="Target speed along the site normal at contact [m/s]")
     target_xy_m: tuple[Finite, Finite] = Field((0.0, 0.0), description="Landing target in site east, north [m]")
     gravity: Literal["point_mass_j2", "polyhedron"] = Field("point_mass_j2", description="Truth gravity field "
-                                                            "(polyhedron: needs a closed shape mesh; the EV5 "
-                                                            "world's decimated mesh is not closed)")
+                                                            "(polyhedron: of the world's closed uncut body, "
+                                                            "renderlab.worlds.ev5.gravity_mesh)")
+    gravity_facet_m: Positive | None = Field(None, description="Facet size of the polyhedron gravity body, the "
+                                             "same r(u) on a coarser icosphere; unset: the world's facet_m [m]")
     gm_true_m3_s2: Positive = Field(2.9, description="Truth GM [m^3/s^2]")
     j2_true: Finite = Field(0.05, description="Truth J2 about the spin pole [-]")
     r_ref_m: Positive = Field(200.0, description="Reference radius of the truth J2 [m]")

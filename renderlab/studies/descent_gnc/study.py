@@ -92,8 +92,14 @@ class Setup:
         self.t0, self.x0, self.waypoints = arrm_waypoints(
             DescentProfile(renderer.scenario.trajectory), self.omega, model.site, target_xy=cfg.target_xy_m,
             touchdown_speed_mps=cfg.touchdown_speed_mps)
+        body = None
+        if cfg.gravity == "polyhedron":   # the rendered mesh is cut under the site: the closed uncut body instead
+            from renderlab.worlds.ev5.gravity_mesh import gravity_mesh
+
+            body = gravity_mesh(renderer.scenario.world, renderer.base_dir, cfg.gravity_facet_m)
         gravity = make_gravity(cfg.gravity, gm_m3_s2=cfg.gm_true_m3_s2, j2=cfg.j2_true, r_ref_m=cfg.r_ref_m,
-                               vertices=model.shape.vertices, faces=model.shape.faces)
+                               vertices=None if body is None else body.vertices,
+                               faces=None if body is None else body.faces)
         self.truth = DescentTruth(gravity, self.omega, ContactSurface(model.shape.vertices, model.shape.faces,
                                                                       model.site))
         self.t_max = self.waypoints[-1].t_s + cfg.t_max_after_target_s
