@@ -64,6 +64,10 @@ def test_gravity_body_is_the_rendered_surface_uncut_and_closed(world, body):
     np.testing.assert_allclose(np.linalg.norm(coarse.vertices, axis=1), body.radius_fn(coarse.vertices / np.linalg.norm(
         coarse.vertices, axis=1, keepdims=True)), rtol=1e-12)
     assert abs(mk.volume / m.volume - 1) < 0.01
+    from renderlab.errors import UserError
+
+    with pytest.raises(UserError, match="finer than the world"):     # no detail below the world's facet
+        gravity_mesh(world, facet_m=1.0)
 
 
 def test_polyhedron_field_of_the_body_far_and_laplacian(body):
