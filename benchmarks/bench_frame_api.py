@@ -21,7 +21,7 @@ Three measurements, one run, the load average printed before and after:
 Usage::
 
     .venv/bin/python benchmarks/bench_frame_api.py [--frames 4] [--size 1024] [--spp 16] [--skip-full] [--skip-descent]
-        [--skip-api] [--repeats 2]
+        [--skip-api] [--repeats 2] [--bar-frames 2,3]
 
 The world cache is ``$RENDERLAB_CACHE`` (default ``~/.cache/renderlab``): the first run builds and stores the worlds.
 """
@@ -104,42 +104,66 @@ def bar_vs_sphere(args, r, mi) -> None:
     """Frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: API frame + files, the
     files in the loop or in the background thread) vs mi.render of a 1.31 M-triangle sphere."""
     floors = [sphere_floor(mi, args.size, args.spp)]
-    runs: dict[bool, list] = {False: [], True: []}
+    modes = (False, True)
+    runs: dict = {m: [] for m in modes}
     for _rep in range(args.repeats):
-        for background in (False, True):
-            runs[background].append(_truthset_frames(r, background))
+        for background in modes:
+            runs[background].append(_truthset_frames(r, background, args.bar_frames))
             floors.append(sphere_floor(mi, args.size, args.spp))
     floor = float(np.median(floors))
     print(f"  mi.render direct of a 1.31 M-triangle sphere (f = {args.size / 2 / np.tan(np.radians(8.0)):.0f} px): "
           f"median {floor:.2f} s ({np.round(floors, 2).tolist()}), load average {os.getloadavg()[0]:.1f}")
-    for background, label in ((False, "files written in the loop"), (True, "files written in the background")):
+    for background, label in ((False, "files written in the loop"), (True, "files by the background thread")):
         t = np.median(np.array(runs[background]), axis=0)  # per frame, median over the repeats
-        rat = (t[1:] if len(t) > 1 else t) / floor
-        print(f"  renderlab-render frame ({label}) / sphere: median {np.median(rat):.2f}x (frames 1..), mean "
+        rat = (t[1:] if len(t) > 1 and not args.bar_frames else t) / floor
+        print(f"  renderlab-render frame ({label}) / sphere: median {np.median(rat):.2f}x "
+              f"({'frames ' + str(args.bar_frames) if args.bar_frames else 'frames 1..'}), per frame "
+              f"{np.round(t / floor, 2).tolist()}, mean "
               f"{t.mean() / floor:.2f}x over all frames; frames {np.round(t, 2).tolist()} s "
               f"(each run: {[np.round(x, 2).tolist() for x in runs[background]]})", flush=True)
 
 
-def _truthset_frames(r, background: bool) -> list[float]:
+def _truthset_frames(r, background: bool, frames=None) -> list[float]:
     """Seconds per frame of a truth set written by ``write_frames`` (frame k: from the start of its render to the
-    start of the next; the last frame's includes the manifest, tables, contact sheet and the final rename)."""
-    from renderlab.pipeline import write_frames
+    start of the next; the last frame's up to its files written, without the set's own end: truth tables, contact
+    sheet, manifest and rename, printed apart)."""
+    import renderlab.pipeline as pipeline
+    from renderlab.files.truthset import TruthSetWriter
 
-    stamps, orig = [], r.render_spec
+    stamps, orig, end = [], r.render_spec, [0.0]
 
     def render_spec(spec, ss, **kw):
         stamps.append(time.perf_counter())
         return orig(spec, ss, **kw)
 
+    def timed(fn, flush_first=False):
+        def wrapper(writer, *a, **k):
+            if flush_first:
+                writer.flush()  # the last frame's files: part of that frame
+            t0 = time.perf_counter()
+            try:
+                return fn(writer, *a, **k)
+            finally:
+                end[0] += time.perf_counter() - t0
+        return wrapper
+
+    saved = pipeline._contact_sheet_png, TruthSetWriter.add_table, TruthSetWriter._commit
     r.render_spec = render_spec
+    pipeline._contact_sheet_png = timed(saved[0], flush_first=True)
+    TruthSetWriter.add_table = timed(saved[1], flush_first=True)
+    TruthSetWriter._commit = timed(saved[2])
     head = {"scenario": r.scenario.to_dict(), "seed": r.scenario.render.seed, "render_frame": r.plan.render_frame}
     try:
         with tempfile.TemporaryDirectory() as tmp:
-            write_frames(Path(tmp) / "ts", r, r.plan.frames, [r.seed_for(s.index) for s in r.plan.frames], head=head,
+            specs = [r.plan.frames[k] for k in frames] if frames else r.plan.frames
+            pipeline.write_frames(Path(tmp) / "ts", r, specs, [r.seed_for(s.index) for s in specs], head=head,
                          background=background)
-            stamps.append(time.perf_counter())
+            stamps.append(time.perf_counter() - end[0])
     finally:
         del r.render_spec
+        pipeline._contact_sheet_png, TruthSetWriter.add_table, TruthSetWriter._commit = saved
+    print(f"    ({'background' if background else 'in the loop'}: the set's end, tables + contact sheet + manifest, "
+          f"{end[0]:.2f} s)", flush=True)
     return np.diff(stamps).tolist()
 
 
@@ -217,6 +241,8 @@ def main() -> None:
     ap.add_argument("--skip-descent", action="store_true")
     ap.add_argument("--skip-api", action="store_true", help="full EV5: only the renderlab-render bar")
     ap.add_argument("--repeats", type=int, default=2, help="renderlab-render passes per file mode (interleaved)")
+    ap.add_argument("--bar-frames", type=lambda v: [int(k) for k in v.split(",")], default=None,
+                    help="renderlab-render bar: only these frame indices (comma-separated), e.g. 2,3")
     ap.add_argument("--set", action="append", default=[], help="KEY=VALUE override of the world(s) measured")
     args = ap.parse_args()
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}", flush=True)

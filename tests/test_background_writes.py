@@ -29,15 +29,15 @@ def _files(root: Path) -> dict:
 
 def test_background_files_equal_sequential_files_byte_for_byte(tmp_path):
     r = Renderer(REPO / "scenes" / "analytic_sphere_box.toml", overrides=SMALL)
-    specs, seeds = r.plan.frames, [r.seed_for(s.index) for s in r.plan.frames]
+    specs = r.plan.frames
     head = {"scenario": r.scenario.to_dict(), "seed": r.scenario.render.seed, "render_frame": r.plan.render_frame}
-    seq = write_frames(tmp_path / "seq", r, specs, seeds, head=head, background=False)
-    bg = write_frames(tmp_path / "bg", r, specs, [r.seed_for(s.index) for s in specs], head=head, background=True)
-    a, b = _files(seq), _files(bg)
+    out = {mode: write_frames(tmp_path / str(mode), r, specs, [r.seed_for(s.index) for s in specs], head=head,
+                              background=mode) for mode in (False, True)}
+    a, b = _files(out[False]), _files(out[True])
     assert len(a) >= 3 * len(specs) + 2  # EXR, DN PNG, preview per frame + manifest + contact sheet
     assert sorted(a) == sorted(b)
     assert [k for k in a if a[k] != b[k]] == []
-    ts = TruthSet.open(bg)
+    ts = TruthSet.open(out[True])
     assert len(ts) == len(specs) and np.array_equal(ts.load(2).dn, r.frame(2).dn)
 
 
@@ -109,3 +109,15 @@ def test_the_first_error_is_raised_once_and_later_jobs_are_skipped():
     assert done == []
     jobs.flush()  # reported once
     jobs.close()
+
+
+
+def test_an_interrupted_set_waits_for_the_writer_and_leaves_nothing(tmp_path):
+    out = tmp_path / "set"
+    with pytest.raises(KeyboardInterrupt):
+        with TruthSetWriter(out, {}, background=True) as w:
+            for k in range(3):
+                w.add_frame(k, float(k), *_frame(k), {}, dn_bits=12)
+            thread = w._jobs._thread
+            raise KeyboardInterrupt
+    assert not thread.is_alive() and not out.exists() and list(tmp_path.iterdir()) == []

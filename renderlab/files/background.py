@@ -10,9 +10,12 @@ jobs after it are skipped, and it is raised in the caller's thread by the next :
 drops the jobs not yet started and waits for the running one, so a failed truth set's staging folder can be
 removed with nothing still writing into it.
 
-Why a thread and not more: the compressors release the GIL (OpenCV's PNG encoder) or hold it only while the
-caller's thread waits in Dr.Jit's kernels, which release it (OpenEXR's writer holds it); a second process would
-copy every frame's arrays. Measured in ``benchmarks/bench_frame_breakdown.py``.
+What it gains depends on idle cores. On the 2-core machine, where Dr.Jit's kernels keep both cores busy, it gains
+nothing measurable (a 1 MP EV5 truth set: 3.28 vs 3.39 s and 3.95 vs 3.76 s per two frames in two quiet runs,
+``benchmarks/bench_frame_api.py --bar-frames 2,3``): the files' CPU time is only moved, OpenEXR's writer holds
+the GIL for the whole write (measured: a spinning Python thread got 2 % of its rate meanwhile), and a writer
+*process* at low priority was slower still (5.38 s: start-up and the arrays sent through a pipe; tried, not kept).
+It overlaps where the renderer leaves the CPU idle (a GPU variant).
 """
 
 from __future__ import annotations
@@ -100,3 +103,4 @@ class _Reported:
 
     def __init__(self, exc: BaseException):
         self.exc = exc
+

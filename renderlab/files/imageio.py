@@ -299,6 +299,17 @@ def write_dn_preview(path, dn: np.ndarray, bits: int) -> None:
     _write_bytes(path, _encode_png(((a * 255 + full // 2) // full).astype(np.uint8), path))
 
 
+def write_frame_files(folder: Path, rels: dict, channels: dict, header: dict, compression: str, dn: np.ndarray,
+                      bits: int) -> None:
+    """A truth-set frame's files under ``folder``: the EXR (``rels["exr"]``), the DN PNG (``rels["dn"]``) and its
+    preview (``rels["dn_preview"]``), in that order (in the writer's loop, thread or process)."""
+    folder = Path(folder)
+    write_exr(folder / rels["exr"], channels, header, compression=compression)
+    write_dn_png(folder / rels["dn"], dn, bits)
+    (folder / "dn_preview").mkdir(exist_ok=True)
+    write_dn_preview(folder / rels["dn_preview"], dn, bits)
+
+
 def read_dn_png(path, size: tuple[int, int] | None = None) -> np.ndarray:
     """Read a 16-bit grayscale DN PNG as a uint16 (H, W) array (UserError if it is not one; with ``size`` =
     (width, height), the header must say that size before anything is decoded).

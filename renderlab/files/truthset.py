@@ -38,6 +38,7 @@ from renderlab.files.imageio import (  # noqa: F401
     write_dn_png,
     write_dn_preview,
     write_exr,
+    write_frame_files,
 )
 from renderlab.inputs import read_checked, short, shown
 
@@ -250,7 +251,7 @@ class TruthSetWriter:
                                   render_frame=rf.get("name") if isinstance(rf, dict) else None)
         for rel in rels.values():
             self._claim(rel)
-        job = functools.partial(_write_frame_files, staging, rels, {**channels, "id": ids}, header,
+        job = functools.partial(write_frame_files, staging, rels, {**channels, "id": ids}, header,
                                 self.exr_compression, dn, bits)
         if self._jobs is None:
             job()
@@ -302,15 +303,6 @@ class TruthSetWriter:
                             f"{exc.strerror or exc}") from None
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
-
-
-def _write_frame_files(staging: Path, rels: dict, channels: dict, header: dict, compression: str,
-                       dn: np.ndarray, bits: int) -> None:
-    """A frame's EXR, DN PNG and preview PNG (in the loop, or in the writer's background thread)."""
-    write_exr(staging / rels["exr"], channels, header, compression=compression)
-    write_dn_png(staging / rels["dn"], dn, bits)
-    (staging / "dn_preview").mkdir(exist_ok=True)
-    write_dn_preview(staging / rels["dn_preview"], dn, bits)
 
 
 # -------------------------------------------------------------------------------------- reader
