@@ -3,9 +3,8 @@
 Explains the polyhedron paragraph of ``results/descent_gnc/README.md``. For the world of a scenario file it prints
 (1) trimesh's verdict on the rendered (site-cut) global mesh and on the uncut gravity body
 (:func:`renderlab.worlds.ev5.gravity_mesh.gravity_mesh`): watertight, winding, volume, Euler number, one-face edges;
-(2) the seconds per truth acceleration evaluation (``PolyhedronGravity.at``, the integrator's path, median of
-``--repeats`` timed batches) for the gravity mesh at the world's facet size and coarser ones; (3) the acceleration
-error of each coarser mesh against the world-facet mesh at points above the site along its normal (the descent's
+(2) the facet and edge counts of the gravity mesh at the world's facet size and coarser ones (their seconds per
+acceleration: ``benchmarks/bench_polyhedron_gravity.py``); (3) the acceleration error of each coarser mesh against the world-facet mesh at points above the site along its normal (the descent's
 altitudes), and the point mass + J2 truth of the study's defaults beside them; (4) what the gravity body leaves out,
 the site DEM's detail (heights minus the global base surface), as one mass point per DEM cell (cell² × detail at
 half the detail's height; an estimate, crude where the height is not large against the detail).
@@ -16,7 +15,6 @@ half the detail's height; an estimate, crude where the height is not large again
 from __future__ import annotations
 
 import argparse
-import time
 import tomllib
 from pathlib import Path
 
@@ -40,7 +38,6 @@ def main(argv=None) -> int:
     ap.add_argument("--heights", type=float, nargs="*", default=[200, 100, 50, 20, 10, 5, 2, 0.5],
                     help="heights above the site origin along its normal, m")
     ap.add_argument("--gm", type=float, default=2.9, help="GM of the body, m^3/s^2")
-    ap.add_argument("--repeats", type=int, default=5, help="timed batches per mesh")
     a = ap.parse_args(argv)
 
     from renderlab.dynamics.descent_truth import PointMassJ2
@@ -65,17 +62,8 @@ def main(argv=None) -> int:
     for facet in [world.facet_m, *a.coarse]:
         g = gravity_mesh(world, a.scenario.parent, None if facet == world.facet_m else facet)
         grav = PolyhedronGravity(g.vertices, g.faces, gm_m3_s2=a.gm)
-        grav.at(pts[0])                                               # compile / warm
-        n = max(3, int(2e6 / (len(grav.E) + len(grav.F))))            # ~ the same work per batch for every mesh
-        times = []
-        for _ in range(a.repeats):
-            t = time.perf_counter()
-            for k in range(n):
-                grav.at(pts[k % len(pts)] * 1.0)
-            times.append((time.perf_counter() - t) / n)
         fields[facet] = np.array([grav.at(p)[1] for p in pts])
-        print(f"facet {facet:g} m: {len(g.faces)} faces, {len(grav.E)} edges, "
-              f"{np.median(times) * 1e3:.4g} ms per acceleration (median of {a.repeats} batches of {n})")
+        print(f"facet {facet:g} m: {len(g.faces)} faces, {len(grav.E)} edges")
     ref = fields[world.facet_m]
     pm = PointMassJ2(a.gm, 0.05, 200.0)
     print("height_m | |a| world-facet m/s^2 | " + " | ".join(f"rel err {f:g} m" for f in a.coarse)
