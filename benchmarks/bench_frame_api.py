@@ -21,7 +21,7 @@ Three measurements, one run, the load average printed before and after:
 Usage::
 
     .venv/bin/python benchmarks/bench_frame_api.py [--frames 4] [--size 1024] [--spp 16] [--skip-full] [--skip-descent]
-        [--skip-api] [--repeats 2] [--bar-frames 2,3]
+        [--skip-api] [--repeats 2] [--bar-frames 2,3] [--compressions zip,none]
 
 The world cache is ``$RENDERLAB_CACHE`` (default ``~/.cache/renderlab``): the first run builds and stores the worlds.
 """
@@ -102,25 +102,29 @@ def full_ev5(args) -> None:
 
 def bar_vs_sphere(args, r, mi) -> None:
     """Frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: API frame + files, the
-    files in the loop or in the background thread) vs mi.render of a 1.31 M-triangle sphere."""
+    files in the loop or in the background thread, per EXR compression of ``--compressions``) vs mi.render of a
+    1.31 M-triangle sphere; the passes interleaved, the sphere timed between them."""
     floors = [sphere_floor(mi, args.size, args.spp)]
-    modes = (False, True)
+    modes = [(c, bg) for c in args.compressions.split(",") for bg in (False, True)]
     runs: dict = {m: [] for m in modes}
     for _rep in range(args.repeats):
-        for background in modes:
-            runs[background].append(_truthset_frames(r, background, args.bar_frames))
+        for comp, background in modes:
+            render = r.scenario.render.model_copy(update={"exr_compression": comp})
+            r.scenario = r.scenario.model_copy(update={"render": render})
+            runs[(comp, background)].append(_truthset_frames(r, background, args.bar_frames))
             floors.append(sphere_floor(mi, args.size, args.spp))
     floor = float(np.median(floors))
     print(f"  mi.render direct of a 1.31 M-triangle sphere (f = {args.size / 2 / np.tan(np.radians(8.0)):.0f} px): "
           f"median {floor:.2f} s ({np.round(floors, 2).tolist()}), load average {os.getloadavg()[0]:.1f}")
-    for background, label in ((False, "files written in the loop"), (True, "files by the background thread")):
-        t = np.median(np.array(runs[background]), axis=0)  # per frame, median over the repeats
+    for comp, background in modes:
+        label = f"EXR {comp}, " + ("files by the background thread" if background else "files written in the loop")
+        t = np.median(np.array(runs[(comp, background)]), axis=0)  # per frame, median over the repeats
         rat = (t[1:] if len(t) > 1 and not args.bar_frames else t) / floor
         print(f"  renderlab-render frame ({label}) / sphere: median {np.median(rat):.2f}x "
               f"({'frames ' + str(args.bar_frames) if args.bar_frames else 'frames 1..'}), per frame "
               f"{np.round(t / floor, 2).tolist()}, mean "
               f"{t.mean() / floor:.2f}x over all frames; frames {np.round(t, 2).tolist()} s "
-              f"(each run: {[np.round(x, 2).tolist() for x in runs[background]]})", flush=True)
+              f"(each run: {[np.round(x, 2).tolist() for x in runs[(comp, background)]]})", flush=True)
 
 
 def _truthset_frames(r, background: bool, frames=None) -> list[float]:
@@ -241,6 +245,7 @@ def main() -> None:
     ap.add_argument("--skip-descent", action="store_true")
     ap.add_argument("--skip-api", action="store_true", help="full EV5: only the renderlab-render bar")
     ap.add_argument("--repeats", type=int, default=2, help="renderlab-render passes per file mode (interleaved)")
+    ap.add_argument("--compressions", default="zip", help="renderlab-render bar: EXR compressions, e.g. zip,none")
     ap.add_argument("--bar-frames", type=lambda v: [int(k) for k in v.split(",")], default=None,
                     help="renderlab-render bar: only these frame indices (comma-separated), e.g. 2,3")
     ap.add_argument("--set", action="append", default=[], help="KEY=VALUE override of the world(s) measured")

@@ -70,7 +70,7 @@ def instrument(mi) -> None:
     import drjit as dr
 
     import renderlab.pipeline.frame_api as fa
-    from renderlab.files import truthset
+    from renderlab.files import imageio
     from renderlab.render import mitsuba_backend, mitsuba_tiles, scene
     from renderlab.sensor import model
     from renderlab.worlds.ev5 import tiles
@@ -86,7 +86,7 @@ def instrument(mi) -> None:
     _timed(scene.RenderedFrame, "exr_channels", "files: exr_channels")
     for name, stage in (("write_exr", "files: EXR"), ("write_dn_png", "files: DN PNG"),
                         ("write_dn_preview", "files: preview PNG")):
-        _timed(truthset, name, stage)
+        _timed(imageio, name, stage)
 
 
 def main() -> None:
