@@ -12,7 +12,8 @@
 #      one-scene design's?), then benchmarks/bench_frame_api.py on the descent-navigation world;
 #   5. frame files written by the background writer equal the sequential ones on CUDA (tests/test_background_writes.py),
 #      and where a full EV5 frame's time goes on the GPU (benchmarks/bench_frame_breakdown.py, 1024², 16 spp, 4 frames:
-#      is the tile scene's structure build of the 171 m frame, seconds on 2 CPU cores, still the largest stage?).
+#      is the tile scene's structure build of the 171 m frame, seconds on 2 CPU cores, still the largest stage?), and
+#      that frame's 9.6 M tile facets built flat vs as a shapegroup + instance (benchmarks/bench_tile_structure_build.py).
 # Needs the project environment (./setup.sh) and a CUDA driver. Figures go to $OUT (default $TMPDIR/renderlab_gpu_check);
 # exit status 0 when everything passed, 1 when a step failed, 2 when there is no usable GPU.
 # Run from anywhere:  bash benchmarks/gpu_check.sh        (about 10 minutes, more when the EV5 world is not cached yet; each step has its own timeout)
@@ -48,5 +49,6 @@ step frame_api_bench_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/b
 step background_writes_cuda 120 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest -q -p no:cacheprovider \
   tests/test_background_writes.py
 step frame_breakdown_cuda 600 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_frame_breakdown.py --frames 4
+step tile_structure_build_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_tile_structure_build.py --repeats 1
 echo "gpu_check: $([ $status = 0 ] && echo PASSED || echo FAILED); figures in $OUT/"
 exit $status
