@@ -99,9 +99,8 @@ class TruthSetWriter:
     exr_compression : str, optional
         Lossless EXR compression (:data:`renderlab.files.imageio.EXR_COMPRESSIONS`).
     background : bool, optional
-        Write each frame's files in a background thread (:mod:`renderlab.files.background`), so that the caller
-        renders the next frame meanwhile: the same bytes, the first write error raised by a later ``add_frame``,
-        :meth:`flush` or the commit. The arrays given to :meth:`add_frame` must then not be modified afterwards.
+        Write each frame's files in a thread (:mod:`renderlab.files.background`) while the caller renders the next
+        frame: the same bytes; a write's error raised by a later call; :meth:`add_frame`'s arrays kept unmodified.
 
     Examples
     --------
