@@ -8,6 +8,7 @@ import functools
 import math
 
 import numpy as np
+from tiny_ev5 import TINY_EV5_WORLD
 
 OMEGA = 2 * math.pi / (3.725 * 3600)   # EV5 spin (Busch et al. 2011)
 GM_TRUE, GM_ONBOARD, J2, R_REF = 2.9, 3.19, 0.05, 200.0
@@ -64,3 +65,32 @@ def guidance(name: str = "zem_zev", period: float = 1.0, **kw):
 
     wps = world()[4]
     return plugins.guidance.get(name)(GuidanceOptions(wps, GM_ONBOARD, (0.0, 0.0, OMEGA), period, **kw))
+
+
+# The tiny EV5 descent_gnc scenario (64², 2 spp, two methods) shared by the study and gravity-mesh tests.
+TINY_GNC_SCENARIO = 'name = "ev5_gnc_tiny"\n' + TINY_EV5_WORLD + """[trajectory]
+kind = "ev5_descent"
+sampling = "rate"
+start_time_s = 900.0
+frame_rate_hz = 0.0033333333333
+frames = 4
+[camera]
+width = 64
+height = 64
+fx = 609.0
+fy = 609.0
+cx = 31.5
+cy = 31.5
+[render]
+spp = 2
+seed = 3
+near_clip_m = 0.01
+[campaign]
+seed = 17
+study = "descent_gnc"
+[descent_gnc]
+methods = ["spc", "ncc_baseline"]
+control_period_s = 4.0
+camera_period_s = 300.0
+max_landmarks = 4
+"""

@@ -110,7 +110,7 @@ def test_polyhedron_field_of_the_body_far_and_laplacian(body):
 
 
 def test_closed_loop_flight_under_the_polyhedron_truth_runs_to_contact(tmp_path):
-    from test_study_descent_gnc import TINY
+    from gnc_fixtures import TINY_GNC_SCENARIO as TINY
 
     from renderlab.campaign.cache import loaded_world
     from renderlab.dynamics.polyhedron_gravity import PolyhedronGravity

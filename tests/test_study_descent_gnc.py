@@ -24,36 +24,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
-from tiny_ev5 import TINY_EV5_WORLD
+from gnc_fixtures import TINY_GNC_SCENARIO as TINY
 
 from renderlab.cli import main
 
-TINY = 'name = "ev5_gnc_tiny"\n' + TINY_EV5_WORLD + """[trajectory]
-kind = "ev5_descent"
-sampling = "rate"
-start_time_s = 900.0
-frame_rate_hz = 0.0033333333333
-frames = 4
-[camera]
-width = 64
-height = 64
-fx = 609.0
-fy = 609.0
-cx = 31.5
-cy = 31.5
-[render]
-spp = 2
-seed = 3
-near_clip_m = 0.01
-[campaign]
-seed = 17
-study = "descent_gnc"
-[descent_gnc]
-methods = ["spc", "ncc_baseline"]
-control_period_s = 4.0
-camera_period_s = 300.0
-max_landmarks = 4
-"""
 RUNS = 2
 
 
