@@ -11,7 +11,7 @@ errors): GSD ratio (image GSD / maplet spacing) in ``[gsd_ratio_min, gsd_ratio_m
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
@@ -45,6 +45,10 @@ class RetinaVsSpcConfig(Strict):
     gross_error_px: NonNegative = Field(1.0, description="|err| above this (per axis) counts as a gross error [px]")
     sensor_noise: bool = Field(True, description="Re-expose every run's frames with new Poisson + read noise; "
                                "false: the noise-free expected DN, rounded (an error budget's switch)")
+    crlb: Literal["continuous", "finite_difference"] = Field(
+        "continuous", description="Registration CRLB in crlb_s/crlb_l: 'continuous' (the truth rendered again at "
+        "sub-pixels, over the template's own pixels; column crlb_bound) or 'finite_difference' (the truth pixels "
+        "over a square window, as every table published before the continuous bound; re-makes those tables)")
 
     @model_validator(mode="after")
     def _unique(self):

@@ -49,7 +49,7 @@ from renderlab.campaign.maplets import respaced_maplets
 from renderlab.campaign.perturb import draw_perturbation, perturb_camera, perturb_sun
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.campaign.run_truth import run_truthset
-from renderlab.campaign.scoring import dn_variance
+from renderlab.campaign.scoring import dn_variance, registration_crlb
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, measure_truthset, onboard_photometry
@@ -110,13 +110,15 @@ class BelievedTruthSet(ReexposedTruthSet):
 
 def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict, fine) -> dict:
     """{(frame, landmark_id): (range_m, albedo_contrast, crlb_s, crlb_l)} from the truth images; the bound from
-    ``fine``, the truth rendered at FINE_K × FINE_K sub-pixels (:mod:`.crlb_truth`), over the exact maplet's footprint."""
+    ``fine``, the truth rendered at FINE_K × FINE_K sub-pixels (:mod:`.crlb_truth`), over the exact maplet's footprint,
+    or, with ``fine=None``, the finite-difference bound of the truth pixels over a square window
+    (:func:`window_crlb`, the bound of every table published before the continuous one)."""
     by_id = {int(m.landmark_id): m for m in maplets}
     exact = {int(m.landmark_id): m for m in read_catalog(ts.path)}
     L_table = onboard_photometry(ts, MeasureOptions())[0]
     out, pos_of, img = {}, {}, {}
     index_of = {int(rec["index"]): k for k, rec in enumerate(ts.frames)}
-    for f, lid, s, l in zip(truth["frame"], truth["landmark_id"], truth["s"], truth["l"]):
+    for f, lid, s, l, g in zip(truth["frame"], truth["landmark_id"], truth["s"], truth["l"], truth["gsd_ratio"]):
         f, lid = int(f), int(lid)
         m, k = by_id.get(lid), index_of.get(f)
         if m is None or k is None:
@@ -124,18 +126,35 @@ def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict, fine) 
         if k not in img:
             opts = believed.sensor_options(k)
             rad = np.asarray(ts.load(k).radiance, np.float64)
-            img[k] = (expected_dn(np.asarray(fine.load(k).radiance, np.float64), opts), dn_variance(rad, opts))
+            src = rad if fine is None else np.asarray(fine.load(k).radiance, np.float64)
+            img[k] = (expected_dn(src, opts), dn_variance(rad, opts))
             pos_of[k] = np.asarray(ts.frames[k]["pose"]["position_m"], float)
         rng_m = float(np.linalg.norm(m.center_m - pos_of[k]))
         p5, p95 = np.percentile(m.albedo, [5, 95])
         contrast = float((p95 - p5) / (p95 + p5)) if p95 + p5 > 0 else math.nan
         crlb = (math.nan, math.nan)
-        if np.isfinite(s) and np.isfinite(l) and lid in exact:
+        if fine is None:
+            crlb = window_crlb(*img[k], s, l, g, m.heights_m.shape[0])
+        elif np.isfinite(s) and np.isfinite(l) and lid in exact:
             fine_dn, var = img[k]
             fp = CT.maplet_footprint(ts.frames[k], exact[lid], L_table)
             crlb = CT.sigma_or_nan(CT.footprint_bound(fine_dn, CT.FINE_K, var, fp))
         out[(f, lid)] = (rng_m, contrast, float(crlb[0]), float(crlb[1]))
     return out
+
+
+def window_crlb(edn, var, s, l, g, maplet_size: int) -> tuple[float, float]:
+    """Finite-difference registration bound of the truth pixels ``edn`` over a square window around (s, l) that spans
+    the maplet at GSD ratio ``g`` (:func:`renderlab.campaign.scoring.registration_crlb`); NaN where undefined."""
+    if not (np.isfinite(s) and np.isfinite(l) and g is not None and np.isfinite(g) and g > 0):
+        return (math.nan, math.nan)
+    half = int(max(3, math.ceil(0.5 * (maplet_size - 1) / g)))
+    c0, r0 = int(round(s)), int(round(l))
+    win = (slice(max(r0 - half, 0), min(r0 + half + 1, edn.shape[0])),
+           slice(max(c0 - half, 0), min(c0 + half + 1, edn.shape[1])))
+    if min(edn[win].shape) < 7:
+        return (math.nan, math.nan)
+    return registration_crlb(edn[win], var[win])
 
 
 def section(scenario):
@@ -166,8 +185,10 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir, methods=None
     truth_sc = scenario_from_dict(truth_scenario_dict(scenario.to_dict()), "retina_vs_spc truth scenario")
     path, _ = run_truthset(truth_sc, base_dir, Path(workdir) / "truth_cache", p, draw)
     ts = TruthSet.open(path)
-    fine_sc = scenario_from_dict(CT.fine_truth_dict(truth_sc.to_dict()), "retina_vs_spc truth, sub-pixels (CRLB)")
-    fine = TruthSet.open(run_truthset(fine_sc, base_dir, Path(workdir) / "crlb_cache", p, draw)[0])  # truth_cache: 1 set
+    fine = None
+    if section(scenario).crlb == "continuous":
+        fine_sc = scenario_from_dict(CT.fine_truth_dict(truth_sc.to_dict()), "retina_vs_spc truth, sub-pixels (CRLB)")
+        fine = TruthSet.open(run_truthset(fine_sc, base_dir, Path(workdir) / "crlb_cache", p, draw)[0])
     maplets = read_catalog(path)
     if draw.spacing_scale != 1.0:
         maplets = respaced_maplets(maplets, scenario.world, base_dir, draw.spacing_scale, np.random.default_rng(ss_map))
@@ -186,7 +207,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir, methods=None
     for j, name in enumerate(("range_m", "albedo_contrast", "crlb_s", "crlb_l")):
         meas = meas.append_column(name, pa.array([extras.get((int(f), int(i)), (math.nan,) * 4)[j] for f, i in keys],
                                                  pa.float64()))
-    meas = meas.append_column("crlb_bound", pa.array(["continuous"] * meas.num_rows, pa.string()))
+    if fine is not None:  # tables without the column carry the finite-difference window bound
+        meas = meas.append_column("crlb_bound", pa.array(["continuous"] * meas.num_rows, pa.string()))
     if draw.spacing_scale != 1.0:  # the run's maplets are coarser/finer: GSD / spacing changes
         g = np.asarray(meas.column("gsd_ratio").to_numpy(zero_copy_only=False), float) / draw.spacing_scale
         meas = meas.set_column(meas.column_names.index("gsd_ratio"), "gsd_ratio", pa.array(g, pa.float64()))
