@@ -35,9 +35,9 @@ def test_crosscheck_page_and_figure_regenerate_from_the_tables(folder, tmp_path,
     md = (folder / "crosscheck.md").read_text()
     assert (copy / "crosscheck.md").read_text() == md
     assert not (copy / "crosscheck.png").exists() and not (copy / "crosscheck.svg").exists(), "--tables-only"
-    assert (folder / "crosscheck.png").stat().st_size > 50_000 and (folder / "crosscheck.svg").is_file()
+    assert (folder / "crosscheck.png").stat().st_size > 50_000  # SVG only on demand (renderlab report --svg)
     assert sorted(p.name for p in folder.iterdir()) == ["crosscheck.md", "crosscheck.parquet", "crosscheck.png",
-                                                         "crosscheck.svg", "crosscheck_images.parquet"]
+                                                         "crosscheck_images.parquet"]
     # the verdicts of the page are the targets applied to the committed table (independent of the page's code)
     t = pq.read_table(folder / "crosscheck.parquet").to_pydict()
     worst = {k: np.nanmax(np.array(t[k], float)) for k in TARGETS}

@@ -91,6 +91,7 @@ def test_report_has_the_study_section(campaign, tmp_path):
     for f in ("fig5_convergence", "fig6_inertia", "fig7_points", "fig13_stage2_position", "fig14_stage2_attitude"):
         assert (tmp_path / "rep" / f"unknown_satellite_{f}.png").stat().st_size > 5000
         assert not (tmp_path / "rep" / f"unknown_satellite_{f}.svg").exists()  # SVG only with --svg
+    assert not (tmp_path / "rep" / "summary.csv").exists(), "the summary is written once, as unknown_satellite_summary.csv"
     rows = (tmp_path / "rep" / "unknown_satellite_summary.csv").read_text().splitlines()
     assert rows[0].startswith("score,label,unit,runs,mean") and any(r.startswith("point_lvlh_err_rms_cm,") for r in rows)
     assert " of 2</td>" in page                             # run flags as "k of N"

@@ -1,4 +1,5 @@
-"""``renderlab report CAMPAIGN_DIR --out DIR``: tables → CSV summaries, figures (PNG + SVG) and one HTML page.
+"""``renderlab report CAMPAIGN_DIR --out DIR``: tables → CSV summaries, figures (PNG; SVG with ``--svg``) and one HTML
+page. ``summary.csv`` holds the summary rows of every table (a ``table`` column says whose), written once.
 
 Everything is recomputed from the campaign's Parquet tables (``runs/*/<table>.parquet``, or ``tables/<table>.parquet``
 of a published study folder) by :mod:`renderlab.report.landmark_stats`, :mod:`renderlab.campaign.scoring` and the

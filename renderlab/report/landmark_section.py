@@ -1,5 +1,6 @@
 """The report section of one landmark measurement table: Fig. 12, the bias/noise table with cluster-bootstrap
-intervals, the no-result reasons, the paired comparison, pixel locking and the breakdowns."""
+intervals, the no-result reasons, the paired comparison, pixel locking and the breakdowns. The CSVs are
+``<table>_{reasons,paired,breakdown}.csv``; the summary rows go to the report's one ``summary.csv``."""
 
 from __future__ import annotations
 
@@ -105,8 +106,9 @@ def landmark_section(name: str, table, stage: Path, *, gross_px: float = 1.0, su
                                                + ", ".join(left_out) + "."})
     csvs["breakdown"] = [{"table": name, **r} for r in brk]
     for key, rows in csvs.items():
-        write_csv(stage / f"{name}_{key}.csv", rows)
-    blocks.append({"kind": "links", "files": [f"{name}_{k}.csv" for k in csvs]})
+        if key != "summary":  # the summary rows (with their table column) are the report's summary.csv, written once
+            write_csv(stage / f"{name}_{key}.csv", rows)
+    blocks.append({"kind": "links", "files": ["summary.csv"] + [f"{name}_{k}.csv" for k in csvs if k != "summary"]})
     return {"title": section_title(name), "anchor": name, "blocks": blocks}, csvs
 
 

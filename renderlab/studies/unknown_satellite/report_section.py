@@ -132,16 +132,14 @@ def _flag_table(rows: list[dict]) -> list[dict]:
 
 
 def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
-    """The section (title, HTML) of a campaign's tables; writes ``unknown_satellite_summary.csv`` (and
-    ``summary.csv`` where the generic report wrote none) and the figures into ``out_dir``."""
+    """The section (title, HTML) of a campaign's tables; writes ``unknown_satellite_summary.csv`` (once: no copy as
+    ``summary.csv``) and the figures into ``out_dir``."""
     if "scores" not in tables:
         return []
 
     scores = tables["scores"]
     rows = score_summary(scores)
     write_csv(out_dir / "unknown_satellite_summary.csv", rows)
-    if not (out_dir / "summary.csv").exists():  # the page links summary.csv; no measurement table wrote one
-        write_csv(out_dir / "summary.csv", rows)
     n = scores.num_rows
     blocks = [{"kind": "text", "html": f"{n} runs. Paper (Ivanov et al. 2018): reference points 3 cm, velocity ≈1 cm/s, "
                                        "‖ω‖ 4.24 deg/s estimated against a gyro's 4.5 deg/s. Body-frame scores depend on "
