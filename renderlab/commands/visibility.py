@@ -65,8 +65,8 @@ def _check(args) -> tuple[list[float], list[float]]:
 
 
 def run(args) -> int:
-    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep
     from renderlab.worlds.earth.gshhg import load_gshhg
+    from renderlab.worlds.earth.visibility import VisibilityOptions, visibility_sweep
 
     incs, fovs = _check(args)
     out = Path(args.out)
