@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from renderlab.stats.bootstrap import cluster_bootstrap
+from renderlab.stats.consistency import chi2_band_sum
 
 
 def cols(table) -> dict:
@@ -31,15 +32,6 @@ def cols(table) -> dict:
         out[n] = np.asarray(c.to_pylist() if "dictionary" in str(c.type) or c.type == "string" else
                             c.to_numpy(zero_copy_only=False))
     return out
-
-
-def chi2_band(dof_total: float) -> tuple[float, float]:
-    """Two-sided 95 % band of (Σ χ²)/Σ dof for ``dof_total`` degrees of freedom."""
-    from scipy.stats import chi2
-
-    if dof_total <= 0:
-        return math.nan, math.nan
-    return float(chi2.ppf(0.025, dof_total) / dof_total), float(chi2.ppf(0.975, dof_total) / dof_total)
 
 
 def sigma3_max(cov: np.ndarray) -> float:
@@ -95,12 +87,12 @@ def timeseries(im: dict, lost: set) -> list[dict]:
                 for k in sorted(set(im["image"][mask].tolist())):
                     s = mask & (im["image"] == k)
                     n = int(s.sum())
-                    lo, hi = chi2_band(6.0 * n)
+                    lo, hi = chi2_band_sum(6.0 * n)
                     anees = float(np.mean(im["nees"][s]))
                     has = s & (im["status"] == "ok") & (im["nis_dof"] > 0)
                     dof = float(im["nis_dof"][has].sum())
                     anis = float(im["nis"][has].sum() / dof) if dof else math.nan
-                    nlo, nhi = chi2_band(dof)
+                    nlo, nhi = chi2_band_sum(dof)
                     h_est = np.hypot(im["err_e_m"][s], im["err_n_m"][s])
                     h_ctl = np.hypot(im["ctl_e_m"][s], im["ctl_n_m"][s])
                     sig_h = np.sqrt(im["sig_e_m"][s] ** 2 + im["sig_n_m"][s] ** 2)
