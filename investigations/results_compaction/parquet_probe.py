@@ -13,6 +13,7 @@ writes only under a temporary folder and prints a Markdown table.
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import tempfile
 from collections import defaultdict
@@ -124,4 +125,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
+    argparse.ArgumentParser(description="Re-encode every tracked results/ Parquet table in a temporary folder and "
+                            "print the sizes (Markdown); run from the repository root.").parse_args()
     main()

@@ -5,7 +5,7 @@ with their differing lines; an HTML page is compared as text with the SVG links 
 </a>)``), and every number in it (a regular expression over the text between tags) is compared in order. PNG and SVG
 are counted and sized (the figures are redrawn, so their bytes change).
 
-    .venv/bin/python investigations/results_compaction/compare.py BEFORE_ROOT AFTER_ROOT > comparison.md
+    .venv/bin/python investigations/results_compaction/compare_results_trees.py BEFORE_ROOT AFTER_ROOT > comparison.md
 
 where each root holds a ``results/`` folder (e.g. ``git worktree``-free: ``git archive HEAD results | tar -x -C
 /tmp/before``).
@@ -13,9 +13,9 @@ where each root holds a ``results/`` folder (e.g. ``git worktree``-free: ``git a
 
 from __future__ import annotations
 
+import argparse
 import difflib
 import re
-import sys
 from collections import Counter, defaultdict
 from pathlib import Path
 
@@ -94,4 +94,8 @@ def main(before: Path, after: Path) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(Path(sys.argv[1]), Path(sys.argv[2])))
+    ap = argparse.ArgumentParser(description="Compare two copies of results/ and print the comparison as Markdown.")
+    ap.add_argument("before", type=Path, help="root holding the results/ folder before")
+    ap.add_argument("after", type=Path, help="root holding the results/ folder after")
+    a = ap.parse_args()
+    raise SystemExit(main(a.before, a.after))
