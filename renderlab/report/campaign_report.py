@@ -120,7 +120,7 @@ def _header_tables(manifest: dict) -> list[str]:
         out.append("<h3>Perturbations (1σ, units in the key name)</h3>"
                    + html_table(pert, [("key", "scenario key"), ("value", "1σ")], left=("key", "value")))
     else:
-        out.append("<p class='note'>No perturbations: every run differs only by its sensor noise.</p>")
+        out.append("<p class='note'>No [perturbations] section: runs differ by their sensor noise and by what the study itself draws per run (its section below).</p>")
     if ver:
         out.append("<details><summary>Software versions</summary>"
                    + html_table(ver, [("key", "package"), ("value", "version")], left=("key", "value")) + "</details>")
