@@ -175,7 +175,8 @@ def report_section(name: str, table, out_dir: Path, context) -> tuple[dict, list
     write_csv(Path(out_dir) / f"{name}_summary.csv", rows)
     write_csv(Path(out_dir) / f"{name}_cells.csv", cells)
     fb, fn = bias_figure(cells, Path(out_dir) / f"{name}_bias"), nees_figure(rows, Path(out_dir) / f"{name}_nees")
-    n_cells, n_draws = len(np.unique(d["cell"])), table.num_rows // max(len(np.unique(d["cell"])), 1)
+    n_cells = len(np.unique(d["cell"]))
+    n_draws = table.num_rows // max(n_cells * len(set(d["method"])), 1)  # images per cell, every method on each
     ci_note = (f"Intervals: {confidence:.0%} percentile cluster bootstrap over the {n_cells} grid cells (the images "
                "of a cell share its geometry and bias; its draws are independent). Noise: RMS about each cell's "
                "mean. LOS: the angle of the centre error at the focal length.")
