@@ -35,9 +35,14 @@ from renderlab.campaign.perturb import perturb_pose
 TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
 
 
+def truth_perturbations_on(p) -> list[str]:
+    """The keys of the ``[perturbations]`` section ``p`` that disperse the true trajectory or pointing, in order."""
+    return [n for n in TRUTH_PERTURBATIONS if getattr(p, n, None) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
+
+
 def perturbs_truth(p) -> bool:
     """Whether the ``[perturbations]`` section ``p`` disperses the true trajectory or pointing."""
-    return any(getattr(p, n) is not None and np.any(np.asarray(getattr(p, n)) != 0) for n in TRUTH_PERTURBATIONS)
+    return bool(truth_perturbations_on(p))
 
 
 def perturbed_specs(specs: list, draw) -> list:

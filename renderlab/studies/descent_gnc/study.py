@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 
 from renderlab import plugins
+from renderlab.campaign.run_truth import truth_perturbations_on
 from renderlab.errors import UserError
 from renderlab.studies.descent_gnc.config import DescentGncConfig
 
-TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
 _NOMINAL: dict = {}
 
 
@@ -43,7 +43,7 @@ def check(scenario) -> None:
         raise UserError(f"study descent_gnc needs world.kind 'ev5' with an 'ev5_descent' trajectory, got "
                         f"'{scenario.world.kind}'")
     p = scenario.perturbations
-    on = [n for n in TRUTH_PERTURBATIONS if getattr(p, n, None) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
+    on = truth_perturbations_on(p)
     if on:
         raise UserError(f"study descent_gnc flies its own true trajectories; perturbations.{on[0]} is not supported "
                         "(the study disperses the initial estimate, the sensors and the thrusters)")

@@ -25,6 +25,7 @@ from renderlab import plugins
 from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.maplets import respaced_maplets
 from renderlab.campaign.reexpose import ReexposedTruthSet
+from renderlab.campaign.run_truth import truth_perturbations_on
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, make_method, onboard_photometry
@@ -35,8 +36,6 @@ from renderlab.studies.descent_navigation.loop import RunInputs, run_method
 from renderlab.studies.descent_navigation.sources import LandmarkMethodSource
 from renderlab.studies.descent_navigation.truth import planned_descent, true_descent, truthset_frames
 from renderlab.worlds.ev5.catalog import read_catalog
-
-TRUTH_PERTURBATIONS = ("position_sigma_m", "position_cov_m2", "velocity_sigma_mps", "attitude_sigma_deg")
 
 
 def section(scenario):
@@ -50,7 +49,7 @@ def check(scenario) -> None:
         raise UserError(f"study descent_navigation needs world.kind 'ev5' with an 'ev5_descent' trajectory, got "
                         f"'{scenario.world.kind}'")
     p = scenario.perturbations
-    on = [n for n in TRUTH_PERTURBATIONS if getattr(p, n, None) is not None and np.any(np.asarray(getattr(p, n)) != 0)]
+    on = truth_perturbations_on(p)
     if on:
         raise UserError(f"study descent_navigation renders the nominal descent once; perturbations.{on[0]} is not "
                         "supported (the study disperses the initial estimate and the sensors)")
