@@ -5,7 +5,9 @@
     RESULTS_DIR/
       campaign.json          the campaign manifest (plan: study, runs, seed, scenario; versions)
       runs.json              every run's status (ok / error, seconds, tables)
-      tables/<name>.parquet  each table of all finished runs, concatenated in run order (zstd)
+      tables/<name>.parquet  each table of all finished runs, concatenated in run order, as the study publishes it
+                             (its ``publish_tables``: what its report reads; compact zstd, :mod:`.compact`)
+      tables/raw_tables.json the full tables a reduction changed: SHA-256, rows, columns, how to regenerate them
       report/                made by ``renderlab report RESULTS_DIR`` from the tables above alone
 
 :func:`renderlab.campaign.store.load_tables` and :func:`~renderlab.campaign.store.run_statuses` read this layout as
@@ -19,7 +21,8 @@ import json
 import os
 from pathlib import Path
 
-from renderlab.campaign import store
+from renderlab import plugins
+from renderlab.campaign import compact, store
 from renderlab.campaign.store import (  # noqa: F401
     STATUSES,
     TABLES,
@@ -38,17 +41,32 @@ def publish_campaign(campaign_dir: Path, out_dir: Path) -> Path:
     return Path(out_dir)
 
 
+def published_tables(manifest: dict, tables: dict, tables_dir: Path) -> dict:
+    """The tables the folder ships: the study's ``publish_tables`` of the campaign's tables (every table whole when
+    the study has none); each full table it changes or drops is recorded in ``tables_dir/raw_tables.json``
+    (:mod:`renderlab.campaign.compact`)."""
+    study = manifest["plan"]["study"]
+    reduce = getattr(plugins.studies.get(study), "publish_tables", None) if study in plugins.studies else None
+    if reduce is None:
+        return dict(tables)
+    out = reduce(dict(tables))
+    records = {name: compact.raw_record(t, compact.compact_bytes(t), recover=None,
+                                        regenerate="the campaign command of README.md, then renderlab publish")
+               for name, t in tables.items() if name not in out or not out[name].equals(t)}
+    if records:
+        (Path(tables_dir) / compact.RAW_TABLES).write_text(compact.raw_tables_json(records), encoding="utf-8")
+    return out
+
+
 def write_published(campaign_dir: Path, stage: Path, out_dir: Path, loaded: tuple) -> None:
     """Write the published files of ``campaign_dir`` (``loaded``: its :func:`renderlab.campaign.store.
     finished_campaign`) into the folder ``stage``, which becomes ``out_dir`` (``scenario_dir`` is made relative to
     ``out_dir``: the published files hold no absolute path)."""
-    import pyarrow.parquet as pq
-
     src, out = Path(campaign_dir), Path(out_dir)
     manifest, tables, statuses = loaded
     (stage / TABLES).mkdir()
-    for name, t in sorted(tables.items()):
-        pq.write_table(t, str(stage / TABLES / f"{name}.parquet"), compression="zstd", compression_level=9)
+    for name, t in sorted(published_tables(manifest, tables, stage / TABLES).items()):
+        compact.write_compact(t, stage / TABLES / f"{name}.parquet")
     if isinstance(manifest.get("scenario_dir"), str):  # relative to the published folder, no absolute path
         scen = (src / manifest["scenario_dir"]).resolve()
         manifest = {**manifest, "scenario_dir": Path(os.path.relpath(scen, out.resolve())).as_posix()}

@@ -24,6 +24,7 @@ import shutil
 from pathlib import Path
 
 from renderlab import plugins
+from renderlab.campaign.compact import read_raw_tables
 from renderlab.contracts.file_models import CampaignManifest, RunStatus, RunStatuses
 from renderlab.contracts.schemas import check_campaign_table, expected_kind, read_parquet
 from renderlab.errors import UserError
@@ -181,7 +182,7 @@ def own_tables(manifest: dict) -> tuple[str, ...]:
     return tuple(getattr(plugins.studies.get(study), "own_tables", ()) or ()) if study in plugins.studies else ()
 
 
-def read_run_table(path: Path, name: str, own: tuple = ()):
+def read_run_table(path: Path, name: str, own: tuple = (), *, reduced: bool = False):
     """One campaign table file, read with its boundaries and (unless the study reports it itself: ``own``) the
     schema of its kind checked (:func:`renderlab.contracts.schemas.read_parquet`,
     :func:`~renderlab.contracts.schemas.check_campaign_table`)."""
@@ -190,7 +191,7 @@ def read_run_table(path: Path, name: str, own: tuple = ()):
     if name in own:
         return table
     try:
-        check_campaign_table(name, table, where)
+        check_campaign_table(name, table, where, reduced=reduced)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     return table
@@ -233,11 +234,12 @@ def is_published(folder: Path) -> bool:
 def load_published_tables(folder: Path, own: tuple = ()) -> dict:
     """``{name: pyarrow.Table}`` of a published folder (names are plain identifiers inside ``tables/``; each table
     checked as :func:`read_run_table` checks a run's)."""
+    reduced = read_raw_tables(Path(folder) / TABLES)  # tables the study publishes reduced: core columns not required
     out = {}
     for p in sorted((Path(folder) / TABLES).glob("*.parquet")):
         if not p.stem.isidentifier() or p.is_symlink():
             raise UserError(f"{shown(p)}: published table names must be plain identifiers (no links)")
-        out[p.stem] = read_run_table(p, p.stem, own)
+        out[p.stem] = read_run_table(p, p.stem, own, reduced=p.stem in reduced)
     return out
 
 

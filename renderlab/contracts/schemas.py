@@ -237,12 +237,14 @@ def expected_kind(name: str, table: pa.Table) -> str:
     return best if best is not None and share[best][0] > 0.5 else "other"
 
 
-def check_campaign_table(name: str, table: pa.Table, where: str) -> str:
+def check_campaign_table(name: str, table: pa.Table, where: str, *, reduced: bool = False) -> str:
     """Check a campaign table against the schema of the kind it is meant to be (:func:`expected_kind`): every core
-    column there, every known column typed as the readers need. Returns the kind; ``ValueError`` otherwise."""
+    column there (not for a ``reduced`` published table, which holds only what its report reads), every known
+    column typed as the readers need. Returns the kind; ``ValueError`` otherwise."""
     kind = expected_kind(name, table)
     if kind != "other":
-        check_schema(table, known_schema(kind), f"{where} ({kind} table)", required=tuple(core_schema(kind).names))
+        required = () if reduced else tuple(core_schema(kind).names)
+        check_schema(table, known_schema(kind), f"{where} ({kind} table)", required=required)
     return kind
 
 

@@ -49,3 +49,6 @@ class Study:
     gross_error_px: Callable[..., float] | None = None  #: ``gross_error_px(scenario_dict) -> px``
     clusters: tuple[str, ...] = ("frame", "item")  #: columns whose rows are correlated (cluster-bootstrap units)
     own_tables: tuple[str, ...] = ()  #: tables ``report_sections`` reports itself (the generic sections skip them)
+    #: ``publish_tables(tables) -> tables``: the tables a published folder ships — what the report reads, at full
+    #: precision (:mod:`renderlab.campaign.compact`); None: every table whole
+    publish_tables: Callable[[dict], dict] | None = None
