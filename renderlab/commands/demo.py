@@ -180,8 +180,8 @@ FILES = [
     "- `preview.png`",
     "- `campaign/scenario.toml`, `campaign/campaign/` (one Parquet per run, resumable), `campaign/report/` (HTML, figures, summary.csv)",
     "- `coastline/coastline_campaign/` (runs), `coastline/coastline_report/` (HTML, figures, steady-state and filter CSVs)",
-    "- `unknown_satellite/unknown_satellite_demo.toml`, `unknown_satellite/campaign/` (runs, truth cache), "
-    "`unknown_satellite/report/` (HTML, figures, unknown_satellite_summary.csv)",
+    "- `unknown_satellite/campaign/` (runs, truth cache; the scenario: `scenes/unknown_satellite.toml` with the "
+    "demo's overrides), `unknown_satellite/report/` (HTML, figures, unknown_satellite_summary.csv)",
     "",
     "![preview](preview.png)",
     "",

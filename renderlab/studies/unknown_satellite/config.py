@@ -1,13 +1,6 @@
-"""Scenario section ``[unknown_satellite]``: what one run of the unknown-satellite campaign varies and how the
-estimator is set up (Ivanov et al. 2018). Light: pydantic only.
-
-Dispersions are 1σ of zero-mean Gaussians, drawn per run from the run's seed. Besides these, the study
-reads the generic ``[perturbations]`` keys that mean the same thing here (see
-:mod:`renderlab.studies.unknown_satellite.run`): ``apriori_position_sigma_m``,
-``apriori_velocity_sigma_mps`` and ``apriori_attitude_sigma_deg`` are the stage-1 initial-value errors of
-r0, v0 (LVLH, per axis) and of the initial attitude; ``position_sigma_m`` and ``velocity_sigma_mps``
-disperse the *true* r0, v0 (a new render per run). Units: m, m/s, deg, deg/s, px.
-"""
+"""Scenario section ``[unknown_satellite]``: what one run of the campaign varies (1σ of zero-mean Gaussians, drawn
+per run from its seed) and how the estimator is set up; the generic ``[perturbations]`` keys the study reads besides
+it: docs/unknown_satellite.md. Light: pydantic only."""
 
 from __future__ import annotations
 

@@ -1,67 +1,27 @@
-"""The demo piece of the unknown-satellite study (Ivanov et al. 2018), small enough for ``renderlab demo``.
-
-One Mitsuba render of the Chibis-M-like separation (8 frames 4 s apart — 118° of tumble, 256×192, 60°
-field of view; the truth cache serves every run), then :data:`DEMO_RUNS` runs of study ``unknown_satellite``
-(own sensor noise and stage-1 initial-value errors per run: database → batch least squares with the FIM
-rank check → stage-2 pose + constant-gain Kalman filter), then the campaign report with the figures like
-the paper's Figs 5-7 and 13-14. About 15 s on 2 cores. Running it again into the same folder resumes.
-"""
+"""The demo piece of the unknown-satellite study, small enough for ``renderlab demo``: one Mitsuba render of the
+Chibis-M-like separation (8 frames 4 s apart, 256×192), :data:`DEMO_RUNS` campaign runs of study
+``unknown_satellite`` and their report (Figs 5-7, 13-14). About 15 s on 2 cores; running it again resumes."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from renderlab.builtin import scene_path
 from renderlab.campaign.runner import run_campaign_file
 from renderlab.campaign.store import load_tables
 from renderlab.report.campaign_report import make_report
 
 DEMO_RUNS = 4
 
-DEMO_SCENARIO = """# renderlab demo: unknown tumbling microsatellite (renderlab.studies.unknown_satellite.demo)
-name = "unknown_satellite_demo"
-description = "Chibis-M-like microsatellite after separation: 8 frames 4 s apart, 256x192."
-
-[world]
-kind = "microsat"
-seed = 3
-inertia_kg_m2 = [1.6, 2.1, 2.6]
-sun_lvlh = [0.4, 0.7, 0.5]
-
-[trajectory]
-kind = "separation"
-frames = 8
-dt_s = 4.0
-r0_lvlh_m = [0.05, -4.6, 0.05]
-v0_lvlh_mps = [0.01, -0.04, 0.005]
-omega0_body_deg_s = [1.5, 3.6, 1.5]
-
-[camera]
-width = 256
-height = 192
-fx = 222.0
-fy = 222.0
-cx = 127.5
-cy = 95.5
-
-[render]
-spp = 2
-max_depth = 2
-near_clip_m = 0.05
-far_clip_m = 100.0
-seed = 11
-
-[perturbations]
-apriori_position_sigma_m = [0.03, 0.03, 0.03]
-apriori_velocity_sigma_mps = [0.01, 0.01, 0.01]
-apriori_attitude_sigma_deg = 3.0
-
-[unknown_satellite]
-min_track_frames = 4
-epsilon_px = 15.0
-
-[campaign]
-seed = 9
-"""
+#: the demo scenario: the built-in ``scenes/unknown_satellite.toml`` at 256×192, 8 frames 4 s apart, a slower
+#: separation, 2 spp, with stage-1 initial-value errors (``renderlab show unknown_satellite --set ...`` shows it)
+DEMO_SETS = ('name="unknown_satellite_demo"',
+             'description="Chibis-M-like microsatellite after separation: 8 frames 4 s apart, 256x192."',
+             "camera.width=256", "camera.height=192", "camera.fx=222.0", "camera.fy=222.0", "camera.cx=127.5",
+             "camera.cy=95.5", "render.spp=2", "trajectory.frames=8", "trajectory.dt_s=4.0",
+             "trajectory.v0_lvlh_mps=[0.01,-0.04,0.005]", "perturbations.apriori_position_sigma_m=[0.03,0.03,0.03]",
+             "perturbations.apriori_velocity_sigma_mps=[0.01,0.01,0.01]", "perturbations.apriori_attitude_sigma_deg=3.0",
+             "unknown_satellite.min_track_frames=4", "unknown_satellite.epsilon_px=15.0", "campaign.seed=9")
 
 
 def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEMO_RUNS) -> dict:
@@ -80,11 +40,9 @@ def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEM
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    scen = out / "unknown_satellite_demo.toml"
-    scen.write_text(DEMO_SCENARIO, encoding="utf-8")
     camp = out / "campaign"
-    res = run_campaign_file(scen, camp, runs, workers=0, resume=(camp / "campaign.json").is_file(),
-                            progress=progress)
+    res = run_campaign_file(scene_path("unknown_satellite.toml"), camp, runs, overrides=list(DEMO_SETS), workers=0,
+                            resume=(camp / "campaign.json").is_file(), progress=progress)
     page = make_report(camp, out / "report")
     sc = load_tables(camp)["scores"].to_pydict()
 

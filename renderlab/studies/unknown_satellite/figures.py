@@ -1,19 +1,7 @@
-"""Figures and summary of an unknown-satellite campaign, like Ivanov et al. (2018) Figs 5-7 and 13-14, over runs.
-
-* Fig 5: stage-1 convergence of the initial centre-of-mass position and velocity errors, every run a line.
-* Fig 6: inertia — convergence of the ratio errors, and the final I1/I3, I2/I3 of every run against the
-  truth with the Cramér–Rao σ of eq. 7 as error bars (is the spread what the Fisher information says?).
-* Fig 7: reference points — RMS error in LVLH at the epoch (gauge-free) and in the body frame, per run,
-  against the paper's 3 cm.
-* Fig 13: stage-2 relative centre-of-mass position and velocity errors against time (every run, and the
-  RMS over runs).
-* Fig 14: stage-2 body-rate errors per axis and the attitude error against time.
-
-Everything is drawn from the campaign's tables (``scores``, ``stage1_history``, ``stage2``) in the report style
-(:mod:`renderlab.report.style`: titled figures, units on every axis, legends, integer run ticks, plain numbers on
-log axes, PNG; SVG with ``renderlab report --svg``). Body-frame quantities are drawn with the principal axes relabelled to the truth's (the
-``*_aligned`` columns) when the tables have them; the raw ones only where they differ.
-"""
+"""Figures and score summary of an unknown-satellite campaign, like Ivanov et al. (2018) Figs 5-7 (stage-1
+convergence, inertia ratios with their Cramér–Rao σ, reference points) and 13-14 (stage-2 errors against time),
+over runs, from the campaign's tables alone in the report style (:mod:`renderlab.report.style`). Body-frame
+quantities are drawn with the principal axes relabelled to the truth's (the ``*_aligned`` columns)."""
 
 from __future__ import annotations
 
@@ -71,7 +59,8 @@ PAIRS = [("point_err_rms_m", "point_err_rms_aligned_m"), ("stage2_att_rms_deg", 
 FIGURES = ("fig5_convergence", "fig6_inertia", "fig7_points", "fig13_stage2_position", "fig14_stage2_attitude")
 
 
-def _np(t, name, dtype=float):
+def column(t, name, dtype=float) -> np.ndarray:
+    """Column ``name`` of a pyarrow table as a numpy array of ``dtype``."""
     return np.asarray(t.column(name).to_numpy(zero_copy_only=False), dtype)
 
 
@@ -82,7 +71,7 @@ def score_summary(scores) -> list[dict]:
     for col, (sid, label, scale, unit, _) in SCORES.items():
         if col not in scores.column_names:
             continue
-        v = _np(scores, col) * scale
+        v = column(scores, col) * scale
         v = v[np.isfinite(v)]
         if not len(v):
             continue
@@ -98,15 +87,8 @@ def score_summary(scores) -> list[dict]:
 
 
 def run_flags(scores) -> dict[str, np.ndarray]:
-    """Flag name → bool per run, from the ``flag_<name>`` columns or, in tables published before them, from the
-    comma-separated ``flag_names`` column."""
-    names = scores.column_names
-    if any(f"flag_{n}" in names for n in RUN_FLAGS):
-        return {n: _np(scores, f"flag_{n}", bool) for n in RUN_FLAGS if f"flag_{n}" in names}
-    if "flag_names" not in names:
-        return {}
-    sets = [set(str(v).split(",")) for v in scores.column("flag_names").to_pylist()]
-    return {n: np.array([n in s for s in sets]) for n in RUN_FLAGS}
+    """Flag name → bool per run, from the ``flag_<name>`` columns."""
+    return {n: column(scores, f"flag_{n}", bool) for n in RUN_FLAGS if f"flag_{n}" in scores.column_names}
 
 
 def same_pairs(scores) -> set[str]:
@@ -114,16 +96,16 @@ def same_pairs(scores) -> set[str]:
     out = set()
     for raw, al in PAIRS:
         if raw in scores.column_names and al in scores.column_names:
-            if np.allclose(_np(scores, raw), _np(scores, al), rtol=1e-12, atol=0, equal_nan=True):
+            if np.allclose(column(scores, raw), column(scores, al), rtol=1e-12, atol=0, equal_nan=True):
                 out.add(raw)
     return out
 
 
 def _by_run(t, cols):
-    runs = _np(t, "run", np.int64)
+    runs = column(t, "run", np.int64)
     for r in np.unique(runs):
         sel = runs == r
-        yield r, {c: _np(t, c)[sel] for c in cols}
+        yield r, {c: column(t, c)[sel] for c in cols}
 
 
 def _runs_line(ax, n: int, color=style.OKABE_ITO[0]) -> None:
@@ -169,11 +151,11 @@ def fig6_inertia(hist, scores, stem: Path) -> list[str]:
     ax[0].set(xlabel="accepted iterate (count)", ylabel="ratio error (dimensionless)",
               title="(a) convergence, principal axes as estimated")
     al = "ratio_I1_I3_aligned" in scores.column_names
-    e1 = _np(scores, "ratio_I1_I3_aligned" if al else "ratio_I1_I3_est")
-    e2 = _np(scores, "ratio_I2_I3_aligned" if al else "ratio_I2_I3_est")
-    s1, s2 = _np(scores, "ratio_sigma_1"), _np(scores, "ratio_sigma_2")
+    e1 = column(scores, "ratio_I1_I3_aligned" if al else "ratio_I1_I3_est")
+    e2 = column(scores, "ratio_I2_I3_aligned" if al else "ratio_I2_I3_est")
+    s1, s2 = column(scores, "ratio_sigma_1"), column(scores, "ratio_sigma_2")
     fb = run_flags(scores).get("inertia_boundary", np.zeros(scores.num_rows, bool))
-    t1, t2 = _np(scores, "ratio_I1_I3_true"), _np(scores, "ratio_I2_I3_true")
+    t1, t2 = column(scores, "ratio_I1_I3_true"), column(scores, "ratio_I2_I3_true")
     lo, hi = np.nanmin(np.r_[e1, e2, t1, t2]) - 0.2, np.nanmax(np.r_[e1, e2, t1, t2]) + 0.2
     lo = max(lo, 0)
     wide = ~((s1 <= 0.25 * (hi - lo)) & (s2 <= 0.25 * (hi - lo)))  # a bar across the panel says nothing: not drawn
@@ -211,7 +193,7 @@ def fig7_points(hist, scores, stem: Path) -> list[str]:
     _runs_line(ax[0], n)
     integer_ticks(ax[0])
     ax[0].set(xlabel="accepted iterate (count)", ylabel="RMS point error, body frame (cm)", title="(a) convergence")
-    runs = _np(scores, "run", np.int64)
+    runs = column(scores, "run", np.int64)
     series = [("point_lvlh_err_rms_m", "o", "LVLH at the epoch (gauge-free)")]
     if "point_err_rms_aligned_m" in scores.column_names:
         series.append(("point_err_rms_aligned_m", "^", "body frame, axes relabelled to truth"))
@@ -219,7 +201,7 @@ def fig7_points(hist, scores, stem: Path) -> list[str]:
         series.append(("point_err_rms_m", "s", "body frame, principal axes as estimated"))
     allv = []
     for k, (col, mk, lab) in enumerate(series):
-        v = 100 * _np(scores, col)
+        v = 100 * column(scores, col)
         ax[1].plot(runs, v, mk, color=style.OKABE_ITO[k], mfc="none" if k else None, label=lab)
         allv.append(v)
     ax[1].axhline(3.0, color="k", ls="--", lw=0.8, label="paper: 3 cm")
@@ -235,7 +217,7 @@ def fig7_points(hist, scores, stem: Path) -> list[str]:
 
 
 def _rms_over_runs(t, col):
-    ts, v = _np(t, "t_s"), _np(t, col)
+    ts, v = column(t, "t_s"), column(t, col)
     u = np.unique(ts)
     return u, np.array([np.sqrt(np.nanmean(v[ts == x] ** 2)) for x in u])
 
@@ -243,13 +225,13 @@ def _rms_over_runs(t, col):
 def fig13_position(s2, stem: Path) -> list[str]:
     plt = style.plt()
     fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
-    n = len(np.unique(_np(s2, "run", np.int64)))
+    n = len(np.unique(column(s2, "run", np.int64)))
     for k, (q, u) in enumerate((("r", "m"), ("v", "mps"))):
         cols = [f"err_{q}{a}_{u}" for a in "xyz"]
         for _, d in _by_run(s2, ["t_s"] + cols):
             ax[k].plot(d["t_s"], 100 * np.linalg.norm([d[c] for c in cols], axis=0), color=style.OKABE_ITO[0],
                        lw=0.5, alpha=0.4)
-        t = np.unique(_np(s2, "t_s"))
+        t = np.unique(column(s2, "t_s"))
         ax[k].plot(t, 100 * np.sqrt(sum(_rms_over_runs(s2, c)[1] ** 2 for c in cols)), "k", lw=1.5,
                    label="RMS over runs")
         _runs_line(ax[k], n)
@@ -278,7 +260,7 @@ def fig14_attitude(s2, stem: Path) -> list[str]:
         ax[1].plot(d["t_s"], d[att], color=style.OKABE_ITO[0], lw=0.5, alpha=0.5)
         n += 1
     _runs_line(ax[1], n)
-    plain_log(ax[1], _np(s2, att))
+    plain_log(ax[1], column(s2, att))
     ax[1].set(xlabel="time (s)", ylabel="attitude error (deg)",
               title="(b) principal-axes attitude" + (", axes relabelled" if att != "err_att_deg" else ""))
     for a in ax:

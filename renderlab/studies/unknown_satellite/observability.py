@@ -1,21 +1,7 @@
-r"""How well do the images see the inertia ratios? Fisher information (Ivanov et al. eq. 7) vs arc length.
-
-For a scenario's true motion (CW, eq. 1; Euler + gravity gradient, eq. 2) and true reference points
-(the knob centres), the stage-1 measurement model (eqs. 3-4) is linearised at the *truth*:
-
-    F = Jᵀ J,   J = ∂(z − ẑ(θ))/σ / ∂θ   (whitened, analytic: estimators.pose.stage1),
-    cov θ ≥ F⁻¹ (Cramér–Rao),  σ(I1/I3) = (I1/I3) · σ(ln I1/I3).
-
-The database is synthetic but geometric, not idealised away: a knob is measured in a frame when it
-projects inside the image, in front of the camera, with its line of sight not blocked by the bus or a
-panel and itself not in their shadow (segment–box tests in the body frame; the thin antenna rods are
-ignored). ``tracks="segments"`` gives every contiguous visible run of ≥ ``min_track_frames`` frames its
-own point parameter, as ε-tracking does (a knob that disappears and reappears is a new track);
-``tracks="ideal"`` identifies each knob across gaps (the best case). The range prior of stage 1 is
-included (σ = ``range_prior_sigma_m``). Measurement noise is white with σ = ``sigma_px``: systematic
-centroid errors (the sunlit-crescent photocentre, ≈0.7 px on the 640×480 scene) are *not* in F, so these
-σ are lower bounds on what a real database achieves.
-"""
+"""How well do the images see the inertia ratios? Cramér–Rao σ from the Fisher information F = JᵀJ of the stage-1
+model (Ivanov et al. eqs. 3-4, 7), linearised at the truth of a scenario, on a synthetic but geometric database of
+the knobs that are in the image, unoccluded and lit; against arc length. Derivation and what the σ leave out
+(systematic centroid errors: they are lower bounds): docs/unknown_satellite.md."""
 
 from __future__ import annotations
 

@@ -1,15 +1,6 @@
-"""Report blocks of the ``inertia_observability`` table (:mod:`renderlab.studies.unknown_satellite.observability`):
-the Cramér–Rao σ of the inertia ratios against arc length (eq. 7 of D. Ivanov et al., "Relative Pose and Inertia
-Determination of Unknown Satellite Using Monocular Vision", International Journal of Aerospace Engineering, 2018,
-Article ID 9731512: F = JᵀJ of the stage-1 model, eqs. 3-4, at the truth), as a figure and a table, and
-``unknown_satellite_inertia_observability.csv``.
-
-A published study folder carries the table in ``tables/inertia_observability.parquet``, written by::
-
-    python -m renderlab.studies.unknown_satellite.observability SCENARIO --out FOLDER/tables/inertia_observability.parquet
-
-The report draws it from that table alone (no Jacobian is recomputed).
-"""
+"""Report blocks of the ``inertia_observability`` table (:mod:`.observability`; Ivanov et al. 2018, eq. 7,
+doi:10.1155/2018/9731512): the Cramér–Rao σ of the inertia ratios against arc length as a figure, a table and
+``unknown_satellite_inertia_observability.csv``, from the table alone (how it is written: docs/unknown_satellite.md)."""
 
 from __future__ import annotations
 

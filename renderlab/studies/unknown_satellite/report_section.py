@@ -1,16 +1,7 @@
-"""The unknown-satellite section of ``renderlab report``: score tables (gauge-free, body frame, stage-1
-diagnostics), run flags as a rate with "k of N runs", Figs 5-7 and 13-14
-(:mod:`renderlab.studies.unknown_satellite.figures`), and where the folder has the ``inertia_observability`` table
-its Fisher-information figure and table (:mod:`renderlab.studies.unknown_satellite.observability_report`).
-
-The study reports its per-frame ``stage2`` table itself (``own_tables`` of its
-:class:`~renderlab.contracts.study.Study`), so the generic filter section does not stack every ``err_*`` column
-of it. Body-frame scores come raw and with the principal axes relabelled to the truth's (a discrete gauge,
-:func:`renderlab.studies.unknown_satellite.sequence.axis_relabelling`); a pair equal in every run is shown once,
-with the reason. A large stage-2 attitude error gets its explanation from the tables: it is the error of the
-estimated principal axes (it follows the stage-1 epoch attitude error), set by inertia ratios the arc does not
-make observable (their Cramér–Rao σ).
-"""
+"""The unknown-satellite section of ``renderlab report``: score tables, run flags as a rate with "k of N runs",
+Figs 5-7 and 13-14 (:mod:`.figures`), the Fisher-information blocks where the folder has the
+``inertia_observability`` table (:mod:`.observability_report`), and the explanation of a large stage-2 attitude
+error from the tables (docs/unknown_satellite.md)."""
 
 from __future__ import annotations
 
@@ -20,7 +11,7 @@ import numpy as np
 
 from renderlab.report.campaign_report import render_blocks, write_csv
 from renderlab.report.html_table import table as html_table
-from renderlab.studies.unknown_satellite.figures import SCORES, campaign_figures, same_pairs, score_summary
+from renderlab.studies.unknown_satellite.figures import SCORES, campaign_figures, column, same_pairs, score_summary
 from renderlab.studies.unknown_satellite.observability_report import observability_blocks
 
 __all__ = ["study_section", "attitude_note"]
@@ -33,11 +24,6 @@ COLUMNS = [("label", "score"), ("unit", "unit"), ("median", "median"), ("p10", "
 LARGE_ATTITUDE_DEG = 5.0
 
 
-
-def _col(t, name, dtype=float):
-    return np.asarray(t.column(name).to_numpy(zero_copy_only=False), dtype)
-
-
 def attitude_note(scores) -> str:
     """A sentence on a large stage-2 attitude error (median over runs above :data:`LARGE_ATTITUDE_DEG`), from the
     scores: how closely it follows the stage-1 epoch attitude error, how many runs came out relabelled, and the
@@ -47,7 +33,7 @@ def attitude_note(scores) -> str:
     col = "stage2_att_rms_aligned_deg" if al else "stage2_att_rms_deg"
     if col not in names:
         return ""
-    att = _col(scores, col)
+    att = column(scores, col)
     med = float(np.nanmedian(att))
     if not med > LARGE_ATTITUDE_DEG:
         return ""
@@ -58,14 +44,14 @@ def attitude_note(scores) -> str:
     att0 = "att0_err_aligned_deg" if al else "att0_err_deg"
     if att0 in names:
         text += (f", and the stage-2 error follows the stage-1 epoch attitude error (median difference "
-                 f"{float(np.nanmedian(np.abs(att - _col(scores, att0)))):.1f}°)")
+                 f"{float(np.nanmedian(np.abs(att - column(scores, att0)))):.1f}°)")
     text += ". "
     if "axes_relabelled" in names:
-        k = int(np.sum(_col(scores, "axes_relabelled", bool)))
+        k = int(np.sum(column(scores, "axes_relabelled", bool)))
         text += (f"Which principal axis is called 1, 2 or 3 (and its sign) is a discrete gauge: {k} of {n} runs came "
                  "out relabelled, and the scores “axes relabelled to truth” undo that. ")
     if {"ratio_sigma_1", "ratio_sigma_2"} <= set(names):
-        s1, s2 = (float(np.nanmedian(_col(scores, c))) for c in ("ratio_sigma_1", "ratio_sigma_2"))
+        s1, s2 = (float(np.nanmedian(column(scores, c))) for c in ("ratio_sigma_1", "ratio_sigma_2"))
         if max(s1, s2) > 0.1:
             text += ("What remains is the orientation of the principal axes in the body, which the inertia ratios fix, "
                      f"and they are not observable on this arc (Cramér–Rao σ of I1/I3 and I2/I3: median {s1:.2f} and "

@@ -1,25 +1,7 @@
-r"""Campaign study ``unknown_satellite``: the two-stage method of Ivanov et al. (2018) over noise and seeds.
-
-One run = one rendered separation (Clohessy-Wiltshire, eq. 1; Euler + gravity gradient, eq. 2), analysed by
-stage 1 (eqs. 5-7: database, batch least squares, Fisher-information rank) and stage 2 (eqs. 8-10:
-per-frame pose + constant-gain Kalman filter). What a run draws, each from its own child of the run's
-``SeedSequence`` (so switching one dispersion on or off never changes the others):
-
-* sensor noise — the DN images are re-exposed from the cached radiance with the run's own Poisson + read
-  noise (:func:`renderlab.sensor.model.expose`, the scenario's ``[sensor]`` and the recorded exposure);
-* stage-1 initial values — r0, v0 (``perturbations.apriori_position_sigma_m``, ``apriori_velocity_sigma_mps``,
-  per LVLH axis), the initial attitude (``apriori_attitude_sigma_deg``), ω0 and the inertia ratios
-  (``[unknown_satellite]`` ``apriori_omega_sigma_deg_s``, ``apriori_ratio_sigma_frac``) and the range prior;
-* optionally the truth — ‖ω0‖ (``tumble_rate_sigma_frac``), q0 (``initial_attitude_sigma_deg``), r0, v0
-  (``perturbations.position_sigma_m``, ``velocity_sigma_mps``). Runs with the same truth share one render
-  through :mod:`renderlab.campaign.cache` (key: the truth scenario, without the campaign-only sections).
-
-Tables: ``scores`` (one row per run: reference-point RMS in LVLH and in the body frame, stage-2 velocity
-RMS, ω errors, inertia-ratio errors and their CRLB σ, FIM rank, rigidity rejections, ``flags``),
-``stage2`` (per frame: ``run, t_s, err_*`` — a filter table), ``points`` and ``stage1_history`` (the
-convergence of Figs 5-7), ``perturbations`` (the run's draws). The report adds a section for them
-(:func:`report_sections`).
-"""
+"""Campaign study ``unknown_satellite``: one run = one rendered separation through stage 1 and stage 2 of Ivanov et
+al. (2018), with the run's own sensor noise, stage-1 initial values and (optionally) truth, each from its own child
+of the run's ``SeedSequence``; tables ``scores``, ``stage2``, ``points``, ``stage1_history``, ``perturbations``
+(what each draw and table is: docs/unknown_satellite.md)."""
 
 from __future__ import annotations
 

@@ -1,25 +1,11 @@
-"""The unknown-satellite study, one sequence: scenario → truth set → stage 1 → stage 2 → scores.
-
-Ivanov et al. (2018) score: reference-point error (paper: 3 cm), velocity RMS (≈1 cm/s), angular
-velocity (4.24 °/s estimated vs 4.5 °/s gyro), inertia error (≈0.3 kg·m²; here the observable
-*ratios* I1/I3, I2/I3). :func:`run_sequence` renders and analyses; :func:`analyse_truthset` analyses an
-existing truth set — a campaign calls either with its own seed per run.
-
-Stage-1 a-priori: like the paper ("as initial values of the estimated vector were chosen ..."), the
-dynamics start from a guess — here the truth perturbed by seeded Gaussian errors of stated size
-(:class:`PriorOptions`), standing for the separation conditions — and the points from back-projection
-of their first measurement. The monocular scale, which images alone do not fix, is the one of that
-a-priori: a prior on the initial range with ``range_sigma_m`` (see estimators.pose.stage1 for what the
-paper does). Besides the principal-axes (body-frame) scores, gauge-free ones are reported: points and
-ω in LVLH at the epoch, and the trace-normalised inertia tensor in LVLH — they do not depend on how the
-weakly observable principal axes are labelled or oriented.
-"""
+"""The unknown-satellite study, one sequence: truth set → stage 1 → stage 2 → scores against the truth
+(:func:`analyse_truthset`; a campaign run calls it with its own seed). The a-priori guess, the monocular scale and
+the gauge-free scores: docs/unknown_satellite.md."""
 
 from __future__ import annotations
 
 from collections import namedtuple
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,7 +30,6 @@ from estimators.pose.stage2 import FLAG_NAMES
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
-from renderlab.pipeline import render_truthset
 
 
 @dataclass(frozen=True)
@@ -66,7 +51,6 @@ class StudyOptions:
     epsilon_px: float = 12.0
     min_track_frames: int = 5
     max_nfev: int = 300
-    stage1_frames: int | None = None     # frames for stage 1 (default: all)
     match_px: float = 3.0                # track ↔ truth feature association for scoring
 
 
@@ -329,8 +313,7 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     det = [detect_points(ts.load(i).dn, DetectOptions()) for i in tqdm(range(len(ts)), desc="detect",
                                                                          disable=not progress)]
     topts = TrackOptions(opts.epsilon_px, opts.min_track_frames)
-    n1 = len(ts) if opts.stage1_frames is None else min(opts.stage1_frames, len(ts))
-    tracks = track_points(det[:n1], topts)
+    tracks = track_points(det, topts)
     db_all = build_database(tracks, topts)
     t = _truth(ts.frames)   # the seeded a-priori guess starts from the truth at the first frame
     s1, problem, rigid = _solve_stage1(sq, db_all, _apriori(t, sq.d, opts.prior, rng), opts, ts_path)
@@ -370,31 +353,3 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
              + ["images only: " + s for s in obs_noprior.lines()])
     return SequenceResult(tables, summary, lines, s1, s2, problem, gf)
 
-
-def run_sequence(scenario, base_dir, out_dir, seed: int = 0, opts: StudyOptions = StudyOptions(),
-                 progress: bool = False, overwrite: bool = True, render: bool = True) -> SequenceResult:
-    """Render ``scenario`` into ``out_dir/truthset`` (render seed ``seed``), analyse it with estimator seed
-    ``seed`` and write ``points/stage1_history/stage2.parquet`` and ``summary.json`` into ``out_dir``.
-    ``render=False`` re-analyses the truth set already in ``out_dir/truthset``."""
-    import json
-
-    import pyarrow.parquet as pq
-
-
-    if scenario.world.kind != "microsat":
-        raise UserError(f"the unknown-satellite study needs world.kind 'microsat', got '{scenario.world.kind}'")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    if render:
-        ts = render_truthset(scenario, base_dir, out / "truthset", seed=seed, progress=progress, overwrite=overwrite)
-    elif not (out / "truthset").is_dir():
-        raise UserError(f"no truth set to re-analyse at {out / 'truthset'} (render it first)")
-    else:
-        ts = out / "truthset"
-    ss = np.random.SeedSequence([seed, 9])
-    res = analyse_truthset(ts, np.random.default_rng(ss), opts, progress=progress, run=seed)
-    for name, table in res.tables.items():
-        pq.write_table(table, str(out / f"{name}.parquet"))
-    (out / "summary.json").write_text(json.dumps({"summary": res.summary, "observability": res.observability,
-                                                  "options": asdict(opts)}, indent=1))
-    return res
