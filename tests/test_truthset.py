@@ -317,3 +317,46 @@ def test_exr_compression_choice_is_lossless(tmp_path, name, code):
         assert np.array_equal(back[k], ch[k], equal_nan=True), k
     with pytest.raises(ValueError, match="compression"):
         write_exr(tmp_path / "bad.exr", ch, compression="lzma")
+
+
+def _zip_chunk_flevels(data: bytes) -> set[int]:
+    """FLEVEL bits (RFC 1950: 0 = fastest ... 3 = slowest) of the zlib header of every chunk of a single-part scanline
+    ZIP EXR, parsed here from the file layout (header attributes, offset table, chunks of 16 scanlines)."""
+    import struct
+
+    assert data[:4] == b"\x76\x2f\x31\x01"
+    i, attrs = 8, {}
+    while data[i] != 0:
+        j = data.index(b"\0", i)
+        k = data.index(b"\0", j + 1)
+        (n,) = struct.unpack("<i", data[k + 1:k + 5])
+        attrs[data[i:j].decode()] = data[k + 5:k + 5 + n]
+        i = k + 5 + n
+    assert attrs["compression"][0] == 3  # ZIP_COMPRESSION
+    _, y0, _, y1 = struct.unpack("<4i", attrs["dataWindow"])
+    count = -(-(y1 - y0 + 1) // 16)
+    offsets = struct.unpack(f"<{count}Q", data[i + 1:i + 1 + 8 * count])
+    flevels = set()
+    for o in offsets:
+        _, size = struct.unpack("<ii", data[o:o + 8])
+        cmf, flg = data[o + 8], data[o + 9]
+        assert cmf & 0x0F == 8 and (cmf * 256 + flg) % 31 == 0, "chunk is not a zlib stream"
+        flevels.add(flg >> 6)
+    return flevels
+
+
+@pytest.mark.parametrize("level,flevel", [(None, 0), (4, 1)])
+def test_exr_zip_level_is_applied_and_lossless(tmp_path, monkeypatch, level, flevel):
+    """ZIP EXRs are deflated at imageio.EXR_ZIP_LEVEL (1: zlib header FLEVEL 0, "fastest"; OpenEXR's own default 4
+    gives FLEVEL 1), read off each chunk's zlib header, and read back bit for bit with OpenEXR's own reader."""
+    from renderlab.files import imageio
+
+    if level is not None:
+        monkeypatch.setattr(imageio, "EXR_ZIP_LEVEL", level)
+    yy, xx = np.mgrid[0:40, 0:64]
+    ch = {"Y": (0.25 * xx + yy).astype(np.float32), "id": (xx // 8).astype(np.uint32)}  # compressible
+    write_exr(tmp_path / "z.exr", ch)
+    assert _zip_chunk_flevels((tmp_path / "z.exr").read_bytes()) == {flevel}
+    with OpenEXR.File(str(tmp_path / "z.exr"), separate_channels=True) as f:
+        back = {k: np.asarray(c.pixels) for k, c in f.channels().items()}
+    assert all(np.array_equal(back[k], ch[k]) and back[k].dtype == ch[k].dtype for k in ch)

@@ -1,14 +1,16 @@
 """Image files of truth sets: multi-channel EXR (OpenEXR package), 16-bit DN PNG and its 8-bit preview.
 
-EXR: single part, scanline, lossless ZIP; float32 channels, except uint32 arrays, which are written as
-UINT channels (the body-id channel). The header holds no time stamps, so the same data give bit-identical
+EXR: single part, scanline, lossless ZIP at zlib level :data:`EXR_ZIP_LEVEL`; float32 channels, except uint32
+arrays, which are written as UINT channels (the body-id channel). The header holds no time stamps, so the same data give bit-identical
 bytes; :func:`frame_exr_header` builds the per-frame camera/pose/units attributes. PNG: 16-bit grey holding
 the N-bit DN values exactly, with an ``sBIT`` chunk saying N, plus an 8-bit preview scaled so that full
-scale (2^N - 1) is 255. A missing, truncated or corrupt file raises :class:`UserError` naming it.
+scale (2^N - 1) is 255; both deflated with zlib's run-length strategy (:data:`PNG_PARAMS`). A missing, truncated or corrupt file raises :class:`UserError` naming it.
 """
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import json
 import os
 import struct
@@ -54,6 +56,36 @@ def _header_value(key, value):
     raise ValueError(f"write_exr: header attribute {key!r}={value!r} not allowed")
 
 
+#: zlib level of the EXR ZIP compression (OpenEXR's default is 4). Level 1, on real 1 MP EV5 frames (ten channels):
+#: 0.32-0.37 s of CPU per file instead of 0.51 s, 23.27 MB instead of 22.18 MB (+5 %); still lossless
+#: (``benchmarks/README.md``, ``bench_frame_api.py --file-settings``).
+EXR_ZIP_LEVEL = 1
+#: OpenCV's PNG options for the DN PNG and its preview: zlib's run-length strategy (Z_RLE) at level 1. On real 1 MP EV5
+#: frames: 0.10 s and 0.90-0.97 MB per 16-bit DN PNG instead of 0.19-0.23 s and 0.92-0.96 MB with the default
+#: strategy at level 3; the 8-bit preview 0.05-0.07 s and 0.37-0.45 MB instead of 0.11-0.12 s and 0.44-0.52 MB.
+PNG_PARAMS = (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE)
+
+
+@functools.cache
+def _zip_level_setter():
+    """OpenEXR's C++ ``Imf::setDefaultZipCompressionLevel(int)`` from the OpenEXR module's own library, or None where
+    it is not exported (the file is then written at the library's default level: lossless all the same).
+
+    The Python binding has no way to pass the level: a ``zipCompressionLevel`` key of the header dict is written as a
+    plain int attribute and the level stays 4. The setting is global to that library: every ZIP file written through
+    the ``OpenEXR`` module afterwards in this process uses it.
+    """
+    major, minor = str(OpenEXR.OPENEXR_VERSION).split(".")[:2]
+    ns, fn_name = f"Imf_{major}_{minor}", "setDefaultZipCompressionLevel"  # Itanium C++ name of Imf::<fn_name>(int)
+    name = f"_ZN{len(ns)}{ns}{len(fn_name)}{fn_name}Ei"
+    try:
+        fn = getattr(ctypes.CDLL(OpenEXR.__file__), name)
+    except (OSError, AttributeError):
+        return None
+    fn.argtypes, fn.restype = [ctypes.c_int], None
+    return fn
+
+
 #: ``render.exr_compression`` → OpenEXR compression (all lossless): ``zip`` (default, smallest), ``rle`` (fast,
 #: larger files: in-the-loop and scratch sets), ``none`` (fastest write, largest files)
 EXR_COMPRESSIONS = ("zip", "rle", "none")
@@ -77,7 +109,8 @@ def write_exr(path, channels: dict, header_extra: dict | None = None, compressio
         float64 numpy array of shape (2,), (3,), (3, 3) or (4, 4) (V2f/V2d, V3f/V3d, M33f/M33d,
         M44f/M44d).
     compression : str
-        ``"zip"`` (default), ``"rle"`` or ``"none"``: lossless, so every pixel reads back bit for bit.
+        ``"zip"`` (default; zlib level :data:`EXR_ZIP_LEVEL`), ``"rle"`` or ``"none"``: lossless, so every pixel
+        reads back bit for bit.
     """
     if compression not in EXR_COMPRESSIONS:
         raise ValueError(f"write_exr: compression must be one of {EXR_COMPRESSIONS}, got {compression!r}")
@@ -98,6 +131,9 @@ def write_exr(path, channels: dict, header_extra: dict | None = None, compressio
     header = {"compression": codes[compression], "type": OpenEXR.scanlineimage}
     for key, value in (header_extra or {}).items():
         header[str(key)] = _header_value(key, value)
+    setter = _zip_level_setter() if compression == "zip" else None
+    if setter is not None:
+        setter(EXR_ZIP_LEVEL)  # read by the C++ header that write() builds
     try:
         with OpenEXR.File(header, data) as exr:
             exr.write(str(path))
@@ -230,7 +266,7 @@ def frame_exr_header(index: int, time_s: float, meta: dict, channels, *,
 
 # ----------------------------------------------------------------------------------------- PNG
 def _encode_png(a: np.ndarray, path) -> bytes:
-    ok, buf = cv2.imencode(".png", a, [cv2.IMWRITE_PNG_COMPRESSION, 3])
+    ok, buf = cv2.imencode(".png", a, list(PNG_PARAMS))
     if not ok:
         raise UserError(f"cannot encode PNG {path}")
     return buf.tobytes()
