@@ -97,6 +97,35 @@ def test_report_has_the_study_section(campaign, tmp_path):
     assert " of 2</td>" in page                             # run flags as "k of N"
 
 
+
+def test_published_folder_reports_the_same_from_its_reduced_tables(campaign, tmp_path):
+    """``renderlab publish`` ships the study's ``publish_tables`` (the columns the report reads; ``points`` and
+    ``perturbations`` left out, recorded in raw_tables.json): the report of the published folder gives the same CSV,
+    page numbers and figures as the report of the full campaign tables."""
+    import json
+    import re
+
+    import pyarrow.parquet as pq
+
+    from renderlab.campaign.publish import publish_campaign
+    from renderlab.report.campaign_report import make_report
+
+    out, _, tables = campaign
+    pub = publish_campaign(out, tmp_path / "pub")
+    make_report(out, tmp_path / "raw")
+    make_report(pub, tmp_path / "reduced")
+    assert sorted(p.stem for p in (pub / "tables").glob("*.parquet")) == ["scores", "stage1_history", "stage2"]
+    raw = json.loads((pub / "tables" / "raw_tables.json").read_text())["tables"]
+    assert set(raw) == {"points", "perturbations", "stage1_history", "stage2"}
+    assert raw["stage1_history"]["columns"] == tables["stage1_history"].column_names
+    assert pq.read_table(pub / "tables" / "stage2.parquet").num_columns < tables["stage2"].num_columns
+    for f in sorted((tmp_path / "raw").iterdir()):
+        if f.suffix in (".csv", ".png"):
+            assert (tmp_path / "reduced" / f.name).read_bytes() == f.read_bytes(), f.name
+    numbers = [re.findall(r"\d+\.\d+", re.sub(r"<[^>]+>", " ", (tmp_path / d / "index.html").read_text()))
+               for d in ("raw", "reduced")]
+    assert numbers[0] == numbers[1] and len(numbers[0]) > 50
+
 def test_truth_dispersions_are_applied_exactly(repo):
     from scipy.spatial.transform import Rotation
 

@@ -9,4 +9,5 @@ STUDY = Study(name="unknown_satellite", run=lazy("renderlab.studies.unknown_sate
               description="pose and inertia of an unknown tumbling microsatellite (Ivanov et al.)",
               report_sections=lazy("renderlab.studies.unknown_satellite.run:report_sections"),
               own_tables=("stage2", "inertia_observability"),
+              publish_tables=lazy("renderlab.studies.unknown_satellite.figures:publish_tables"),
               demo=lazy("renderlab.studies.unknown_satellite.demo:run_demo_unknown_satellite"))

@@ -59,6 +59,25 @@ PAIRS = [("point_err_rms_m", "point_err_rms_aligned_m"), ("stage2_att_rms_deg", 
 FIGURES = ("fig5_convergence", "fig6_inertia", "fig7_points", "fig13_stage2_position", "fig14_stage2_attitude")
 
 
+#: the columns of the per-iterate and per-frame tables that the figures read (and the filter-table core of ``stage2``)
+PUBLISHED_COLUMNS = {
+    "stage1_history": ("campaign", "run", "iteration", *(f"err_r0_{a}_m" for a in "xyz"),
+                       *(f"err_v0_{a}_mps" for a in "xyz"), "err_ratio12", "err_ratio23", "err_points_rms_m"),
+    "stage2": ("campaign", "run", "t_s", "has_result", "reason", *(f"err_{q}{a}_{u}" for q, u in (("r", "m"),
+               ("v", "mps")) for a in "xyz"), *(f"err_w{a}_aligned_deg_s" for a in "xyz"), "err_att_aligned_deg"),
+}
+
+
+def publish_tables(tables: dict) -> dict:
+    """What a published folder ships (:attr:`renderlab.contracts.study.Study.publish_tables`): ``scores`` and
+    ``inertia_observability`` whole, ``stage1_history`` and ``stage2`` with the columns the report reads; ``points``
+    and ``perturbations``, which the report does not read, left out (recorded in ``raw_tables.json``)."""
+    from renderlab.campaign.compact import keep_columns
+
+    kept = {k: v for k, v in tables.items() if k not in ("points", "perturbations")}
+    return keep_columns(kept, PUBLISHED_COLUMNS)
+
+
 def column(t, name, dtype=float) -> np.ndarray:
     """Column ``name`` of a pyarrow table as a numpy array of ``dtype``."""
     return np.asarray(t.column(name).to_numpy(zero_copy_only=False), dtype)

@@ -189,15 +189,14 @@ def inertia_observability_table(scenario, arcs=DEFAULT_ARCS, *, sigma_px: float 
 
 def main(argv=None) -> int:
     """``python -m renderlab.studies.unknown_satellite.observability SCENARIO --out FILE.parquet [--set K=V]``: the
-    table of :func:`inertia_observability_table` (zstd Parquet, written atomically), e.g. into a published study
-    folder's ``tables/`` where its report draws it (:mod:`.observability_report`)."""
+    table of :func:`inertia_observability_table` (the lab's compact writer, written atomically), e.g. into a
+    published study folder's ``tables/`` where its report draws it (:mod:`.observability_report`)."""
     import argparse
     import os
     import sys
     from pathlib import Path
 
-    import pyarrow.parquet as pq
-
+    from renderlab.campaign.compact import write_compact
 
     ap = argparse.ArgumentParser(prog="python -m renderlab.studies.unknown_satellite.observability",
                                  description="Cramér–Rao σ of the inertia ratios against arc length (eq. 7)")
@@ -210,7 +209,7 @@ def main(argv=None) -> int:
         table = inertia_observability_table(sc, progress=True)
         out = Path(args.out)
         tmp = out.with_name(f".{out.name}.{os.getpid()}")
-        pq.write_table(table, str(tmp), compression="zstd", compression_level=9)
+        write_compact(table, tmp)
         os.replace(tmp, out)
     except UserError as exc:
         print(f"renderlab: error: {exc}", file=sys.stderr)
