@@ -5,6 +5,7 @@ page's verdicts agree with the targets applied to the table by this test itself.
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -37,7 +38,11 @@ def test_crosscheck_page_and_figure_regenerate_from_the_tables(folder, tmp_path,
     assert not (copy / "crosscheck.png").exists() and not (copy / "crosscheck.svg").exists(), "--tables-only"
     assert (folder / "crosscheck.png").stat().st_size > 50_000  # SVG only on demand (renderlab report --svg)
     assert sorted(p.name for p in folder.iterdir()) == ["crosscheck.md", "crosscheck.parquet", "crosscheck.png",
-                                                         "crosscheck_images.parquet"]
+                                                         "crosscheck_images.parquet", "raw_tables.json"]
+    # the images table ships what the report reads; the full one is recorded (renderlab.campaign.compact)
+    raw = json.loads((folder / "raw_tables.json").read_text())["tables"]["crosscheck_images"]
+    images = pq.read_table(folder / "crosscheck_images.parquet")
+    assert raw["rows"] == images.num_rows and set(images.column_names) == set(raw["columns"]) - {"time_s"}
     # the verdicts of the page are the targets applied to the committed table (independent of the page's code)
     t = pq.read_table(folder / "crosscheck.parquet").to_pydict()
     worst = {k: np.nanmax(np.array(t[k], float)) for k in TARGETS}
