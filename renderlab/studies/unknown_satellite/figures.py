@@ -13,50 +13,48 @@ from renderlab.report import style
 from renderlab.report.axes import integer_ticks, plain_log
 from renderlab.studies.unknown_satellite.config import RUN_FLAGS
 
+
+def _score_id(col: str, scale: float) -> str:
+    """The score id in the unit of the summary: a column in m (m/s) scaled by 100 is in cm (cm/s)."""
+    if scale != 100:
+        return col
+    return col[:-4] + "_cm_s" if col.endswith("_mps") else col[:-2] + "_cm"
+
+
 #: scores summarised across runs: column → (score id in the unit of the summary, label, scale, unit, group)
-SCORES = {
-    "point_lvlh_err_rms_m": ("point_lvlh_err_rms_cm", "reference points, RMS error in LVLH at the epoch", 100, "cm", "g"),
-    "point_lvlh_crlb_rms_m": ("point_lvlh_crlb_rms_cm", "reference points in LVLH, CRLB σ (RMS over points, eq. 7)",
-                              100, "cm", "g"),
-    "point_shape_err_rms_m": ("point_shape_err_rms_cm", "reference points, RMS error after the best rotation", 100, "cm",
-                              "g"),
-    "r0_err_m": ("r0_err_cm", "initial position error ‖r0‖", 100, "cm", "g"),
-    "v0_err_mps": ("v0_err_cm_s", "initial velocity error ‖v0‖", 100, "cm/s", "g"),
-    "v0_crlb_mps": ("v0_crlb_cm_s", "initial velocity CRLB σ (eq. 7)", 100, "cm/s", "g"),
-    "stage2_pos_rms_m": ("stage2_pos_rms_cm", "stage 2: position RMS", 100, "cm", "g"),
-    "stage2_vel_rms_mps": ("stage2_vel_rms_cm_s", "stage 2: velocity RMS", 100, "cm/s", "g"),
-    "w0_norm_est_deg_s": ("w0_norm_est_deg_s", "‖ω0‖ estimated", 1, "deg/s", "g"),
-    "w0_norm_err_deg_s": ("w0_norm_err_deg_s", "‖ω0‖ error", 1, "deg/s", "g"),
-    "w0_norm_crlb_deg_s": ("w0_norm_crlb_deg_s", "‖ω0‖ CRLB σ (eq. 7)", 1, "deg/s", "g"),
-    "w0_lvlh_err_deg_s": ("w0_lvlh_err_deg_s", "ω0 error in LVLH (vector)", 1, "deg/s", "g"),
-    "err_moments_sorted_max": ("err_moments_sorted_max", "trace-normalised principal moments, max error "
-                               "(axis labels free)", 1, "—", "g"),
-    "inertia_tensor_lvlh_err_max": ("inertia_tensor_lvlh_err_max", "trace-normalised inertia tensor in LVLH, "
-                                    "max error", 1, "—", "g"),
-    "point_err_rms_m": ("point_err_rms_cm", "reference points, RMS error in the body frame", 100, "cm", "b"),
-    "point_err_rms_aligned_m": ("point_err_rms_aligned_cm", "reference points, RMS error in the body frame, axes "
-                                "relabelled to truth", 100, "cm", "b"),
-    "stage2_att_rms_deg": ("stage2_att_rms_deg", "stage 2: attitude RMS error (principal axes)", 1, "deg", "b"),
-    "stage2_att_rms_aligned_deg": ("stage2_att_rms_aligned_deg", "stage 2: attitude RMS error, axes relabelled to "
-                                   "truth", 1, "deg", "b"),
-    **{f"stage2_w{a}_rms_deg_s": (f"stage2_w{a}_rms_deg_s", f"stage 2: ω{a} RMS error", 1, "deg/s", "b") for a in "xyz"},
-    **{f"stage2_w{a}_rms_aligned_deg_s": (f"stage2_w{a}_rms_aligned_deg_s", f"stage 2: ω{a} RMS error, axes relabelled",
-                                          1, "deg/s", "b") for a in "xyz"},
-    "err_ratio_12": ("err_ratio_12", "I1/I3 error", 1, "—", "b"),
-    "err_ratio_12_aligned": ("err_ratio_12_aligned", "I1/I3 error, axes relabelled to truth", 1, "—", "b"),
-    "err_ratio_23": ("err_ratio_23", "I2/I3 error", 1, "—", "b"),
-    "err_ratio_23_aligned": ("err_ratio_23_aligned", "I2/I3 error, axes relabelled to truth", 1, "—", "b"),
-    "ratio_sigma_1": ("ratio_sigma_1", "I1/I3 CRLB σ (eq. 7)", 1, "—", "b"),
-    "ratio_sigma_2": ("ratio_sigma_2", "I2/I3 CRLB σ (eq. 7)", 1, "—", "b"),
-    "stage1_rms_px": ("stage1_rms_px", "stage 1: residual RMS", 1, "px", "d"),
-    "database_points": ("database_points", "database points", 1, "points", "d"),
-    "rigidity_rejected": ("rigidity_rejected", "tracks rejected by the rigidity test", 1, "tracks", "d"),
-}
+SCORES = {c: (_score_id(c, k), label, k, unit, g) for c, label, k, unit, g in [
+    ("point_lvlh_err_rms_m", "reference points, RMS error in LVLH at the epoch", 100, "cm", "g"),
+    ("point_lvlh_crlb_rms_m", "reference points in LVLH, CRLB σ (RMS over points, eq. 7)", 100, "cm", "g"),
+    ("point_shape_err_rms_m", "reference points, RMS error after the best rotation", 100, "cm", "g"),
+    ("r0_err_m", "initial position error ‖r0‖", 100, "cm", "g"),
+    ("v0_err_mps", "initial velocity error ‖v0‖", 100, "cm/s", "g"),
+    ("v0_crlb_mps", "initial velocity CRLB σ (eq. 7)", 100, "cm/s", "g"),
+    ("stage2_pos_rms_m", "stage 2: position RMS", 100, "cm", "g"),
+    ("stage2_vel_rms_mps", "stage 2: velocity RMS", 100, "cm/s", "g"),
+    ("w0_norm_est_deg_s", "‖ω0‖ estimated", 1, "deg/s", "g"),
+    ("w0_norm_err_deg_s", "‖ω0‖ error", 1, "deg/s", "g"),
+    ("w0_norm_crlb_deg_s", "‖ω0‖ CRLB σ (eq. 7)", 1, "deg/s", "g"),
+    ("w0_lvlh_err_deg_s", "ω0 error in LVLH (vector)", 1, "deg/s", "g"),
+    ("err_moments_sorted_max", "trace-normalised principal moments, max error (axis labels free)", 1, "—", "g"),
+    ("inertia_tensor_lvlh_err_max", "trace-normalised inertia tensor in LVLH, max error", 1, "—", "g"),
+    ("point_err_rms_m", "reference points, RMS error in the body frame", 100, "cm", "b"),
+    ("point_err_rms_aligned_m", "reference points, RMS error in the body frame, axes relabelled to truth", 100, "cm",
+     "b"),
+    ("stage2_att_rms_deg", "stage 2: attitude RMS error (principal axes)", 1, "deg", "b"),
+    ("stage2_att_rms_aligned_deg", "stage 2: attitude RMS error, axes relabelled to truth", 1, "deg", "b"),
+    *((f"stage2_w{a}_rms_deg_s", f"stage 2: ω{a} RMS error", 1, "deg/s", "b") for a in "xyz"),
+    *((f"stage2_w{a}_rms_aligned_deg_s", f"stage 2: ω{a} RMS error, axes relabelled", 1, "deg/s", "b") for a in "xyz"),
+    ("err_ratio_12", "I1/I3 error", 1, "—", "b"),
+    ("err_ratio_12_aligned", "I1/I3 error, axes relabelled to truth", 1, "—", "b"),
+    ("err_ratio_23", "I2/I3 error", 1, "—", "b"),
+    ("err_ratio_23_aligned", "I2/I3 error, axes relabelled to truth", 1, "—", "b"),
+    ("ratio_sigma_1", "I1/I3 CRLB σ (eq. 7)", 1, "—", "b"),
+    ("ratio_sigma_2", "I2/I3 CRLB σ (eq. 7)", 1, "—", "b"),
+    ("stage1_rms_px", "stage 1: residual RMS", 1, "px", "d"),
+    ("database_points", "database points", 1, "points", "d"),
+    ("rigidity_rejected", "tracks rejected by the rigidity test", 1, "tracks", "d")]}
 #: (raw, relabelled) score columns: the same quantity before and after the discrete principal-axes gauge
-PAIRS = [("point_err_rms_m", "point_err_rms_aligned_m"), ("stage2_att_rms_deg", "stage2_att_rms_aligned_deg"),
-         *((f"stage2_w{a}_rms_deg_s", f"stage2_w{a}_rms_aligned_deg_s") for a in "xyz"),
-         ("err_ratio_12", "err_ratio_12_aligned"), ("err_ratio_23", "err_ratio_23_aligned")]
-FIGURES = ("fig5_convergence", "fig6_inertia", "fig7_points", "fig13_stage2_position", "fig14_stage2_attitude")
+PAIRS = [(c.replace("_aligned", ""), c) for c in SCORES if "_aligned" in c]
 
 
 #: the columns of the per-iterate and per-frame tables that the figures read (and the filter-table core of ``stage2``)
@@ -131,35 +129,43 @@ def _runs_line(ax, n: int, color=style.OKABE_ITO[0]) -> None:
     ax.plot([], [], color=color, lw=0.8, alpha=0.7, label=f"one line per run ({n} runs)")
 
 
-def fig5_convergence(hist, stem: Path) -> list[str]:
-    plt = style.plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.8), constrained_layout=True)
-    cols = ["iteration"] + [f"err_r0_{a}_m" for a in "xyz"] + [f"err_v0_{a}_mps" for a in "xyz"]
-    er_all, ev_all, n = [], [], 0
-    for _, d in _by_run(hist, cols):
-        er = 100 * np.linalg.norm([d[f"err_r0_{a}_m"] for a in "xyz"], axis=0)
-        ev = 100 * np.linalg.norm([d[f"err_v0_{a}_mps"] for a in "xyz"], axis=0)
-        ax[0].plot(d["iteration"], er, color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
-        ax[1].plot(d["iteration"], ev, color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
-        er_all.append(er)
-        ev_all.append(ev)
-        n += 1
-    for a, vals, ylabel, title in ((ax[0], er_all, "‖r0 error‖ (cm)", "(a) initial CM position"),
-                                   (ax[1], ev_all, "‖v0 error‖ (cm/s)", "(b) initial CM velocity")):
-        plain_log(a, np.concatenate(vals))
-        _runs_line(a, n)
-        integer_ticks(a)
-        a.set(xlabel="accepted iterate (count)", ylabel=ylabel, title=title)
+def _run_lines(ax, t, x: str, ys: list[str], scale: float = 1, lw: float = 0.7, alpha: float = 0.6) -> list:
+    """One line per run of ``scale``·‖(ys)‖ (the column itself for one) against column ``x``; the values drawn."""
+    vals = []
+    for _, d in _by_run(t, [x, *ys]):
+        vals.append(scale * (np.linalg.norm([d[c] for c in ys], axis=0) if len(ys) > 1 else d[ys[0]]))
+        ax.plot(d[x], vals[-1], color=style.OKABE_ITO[0], lw=lw, alpha=alpha)
+    return vals
+
+
+def _two_panels(figsize: tuple[float, float]):
+    return style.plt().subplots(1, 2, figsize=figsize, constrained_layout=True)
+
+
+def _finish(fig, ax, title: str, stem: Path, which: str = "both") -> list[str]:
+    """Legend and grid on both panels, the title, saved (PNG; SVG under ``--svg``)."""
+    for a in ax:
         a.legend(fontsize=8)
-        a.grid(alpha=0.3, which="both")
-    fig.suptitle("Stage 1: convergence of the initial centre-of-mass state (cf. Ivanov et al. Fig. 5)")
+        a.grid(alpha=0.3, which=which)
+    fig.suptitle(title)
     return style.save(fig, stem)
 
 
+def fig5_convergence(hist, stem: Path) -> list[str]:
+    fig, ax = _two_panels((10, 3.8))
+    for a, q, u, ylabel, title in ((ax[0], "r0", "m", "‖r0 error‖ (cm)", "(a) initial CM position"),
+                                   (ax[1], "v0", "mps", "‖v0 error‖ (cm/s)", "(b) initial CM velocity")):
+        vals = _run_lines(a, hist, "iteration", [f"err_{q}_{c}_{u}" for c in "xyz"], 100)
+        plain_log(a, np.concatenate(vals))
+        _runs_line(a, len(vals))
+        integer_ticks(a)
+        a.set(xlabel="accepted iterate (count)", ylabel=ylabel, title=title)
+    return _finish(fig, ax, "Stage 1: convergence of the initial centre-of-mass state (cf. Ivanov et al. Fig. 5)", stem)
+
+
 def fig6_inertia(hist, scores, stem: Path) -> list[str]:
-    plt = style.plt()
     c1, c2 = style.OKABE_ITO[0], style.OKABE_ITO[1]
-    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.2), constrained_layout=True)
+    fig, ax = _two_panels((10.5, 4.2))
     for _, d in _by_run(hist, ["iteration", "err_ratio12", "err_ratio23"]):
         ax[0].plot(d["iteration"], d["err_ratio12"], color=c1, lw=0.6, alpha=0.6)
         ax[0].plot(d["iteration"], d["err_ratio23"], color=c2, lw=0.6, alpha=0.6)
@@ -193,23 +199,14 @@ def fig6_inertia(hist, scores, stem: Path) -> list[str]:
               title="(b) final ratios" + (", axes relabelled" if al else ""))
     ax[1].text(0.98, 0.02, bars, transform=ax[1].transAxes, fontsize=7, ha="right", va="bottom",
                bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.7", "alpha": 0.85})
-    for a in ax:
-        a.legend(fontsize=8)
-        a.grid(alpha=0.3)
-    fig.suptitle("Stage 1: inertia ratios (cf. Ivanov et al. Fig. 6)")
-    return style.save(fig, stem)
+    return _finish(fig, ax, "Stage 1: inertia ratios (cf. Ivanov et al. Fig. 6)", stem, which="major")
 
 
 def fig7_points(hist, scores, stem: Path) -> list[str]:
-    plt = style.plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
-    vals, n = [], 0
-    for _, d in _by_run(hist, ["iteration", "err_points_rms_m"]):
-        ax[0].plot(d["iteration"], 100 * d["err_points_rms_m"], color=style.OKABE_ITO[0], lw=0.7, alpha=0.6)
-        vals.append(100 * d["err_points_rms_m"])
-        n += 1
+    fig, ax = _two_panels((10.5, 4.0))
+    vals = _run_lines(ax[0], hist, "iteration", ["err_points_rms_m"], 100)
     plain_log(ax[0], np.concatenate(vals) if vals else [])
-    _runs_line(ax[0], n)
+    _runs_line(ax[0], len(vals))
     integer_ticks(ax[0])
     ax[0].set(xlabel="accepted iterate (count)", ylabel="RMS point error, body frame (cm)", title="(a) convergence")
     runs = column(scores, "run", np.int64)
@@ -242,31 +239,23 @@ def _rms_over_runs(t, col):
 
 
 def fig13_position(s2, stem: Path) -> list[str]:
-    plt = style.plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
-    n = len(np.unique(column(s2, "run", np.int64)))
+    fig, ax = _two_panels((10.5, 4.0))
     for k, (q, u) in enumerate((("r", "m"), ("v", "mps"))):
         cols = [f"err_{q}{a}_{u}" for a in "xyz"]
-        for _, d in _by_run(s2, ["t_s"] + cols):
-            ax[k].plot(d["t_s"], 100 * np.linalg.norm([d[c] for c in cols], axis=0), color=style.OKABE_ITO[0],
-                       lw=0.5, alpha=0.4)
+        n = len(_run_lines(ax[k], s2, "t_s", cols, 100, lw=0.5, alpha=0.4))
         t = np.unique(column(s2, "t_s"))
         ax[k].plot(t, 100 * np.sqrt(sum(_rms_over_runs(s2, c)[1] ** 2 for c in cols)), "k", lw=1.5,
                    label="RMS over runs")
         _runs_line(ax[k], n)
-        ax[k].grid(alpha=0.3)
     ax[1].axhline(1.0, color=style.OKABE_ITO[1], ls="--", lw=1.0, label="paper: ≈1 cm/s")
     ax[0].set(xlabel="time (s)", ylabel="‖position error‖ (cm)", title="(a) CM position, LVLH")
     ax[1].set(xlabel="time (s)", ylabel="‖velocity error‖ (cm/s)", title="(b) CM velocity, LVLH")
-    for a in ax:
-        a.legend(fontsize=8)
-    fig.suptitle("Stage 2: relative centre-of-mass position and velocity (cf. Ivanov et al. Fig. 13)")
-    return style.save(fig, stem)
+    return _finish(fig, ax, "Stage 2: relative centre-of-mass position and velocity (cf. Ivanov et al. Fig. 13)", stem,
+                   which="major")
 
 
 def fig14_attitude(s2, stem: Path) -> list[str]:
-    plt = style.plt()
-    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
+    fig, ax = _two_panels((10.5, 4.0))
     al = "err_wx_aligned_deg_s" in s2.column_names
     for i, a in enumerate("xyz"):
         u, r = _rms_over_runs(s2, f"err_w{a}_aligned_deg_s" if al else f"err_w{a}_deg_s")
@@ -274,29 +263,11 @@ def fig14_attitude(s2, stem: Path) -> list[str]:
     ax[0].set(xlabel="time (s)", ylabel="body-rate error (deg/s)",
               title="(a) body rates" + (", axes relabelled" if al else ""))
     att = "err_att_aligned_deg" if "err_att_aligned_deg" in s2.column_names else "err_att_deg"
-    n = 0
-    for _, d in _by_run(s2, ["t_s", att]):
-        ax[1].plot(d["t_s"], d[att], color=style.OKABE_ITO[0], lw=0.5, alpha=0.5)
-        n += 1
-    _runs_line(ax[1], n)
+    _runs_line(ax[1], len(_run_lines(ax[1], s2, "t_s", [att], lw=0.5, alpha=0.5)))
     plain_log(ax[1], column(s2, att))
     ax[1].set(xlabel="time (s)", ylabel="attitude error (deg)",
               title="(b) principal-axes attitude" + (", axes relabelled" if att != "err_att_deg" else ""))
-    for a in ax:
-        a.legend(fontsize=8)
-        a.grid(alpha=0.3, which="both")
-    fig.suptitle("Stage 2: body rates and attitude of the principal axes (cf. Ivanov et al. Fig. 14)")
-    return style.save(fig, stem)
-
-
-#: figure name → caption
-CAPTIONS = {
-    "fig5_convergence": "Stage-1 errors of the initial centre-of-mass position and velocity at every accepted iterate.",
-    "fig6_inertia": "Inertia ratios: convergence, and the final ratios of every run with their Cramér–Rao 1σ.",
-    "fig7_points": "Reference-point RMS error: convergence (body frame), and per run at the end.",
-    "fig13_stage2_position": "Stage-2 centre-of-mass position and velocity error against time.",
-    "fig14_stage2_attitude": "Stage-2 body-rate RMS error per axis and the principal-axes attitude error per run.",
-}
+    return _finish(fig, ax, "Stage 2: body rates and attitude of the principal axes (cf. Ivanov et al. Fig. 14)", stem)
 
 
 def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satellite_") -> list[dict]:
@@ -305,14 +276,19 @@ def campaign_figures(tables: dict, out_dir: Path, prefix: str = "unknown_satelli
     out_dir = Path(out_dir)
     done = []
     sc, hist, s2 = tables.get("scores"), tables.get("stage1_history"), tables.get("stage2")
-    jobs = [("fig5_convergence", hist is not None, lambda p: fig5_convergence(hist, p)),
-            ("fig6_inertia", hist is not None and sc is not None, lambda p: fig6_inertia(hist, sc, p)),
-            ("fig7_points", hist is not None and sc is not None, lambda p: fig7_points(hist, sc, p)),
-            ("fig13_stage2_position", s2 is not None, lambda p: fig13_position(s2, p)),
-            ("fig14_stage2_attitude", s2 is not None, lambda p: fig14_attitude(s2, p))]
-    for name, ok, draw in jobs:
+    jobs = [("fig5_convergence", hist is not None, lambda p: fig5_convergence(hist, p),
+             "Stage-1 errors of the initial centre-of-mass position and velocity at every accepted iterate."),
+            ("fig6_inertia", hist is not None and sc is not None, lambda p: fig6_inertia(hist, sc, p),
+             "Inertia ratios: convergence, and the final ratios of every run with their Cramér–Rao 1σ."),
+            ("fig7_points", hist is not None and sc is not None, lambda p: fig7_points(hist, sc, p),
+             "Reference-point RMS error: convergence (body frame), and per run at the end."),
+            ("fig13_stage2_position", s2 is not None, lambda p: fig13_position(s2, p),
+             "Stage-2 centre-of-mass position and velocity error against time."),
+            ("fig14_stage2_attitude", s2 is not None, lambda p: fig14_attitude(s2, p),
+             "Stage-2 body-rate RMS error per axis and the principal-axes attitude error per run.")]
+    for name, ok, draw, caption in jobs:
         if ok:
             png, svg = draw(out_dir / f"{prefix}{name}")
-            done.append({"name": name, "png": png, "svg": svg, "caption": CAPTIONS[name]})
+            done.append({"name": name, "png": png, "svg": svg, "caption": caption})
     return done
 

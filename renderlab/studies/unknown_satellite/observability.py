@@ -14,7 +14,7 @@ from renderlab.errors import UserError
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import skew
 from renderlab.scenario import apply_overrides, load_scenario, scenario_from_dict
-from renderlab.worlds.microsat.model import build_parts
+from renderlab.worlds.microsat.model import box_parts, build_parts
 from renderlab.worlds.microsat.plan import separation_truth
 
 
@@ -26,16 +26,6 @@ class ArcCase:
     dt_s: float
     label: str = ""
     sets: tuple[str, ...] = ()
-
-
-def _boxes(world) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Axis-aligned (centre, half-extent) boxes of the bus and panels, body frame (as in the mesh model)."""
-    hx, hy, hz = np.asarray(world.bus_size_m) / 2
-    pw, pl = world.panel_size_m
-    out = [(np.zeros(3), np.array([hx, hy, hz]))]
-    for s in (-1, 1):
-        out.append((np.array([0.0, s * (hy + 0.01 + pl / 2), 0.0]), np.array([pw / 2, pl / 2, 0.004])))
-    return out
 
 
 def segment_hits_box(p0: np.ndarray, p1: np.ndarray, centre, half) -> np.ndarray:
@@ -59,7 +49,7 @@ def visibility(truth, tips, camera, world, shadows: bool = True) -> tuple[np.nda
     F, M = len(truth.times_s), len(tips)
     vis = np.zeros((F, M), bool)
     sl = np.full((F, M, 2), np.nan)
-    boxes = _boxes(world)
+    boxes = box_parts(world)
     r_knob = world.knob_radius_m
     for k in range(F):
         R_lb = Rotation.from_quat(truth.quat_lvlh_from_body[k]).as_matrix()

@@ -83,26 +83,13 @@ def _inertia_lvlh(R_lvlh_from_body, inertia):
 
 
 def axis_relabelling(R_est0: np.ndarray, R_true0: np.ndarray) -> np.ndarray:
-    """The proper signed permutation P (one of 24) for which ``R_est0 Pᵀ`` is closest to ``R_true0``.
+    """The proper signed permutation P (one of the 24 of the octahedral group) for which ``R_est0 Pᵀ`` is closest to
+    ``R_true0``: which principal axis is called 1, 2 or 3 (and its sign) is a discrete gauge, relabelled axes give
+    the same images. Truth-labelled body vectors are then ``P x_est`` and the moments ``|P| I_est``."""
+    from scipy.spatial.transform import Rotation
 
-    Which principal axis is called 1, 2 or 3 (and its sign) is a discrete gauge: relabelled axes give the
-    same images, so a free estimator may return them. Truth-labelled body vectors are then ``P x_est``
-    and the moments ``|P| I_est``.
-    """
-    import itertools
-
-
-    best, best_P = np.inf, np.eye(3)
-    for perm in itertools.permutations(range(3)):
-        for signs in itertools.product((1.0, -1.0), repeat=3):
-            P = np.zeros((3, 3))
-            P[np.arange(3), perm] = signs
-            if np.linalg.det(P) < 0:
-                continue
-            ang = float(np.linalg.norm(log_so3((R_est0 @ P.T).T @ R_true0)))
-            if ang < best - 1e-12:
-                best, best_P = ang, P
-    return best_P
+    perms = np.rint(Rotation.create_group("O").as_matrix()) + 0.0  # exact entries, no −0
+    return perms[int(np.argmin([np.linalg.norm(log_so3((R_est0 @ P.T).T @ R_true0)) for P in perms]))]
 
 
 def _match_tracks(tracks_db, db, ft, max_px):

@@ -121,13 +121,20 @@ def antenna_geometry(world, rng: np.random.Generator) -> tuple[np.ndarray, np.nd
     return np.array(roots), np.array(tips)
 
 
+def box_parts(world) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(centre, half-extent) of the axis-aligned boxes, body frame: the bus, then the two solar panels along ±y."""
+    hx, hy, hz = np.asarray(world.bus_size_m) / 2
+    pw, pl = world.panel_size_m
+    return [(np.zeros(3), np.array([hx, hy, hz])),
+            *((np.array([0.0, s * (hy + 0.01 + pl / 2), 0.0]), np.array([pw / 2, pl / 2, 0.004])) for s in (-1, 1))]
+
+
 def build_parts(world) -> tuple[list[Part], np.ndarray]:
     """Mesh parts of the satellite and the true feature positions (knob centres, (n, 3), body frame)."""
     rng = np.random.default_rng(world.seed)
-    hx, hy, hz = np.asarray(world.bus_size_m) / 2
-    bus = box_mesh([0, 0, 0], [hx, hy, hz])
-    pw, pl = world.panel_size_m
-    panels = merge([box_mesh([0, s * (hy + 0.01 + pl / 2), 0], [pw / 2, pl / 2, 0.004]) for s in (-1, 1)])
+    boxes = box_parts(world)
+    bus = box_mesh(*boxes[0])
+    panels = merge([box_mesh(*b) for b in boxes[1:]])
     roots, tips = antenna_geometry(world, rng)
     r = world.knob_radius_m
     rods = merge([rod_mesh(a, b - (b - a) / np.linalg.norm(b - a) * 0.5 * r, world.antenna_width_m)
