@@ -25,16 +25,9 @@ DEMO_SETS = ('name="unknown_satellite_demo"',
 
 
 def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEMO_RUNS) -> dict:
-    """Render, run the small campaign (``runs`` runs) into ``out/campaign`` and its report into ``out/report``.
-
-    Returns
-    -------
-    dict
-        ``report`` (the HTML page), ``campaign`` (folder), ``runs``/``failed`` (and ``failed_errors``), the
-        median over the finished runs of the scores (reference points in LVLH and their CRLB σ, cm; ‖ω0‖
-        estimated/true/error/CRLB σ, °/s; stage-2 velocity RMS, cm/s; inertia-ratio errors with the axes
-        relabelled to the truth's and their CRLB σ), the smallest FIM rank of eq. 7 and ``flag_names``.
-    """
+    """Render, run the small campaign (``runs`` runs) into ``out/campaign`` and its report into ``out/report``; returns
+    the page, folder, run counts, the medians over runs of the scores the demo page quotes (cm, °/s, cm/s), the
+    smallest FIM rank of eq. 7 and the ``flag_names`` raised."""
     import numpy as np
 
 
