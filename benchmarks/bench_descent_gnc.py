@@ -31,6 +31,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from renderlab.campaign import store
+
 PARTS = ("t_render_ms", "t_measure_ms", "t_filter_ms")
 
 
@@ -38,7 +40,7 @@ def read(folder: Path) -> tuple[dict, dict]:
     """(gnc_runs columns, {run: wall seconds}) of a campaign or published folder."""
     if (folder / "tables" / "gnc_runs.parquet").is_file():
         t = pq.read_table(folder / "tables" / "gnc_runs.parquet")
-        status = json.loads((folder / "runs.json").read_text())
+        status = store.published_statuses(folder)          # runs.json, the old bare list or the named file
     else:
         files = sorted((folder / "runs").glob("*/gnc_runs.parquet"))
         if not files:

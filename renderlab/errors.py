@@ -18,3 +18,15 @@ class UserError(Exception):
     def __init__(self, message: str):
         text = " ".join(str(message).split())
         super().__init__(text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 1] + "…")
+
+
+def run_main(entry, argv=None) -> int:
+    """``python -m`` entry of a module's ``main(argv)``: a :class:`UserError` is one line on stderr
+    (``renderlab: error: <message>``) and exit code 2, no traceback."""
+    import sys
+
+    try:
+        return entry(argv)
+    except UserError as err:
+        print(f"renderlab: error: {err}", file=sys.stderr)
+        return 2

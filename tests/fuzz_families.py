@@ -166,15 +166,17 @@ def _metadata_files(lab) -> list:
 def _runs_json_cases(lab) -> list:
     from renderlab.contracts.file_models import RunStatus
 
-    data = json.loads((lab / "pub/runs.json").read_text())
+    doc = json.loads((lab / "pub/runs.json").read_text())  # {format, plan_digest, runs}; a bare list is read too
+    data = doc["runs"]
     cmds = [["report", f"{CASE}/pub"], ["info", f"{CASE}/pub"]]
     out = []
     for k, (tag, path, value, _) in enumerate(metadata_mutations(RunStatus, data[0])):
-        needle = loc_text((0, *path)) if tag != "bogus_key" else "bogus_key"
+        needle = loc_text(("runs", 0, *path)) if tag != "bogus_key" else "bogus_key"
         out.append((f"runs.json:{'.'.join(map(str, path))}={tag}", [["copy", "pub"], ["json", "pub/runs.json",
-                   [0, *path], _json_value(value)]], cmds[k % 2], needle))
+                   ["runs", 0, *path], _json_value(value)]], cmds[k % 2], needle))
     for tag, text, needle in [("not_a_list", "{}", "runs.json"), ("twice", json.dumps(data + data[:1]), "twice"),
-                              ("beyond_plan", json.dumps(data + [{**data[0], "run": 7}]), "run 7")]:
+                              ("beyond_plan", json.dumps(data + [{**data[0], "run": 7}]), "run 7"),
+                              ("other_campaign", json.dumps({**doc, "plan_digest": "0" * 16}), "another campaign")]:
         out.append((f"runs.json:{tag}", [["copy", "pub"], ["json_text", "pub/runs.json", text]], cmds[0], needle))
     return out
 

@@ -195,6 +195,40 @@ def test_truth_model_from_the_scenario_reaches_the_geometric_study():
     assert o.truth_model == "zonal_dop853" and o.zonal_degree == 6
     sc0, _ = load_scenario(repo / "scenes" / "coastline_ekf.toml")
     o0 = geometric_options(sc0)
-    assert not hasattr(o0, "truth_model")
+    assert o0.truth_model == "j2_rk4"
     d = np.linalg.norm(truth_geometry(o).x_true[:, :3] - truth_geometry(o0).x_true[:, :3], axis=1)
     assert d[0] < 1e-6 and d.max() > 1e3
+
+
+def test_reduced_filter_tables_give_the_report_of_the_raw_ones(repo, tmp_path):
+    """A published campaign folder in the image folder's layout (the campaign's filter table and its geometric twin):
+    its report from the raw tables and from the study's ``publish_tables`` of them (``renderlab publish`` and
+    ``compact_folder`` apply it) write the same CSVs (steady state per table, the comparison of the modes)."""
+    import json
+    import shutil
+
+    from renderlab.campaign import store
+    from renderlab.campaign.compact import compact_folder
+    from renderlab.campaign.runner import run_campaign_file
+    from renderlab.cli import main as cli
+    from renderlab.studies.coastline_ekf.publish import publish_tables
+
+    camp, raw, red = tmp_path / "camp", tmp_path / "raw", tmp_path / "reduced"
+    run_campaign_file(repo / "scenes/coastline_ekf.toml", camp, 3, overrides=SHORT, workers=0, progress=False)
+    assert cli(["publish", str(camp), "--out", str(raw)]) == 0
+    assert "coastline_filter" in json.loads((raw / "tables" / "raw_tables.json").read_text())["tables"]
+    full = store.load_tables(camp)["coastline_filter"]
+    assert {"campaign", "has_result", "reason"} <= set(full.column_names)
+    (raw / "tables" / "raw_tables.json").unlink()
+    for name in ("coastline_filter", "geometric_filter"):
+        pq.write_table(full, raw / "tables" / f"{name}.parquet")
+    shutil.copytree(raw, red)
+    compact_folder(red, publish_tables)
+    assert "has_result" not in pq.read_table(red / "tables" / "geometric_filter.parquet").column_names
+    for folder in (raw, red):
+        shutil.rmtree(folder / "report", ignore_errors=True)
+        assert cli(["report", str(folder), "--tables-only"]) == 0
+    names = sorted(p.name for p in (raw / "report").glob("*.csv"))
+    assert names == ["coastline_filter_coastline_steady_state.csv", "comparison.csv"]
+    for name in names:
+        assert (red / "report" / name).read_text() == (raw / "report" / name).read_text(), name

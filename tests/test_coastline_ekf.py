@@ -183,7 +183,7 @@ def test_anees_and_anis_inside_99_percent_chi2_band(polar_1000):
 
 
 def test_run_k_replays_alone_bit_identically(polar_1000):
-    from renderlab.studies.coastline_ekf.geometric import run, run_batch
+    from renderlab.studies.coastline_ekf.geometric import run_batch
 
     o, _ = polar_1000
     seeds = np.random.SeedSequence(99).spawn(5)
@@ -197,36 +197,51 @@ def test_run_k_replays_alone_bit_identically(polar_1000):
     for c in batch.column_names:                   # same seed → same numbers
         assert same(batch[c], again[c]), c
     k = 3
-    alone = run(o, None, k, seeds[k], None)["coastline_filter"]
+    alone = run_batch(o, [seeds[k]], [k])["table"]
     rows = batch.filter(batch["run"].to_numpy() == k)
     for c in batch.column_names:
         assert same(rows[c], alone[c]), c
 
 
-@pytest.mark.parametrize("bad", [{"sigma_theta_rad": 0.0}, {"cadence_s": -1.0}, {"altitude_m": float("nan")},
-                                 {"no_such_option": 1}])
+@pytest.mark.parametrize("bad", [{"sigma_theta_rad": 0.0}, {"cadence_s": -1.0}, {"altitude_m": float("nan")}])
 def test_bad_options_raise_one_line_user_error(bad):
-    from renderlab.studies.coastline_ekf.geometric import options_from_mapping
+    from renderlab.studies.coastline_ekf.geometric import CoastlineGeometricOptions
 
     with pytest.raises(UserError) as ei:
-        options_from_mapping(bad)
+        CoastlineGeometricOptions(**bad).validate()
     assert "\n" not in str(ei.value) and next(iter(bad)) in str(ei.value)
+
+
+def _tiny_publication(out):
+    """``publish --keep-runs`` of 12 runs of a quarter orbit, and those runs' rows made again directly (every run is
+    its own seed: the batches of ``--chunk`` do not change them)."""
+    from dataclasses import replace
+
+    from renderlab.studies.coastline_ekf.geometric import paper_orbit, run_batch
+    from renderlab.studies.coastline_ekf.publish import PAPER_TABLE1, main
+
+    assert main(["--out", str(out), "--runs", "12", "--orbits", "i45_h500", "--revolutions", "0.25",
+                 "--chunk", "5", "--keep-runs"]) == 0
+    o = paper_orbit("i45_h500")
+    o = replace(o, duration_s=0.25 * o.period_s).validate()
+    seeds = np.random.SeedSequence([2026, list(PAPER_TABLE1).index("i45_h500")]).spawn(12)
+    return o, run_batch(o, seeds)
 
 
 def test_publish_writes_the_published_layout_and_its_report(tmp_path):
     """The publication command on a tiny case: the published layout (tables/, campaign.json, runs.json), a report
-    made from those tables (figures are PNG + SVG, summary numbers finite and equal to a direct computation from the
-    per-run rows that ``--keep-runs`` publishes)."""
+    made from those tables (figures PNG, summary numbers equal to a direct computation from every run's rows, which
+    ``--keep-runs`` records in raw_tables.json and reduces to what the report reads)."""
     import csv
+    import json
 
     import pyarrow.parquet as pq
 
     from renderlab.campaign.publish import is_published
-    from renderlab.studies.coastline_ekf.publish import main
     from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary, steady_state
 
-    assert main(["--out", str(tmp_path), "--runs", "12", "--orbits", "i45_h500", "--revolutions", "0.25",
-                 "--chunk", "5", "--keep-runs"]) == 0
+    _, direct_runs = _tiny_publication(tmp_path)
+    runs = direct_runs["table"]
     assert is_published(tmp_path)
     rep = tmp_path / "report"
     for name in ("summary.csv", "table1.md", "index.html", "i45_h500_coastline_errors.png",
@@ -237,23 +252,63 @@ def test_publish_writes_the_published_layout_and_its_report(tmp_path):
     assert row["case"] == "i45_h500" and int(row["runs"]) == 12
     ts = pq.read_table(tmp_path / "tables" / "coastline_timeseries.parquet")
     assert ts.num_rows == int(row["images"]) + 1 and int(ts["n_runs"][0].as_py()) == 12
-    runs = pq.read_table(tmp_path / "tables" / "coastline_runs.parquet").drop(["case"])
-    assert len(set(runs["run"].to_pylist())) == 12
+    raw = json.loads((tmp_path / "tables" / "raw_tables.json").read_text())["tables"]
+    assert raw["coastline_runs"]["rows"] == runs.num_rows == 12 * ts.num_rows
+    assert not (tmp_path / "tables" / "coastline_runs.parquet").exists()
     direct = steady_state(per_time_summary(runs))
     for key in ("mc_3sig_r_m", "mc_3sig_i_m", "filter_3sig_c_m", "anees_mean"):
         assert float(row[key]) == pytest.approx(direct[key], rel=1e-5), key
     assert float(row["nis_total_over_dof"]) == pytest.approx(nis_total_test(runs)["ratio"], rel=1e-5)
     sample = pq.read_table(tmp_path / "tables" / "coastline_sample_runs.parquet")
     assert sorted(set(sample["run"].to_pylist())) == list(range(12))
+    in_order = runs.sort_by([("run", "ascending"), ("t_s", "ascending")])        # the sample: float64, all 12 runs
+    np.testing.assert_array_equal(sample["err_i_m"].to_numpy(), in_order["err_i_m"].to_numpy())
+
+
+def test_reduced_geometric_tables_give_the_report_of_the_raw_ones(tmp_path):
+    """``publish_tables`` is a pure function raw → published: the report of a folder holding every raw table (every
+    run's rows, per-run totals, the run means) and the report of its reduction write the same CSV and Markdown."""
+    import shutil
+
+    import pyarrow.parquet as pq
+
+    from renderlab.campaign.compact import compact_bytes
+    from renderlab.cli import main as cli
+    from renderlab.studies.coastline_ekf.geometric import truth_geometry
+    from renderlab.studies.coastline_ekf.publish import orbit_tables, publish_tables
+    from renderlab.studies.coastline_ekf.scoring import pcrb_ric_sigma, per_time_summary
+
+    pub = tmp_path / "pub"
+    o, direct = _tiny_publication(pub)
+    runs = direct["table"]
+    summary = per_time_summary(runs, pcrb_ric_sigma(truth_geometry(o), o))
+    raw = orbit_tables("i45_h500", o, direct["geometry"], runs, summary, {"geometry": 0.0, "monte_carlo": 0.0},
+                       keep_runs=True)
+    raw["coastline_orbits"] = pq.read_table(pub / "tables" / "coastline_orbits.parquet")   # its wall times
+    assert {"coastline_runs", "coastline_run_totals"} <= set(raw) and "run" in raw["coastline_run_totals"].column_names
+    reduced = publish_tables(dict(raw))
+    assert "coastline_runs" not in reduced and reduced["coastline_run_totals"].num_rows == 1
+    for name, t in reduced.items():              # what publish wrote is the reduction of the raw tables, byte for byte
+        assert compact_bytes(t) == (pub / "tables" / f"{name}.parquet").read_bytes(), name
+    copy = tmp_path / "raw"
+    shutil.copytree(pub, copy, ignore=shutil.ignore_patterns("report", "raw_tables.json", "*.parquet"))
+    for name, t in raw.items():
+        pq.write_table(t, copy / "tables" / f"{name}.parquet")
+    for folder in (pub, copy):
+        shutil.rmtree(folder / "report", ignore_errors=True)
+        assert cli(["report", str(folder), "--tables-only"]) == 0
+    for name in ("summary.csv", "table1.md"):
+        assert (copy / "report" / name).read_text() == (pub / "report" / name).read_text(), name
 
 
 @pytest.mark.parametrize("argv, message", [(["--orbits", "i45_h700"], "unknown orbit 'i45_h700'"),
                                           (["--runs", "0"], "--runs and --chunk must be >= 1")])
 def test_publish_refuses_bad_input_in_one_line_and_writes_nothing(tmp_path, capsys, argv, message):
-    from renderlab.studies.coastline_ekf.publish import main, run_module
+    from renderlab.errors import run_main
+    from renderlab.studies.coastline_ekf.publish import main
 
     out = tmp_path / "pub"
-    assert run_module(main, ["--out", str(out), *argv]) == 2
+    assert run_main(main, ["--out", str(out), *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("renderlab: error: ") and message in err and "\n" not in err
     assert not out.exists()

@@ -9,8 +9,6 @@ closed-form magnitudes for drag, SRP and the lunar tide.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -124,7 +122,7 @@ def test_earth_world_and_geometric_study_use_the_truth_propagator(repo):
 
     from renderlab.errors import UserError
     from renderlab.scenario import load_scenario
-    from renderlab.studies.coastline_ekf.geometric import CoastlineGeometricOptions, paper_orbit, truth_geometry
+    from renderlab.studies.coastline_ekf.geometric import paper_orbit, truth_geometry
     from renderlab.worlds.earth.plan import EarthPlan
 
     base = ["trajectory.frames=3", "trajectory.dt_s=1200"]
@@ -138,13 +136,8 @@ def test_earth_world_and_geometric_study_use_the_truth_propagator(repo):
     with pytest.raises(UserError, match="truth_model"):
         load_scenario(repo / "scenes/earth_leo.toml", base + ["trajectory.drag=true"])
 
-    @dataclass(frozen=True)
-    class TruthOptions(CoastlineGeometricOptions):
-        truth_model: str = "zonal_dop853"
-        zonal_degree: int = 6
-
     o = paper_orbit("i45_h1000", duration_s=3600.0)
-    geo = truth_geometry(TruthOptions(**{f: getattr(o, f) for f in o.__dataclass_fields__}))
+    geo = truth_geometry(replace(o, truth_model="zonal_dop853", zonal_degree=6))
     geo_2b = truth_geometry(o)
     assert np.array_equal(geo.t_s, geo_2b.t_s)
     d = np.linalg.norm(geo.x_true[-1, :3] - geo_2b.x_true[-1, :3])

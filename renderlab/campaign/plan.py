@@ -7,8 +7,6 @@ depend on N (a campaign can be extended without changing its first runs).
 
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,7 +15,7 @@ import numpy as np
 from renderlab import plugins
 from renderlab import plugins as registry
 from renderlab.campaign.cache import file_hashes
-from renderlab.contracts.file_models import MAX_RUNS  # noqa: F401  (the plan's bound, written once)
+from renderlab.contracts.file_models import MAX_RUNS, plan_digest  # noqa: F401  (the plan's bound, written once)
 from renderlab.errors import UserError
 from renderlab.inputs import short
 
@@ -73,8 +71,7 @@ class CampaignPlan:
         return out
 
     def digest(self) -> str:
-        text = json.dumps(self.plan_dict(), sort_keys=True, separators=(",", ":"))
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
+        return plan_digest(self.plan_dict())
 
     def tasks(self, campaign_dir: Path, indices=None) -> list[RunTask]:
         sc = self.scenario.to_dict()

@@ -72,4 +72,4 @@ def write_published(campaign_dir: Path, stage: Path, out_dir: Path, loaded: tupl
         manifest = {**manifest, "scenario_dir": Path(os.path.relpath(scen, out.resolve())).as_posix()}
     (stage / "campaign.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
     slim = [{k: s.get(k) for k in ("run", "status", "error", "seconds", "tables") if k in s} for s in statuses]
-    (stage / STATUSES).write_text(json.dumps(slim, indent=1) + "\n", encoding="utf-8")
+    store.write_statuses(stage, manifest, slim)

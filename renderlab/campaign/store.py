@@ -25,10 +25,17 @@ from pathlib import Path
 
 from renderlab import plugins
 from renderlab.campaign.compact import read_raw_tables
-from renderlab.contracts.file_models import CampaignManifest, RunStatus, RunStatuses
+from renderlab.contracts.file_models import (
+    RUNS_FORMAT,
+    CampaignManifest,
+    RunStatus,
+    RunStatuses,
+    RunStatusFile,
+    plan_digest,
+)
 from renderlab.contracts.schemas import check_campaign_table, expected_kind, read_parquet
 from renderlab.errors import UserError
-from renderlab.inputs import read_checked, shown
+from renderlab.inputs import read_checked, read_json, shown, validate
 
 FORMAT = "renderlab.campaign/1"
 MANIFEST = "campaign.json"
@@ -243,10 +250,27 @@ def load_published_tables(folder: Path, own: tuple = ()) -> dict:
     return out
 
 
+def write_statuses(folder: Path, manifest: dict, statuses: list[dict]) -> None:
+    """Write ``runs.json`` (:class:`~renderlab.contracts.file_models.RunStatusFile`): ``statuses`` under the digest
+    of ``manifest``'s plan."""
+    doc = {"format": RUNS_FORMAT, "plan_digest": plan_digest(manifest["plan"]), "runs": statuses}
+    (Path(folder) / STATUSES).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+
+
 def published_statuses(folder: Path) -> list[dict]:
-    """``runs.json``, validated (:data:`renderlab.contracts.file_models.RunStatuses`: each run once)."""
+    """The runs of ``runs.json``, validated (each run once): a :class:`~renderlab.contracts.file_models.RunStatusFile`
+    whose plan digest is that of ``campaign.json``'s plan, or the bare list older folders hold (``RunStatuses``)."""
     p = Path(folder) / STATUSES
-    data = read_checked(p, RunStatuses, "run statuses")
+    data = read_json(p, "run statuses")
+    if isinstance(data, dict):
+        validate(RunStatusFile, data, f"run statuses {shown(p)}")
+        own = plan_digest(read_manifest(folder)["plan"])
+        if data["plan_digest"] != own:
+            raise UserError(f"run statuses {shown(p)}: written for another campaign (plan digest "
+                            f"{data['plan_digest']}, campaign.json's plan {own})")
+        data = data["runs"]
+    else:
+        validate(RunStatuses, data, f"run statuses {shown(p)}")
     runs = [s["run"] for s in data]
     if len(set(runs)) != len(runs):
         raise UserError(f"run statuses {shown(p)}: a run is listed twice")

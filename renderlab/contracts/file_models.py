@@ -19,6 +19,8 @@ and studies extend (a truth set's frame records) keep their other keys, unchecke
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from typing import Annotated, Any, Literal, Union
 
@@ -147,8 +149,24 @@ class RunStatus(FileModel):
         return self
 
 
-#: ``runs.json``: the runs' statuses (:func:`renderlab.inputs.validate` takes it like a model)
+#: ``runs.json`` as written before it named its campaign: the bare list of the runs' statuses
 RunStatuses = TypeAdapter(Annotated[list[RunStatus], Field(max_length=MAX_RUNS)], config=ConfigDict(strict=True))
+RUNS_FORMAT = "renderlab.runs/1"
+
+
+class RunStatusFile(FileModel):
+    """``runs.json``: the runs' statuses and the digest of the plan they ran (:func:`plan_digest` of
+    ``campaign.json``'s plan), so that two campaigns whose runs all ended alike still write different files."""
+
+    format: Literal["renderlab.runs/1"]
+    plan_digest: Annotated[str, StringConstraints(max_length=64)]
+    runs: Annotated[list[RunStatus], Field(max_length=MAX_RUNS)]
+
+
+def plan_digest(plan: dict) -> str:
+    """The 16-hex digest of a campaign plan (``campaign.json``'s ``plan``): SHA-256 of its sorted, compact JSON."""
+    text = json.dumps(plan, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 # ----------------------------------------------------------------------------------------- manifest.json

@@ -165,6 +165,17 @@ def raan_of(r: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.arctan2(h[..., 0], -h[..., 1])
 
 
+def ric_axes(x: np.ndarray) -> np.ndarray:
+    """Rows r̂, î, ĉ (radial, in-track ĉ × r̂, cross-track along r × v) of the RIC frame of states x (..., 6) →
+    C_ric_from_eci (..., 3, 3)."""
+    r, v = x[..., :3], x[..., 3:]
+    rh = r / np.linalg.norm(r, axis=-1, keepdims=True)
+    h = np.cross(r, v)
+    ch = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    ih = np.cross(ch, rh)
+    return np.stack([rh, ih, ch], axis=-2)
+
+
 def nadir_attitude(r: np.ndarray, v: np.ndarray) -> np.ndarray:
     """R_frame_from_cam (…, 3, 3) of a nadir camera: +z toward the centre (−r̂), image top (−y) along the
     velocity component perpendicular to the boresight, +x = y × z (lab camera convention)."""

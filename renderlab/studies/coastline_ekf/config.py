@@ -1,11 +1,6 @@
-"""Scenario section ``[coastline]`` of the coastline-navigation study (Straub & Christian). Light: pydantic only.
-
-The orbit, cadence, field of view and star-tracker noise come from the scenario's ``trajectory`` (kind
-``"leo"``: altitude, inclination, RAAN, ω, ν, epoch, ``dt_s``, ``fov_deg``, ``star_tracker_sigma_arcsec``,
-``j2``); the initial dispersion (paper: 500 m / 5 mm/s per axis) from ``perturbations.apriori_position_sigma_m``
-and ``perturbations.apriori_velocity_sigma_mps`` (ECI axes). This section holds what only the coastline study
-needs: the measurement mode, the LOS noise σθ the filter assumes (eq. 18), the matched points per image, the
-database spacing, the duration and the image-mode extraction/matching settings.
+"""Scenario section ``[coastline]`` of the coastline-navigation study (Straub & Christian); pydantic only. The orbit,
+cadence, FOV and star tracker come from ``trajectory`` (kind ``"leo"``), the initial dispersion from
+``perturbations.apriori_*`` (docs/coastline_ekf.md).
 """
 
 from __future__ import annotations
@@ -22,11 +17,8 @@ from renderlab.errors import UserError
 class CoastlineStudyConfig(Strict):
     """Options of study ``coastline_ekf``.
 
-    ``mode = "geometric"``: LOS to database points in the field of view plus angular noise σθ (the paper's
-    simulation, vectorised, no rendering). ``mode = "image"``: every frame of the trajectory is rendered (Earth
-    world), coastline pixels are extracted from the sensor image, registered to the onboard database projected
-    with the a-priori state, and the matched LOS feed the same EKF.
-    """
+    ``mode = "geometric"``: the paper's simulation (LOS to database points plus σθ noise, no rendering); ``"image"``:
+    rendered frames, extracted and registered coastline, the matched LOS into the same EKF."""
 
     mode: Literal["geometric", "image"] = Field("geometric", description="geometric: LOS to database points plus "
                                                 "angular noise (no rendering); image: rendered frames, extracted "

@@ -1,12 +1,6 @@
-"""Figures of the coastline-EKF Monte Carlo in the style of Straub & Christian Figs. 5-9, in the report style
-(:mod:`renderlab.report.style`: Okabe–Ito colours, units on every axis, a legend, PNG; SVG with ``renderlab report --svg``).
-
-Each error figure has the radial, in-track and cross-track axes as rows and position (m) / velocity (mm/s) as
-columns: a sample of run errors (thin), the Monte Carlo ±3σ (black), the filter's ±3σ (dashed; RMS of the runs'
-σ) and the PCRB's ±3σ (dotted, when given). Ticks along the bottom mark images with matched coastline. The
-figure says how many runs are drawn and how many the ±3σ curves use (the sample can be smaller than the
-campaign). A second figure shows ANEES and ANIS with their 99 % χ² bands, values outside their band marked.
-Time is in the report's one unit (:func:`renderlab.report.filter_section.time_unit`).
+"""Figures of the coastline-EKF Monte Carlo in the style of Straub & Christian Figs. 5-9 (report style: Okabe–Ito,
+units, legends, PNG): per RIC axis the sampled run errors, the Monte Carlo, filter and PCRB ±3σ and the image ticks;
+ANEES and ANIS against their 99 % χ² bands.
 """
 
 from __future__ import annotations
@@ -24,10 +18,6 @@ __all__ = ["plot_errors", "plot_consistency", "time_unit"]
 _AXES = [("r", "radial"), ("i", "in-track"), ("c", "cross-track")]
 _KINDS = [("", "m", 1.0, "m", "position"), ("v", "mps", 1e3, "mm/s", "velocity")]
 RUN, MC, FILTER, PCRB, IMAGE = style.OKABE_ITO[0], "#000000", style.OKABE_ITO[1], style.OKABE_ITO[2], style.OKABE_ITO[4]
-
-
-def _unit(summary, unit):
-    return unit if unit is not None else time_unit(summary["t_s"].to_numpy())
 
 
 def _band(ax, t, half, **kw):
@@ -62,32 +52,12 @@ def _error_panel(ax, runs_table, summary, sample, key: str, scale: float, t_div:
     ax.grid(alpha=0.3)
 
 
-def plot_errors(runs_table, summary, path: Path, title: str, n_sample_runs: int = 25,
-                unit: tuple[float, str] | None = None) -> list[str]:
-    """Figs. 5-9 style: run errors with the Monte Carlo, filter and PCRB ±3σ.
-
-    Parameters
-    ----------
-    runs_table : pyarrow.Table
-        Per-run filter rows (``run, t_s, err_*``); may hold only a sample of the runs ``summary`` was made from.
-    summary : pyarrow.Table
-        :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary` of all runs (``n_runs`` of them).
-    path : Path
-        ``<stem>.png`` (``<stem>.svg`` beside it under ``renderlab report --svg``).
-    title : str
-        First line of the figure title.
-    n_sample_runs : int
-        At most this many runs are drawn as thin lines.
-    unit : (divisor, name), optional
-        Time unit (default: :func:`time_unit` of the summary's times).
-
-    Returns
-    -------
-    list of str
-        The PNG and SVG file names (the SVG's None when none is written).
-    """
+def plot_errors(runs_table, summary, path: Path, title: str, unit: tuple, n_sample_runs: int = 25) -> list[str]:
+    """Figs. 5-9 style: the first ``n_sample_runs`` runs of ``runs_table`` (``run, t_s, err_*``; may be a sample of
+    the runs) as thin lines with the Monte Carlo, filter and PCRB ±3σ of ``summary`` (:func:`.scoring.
+    per_time_summary` of all runs) → the PNG and SVG file names (SVG None unless ``renderlab report --svg``)."""
     plt = style.plt()
-    div, tname = _unit(summary, unit)
+    div, tname = unit
     runs = runs_table["run"].to_numpy()
     sample = np.unique(runs)[:n_sample_runs]
     n_all = int(summary["n_runs"].to_numpy()[0])
@@ -124,27 +94,11 @@ def _consistency_panel(ax, t, value, lo, hi, label: str, band_label: str, per_ti
     ax.grid(alpha=0.3)
 
 
-def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str] | None = None) -> list[str]:
-    """ANEES (6 dof) and ANIS per dof (2 dof per LOS) against time with their 99 % χ² bands.
-
-    Parameters
-    ----------
-    summary : pyarrow.Table
-        :func:`renderlab.studies.coastline_ekf.scoring.per_time_summary`.
-    path : Path
-        ``<stem>.png`` (``<stem>.svg`` beside it under ``renderlab report --svg``).
-    title : str
-        Figure title.
-    unit : (divisor, name), optional
-        Time unit (default: :func:`time_unit` of the summary's times).
-
-    Returns
-    -------
-    list of str
-        The PNG and SVG file names (the SVG's None when none is written).
-    """
+def plot_consistency(summary, path: Path, title: str, unit: tuple[float, str]) -> list[str]:
+    """ANEES (6 dof) and ANIS per dof (2 dof per LOS) of ``summary`` against time with their 99 % χ² bands → the
+    PNG and SVG file names (as :func:`plot_errors`)."""
     plt = style.plt()
-    div, tname = _unit(summary, unit)
+    div, tname = unit
     t = summary["t_s"].to_numpy() / div
     n = int(summary["n_runs"].to_numpy()[0])
     fig, axs = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True, constrained_layout=True)

@@ -1,43 +1,27 @@
-"""Publish the image-in-the-loop coastline campaign beside the paper's idealised (geometric) measurements.
-
-    python -m renderlab.studies.coastline_ekf.publish_image --runs 32 --work out/coastline_image \\
-        --out results/coastline_ekf/image_in_the_loop
-    python -m renderlab.studies.coastline_ekf.publish_image --runs 32 --work out/coastline_image_nomap \\
-        --truth-cache out/coastline_image/work/truth_cache --set coastline.map_error_m=0 \\
-        --variant no_map_error --out results/coastline_ekf/image_in_the_loop
-
-1. ``renderlab campaign scenes/coastline_image.toml --runs N --out WORK`` (rendered frames → extraction →
-   matching → LOS → EKF; seeded, resumable).
-2. Without ``--variant``: ``renderlab publish WORK --out OUT`` (``tables/coastline_filter.parquet``,
-   ``tables/coastline_frames.parquet``, ``campaign.json``, ``runs.json``; this replaces ``OUT/tables``), then the
-   same scenario in geometric mode (``coastline.mode = "geometric"``: same orbit, times, σθ, P0, star tracker,
-   seeds; LOS to the visible database points plus σθ noise, exactly what the filter assumes) as
-   ``tables/geometric_filter.parquet``, and the frames' ``contact_sheet.png`` (a render product, not a figure of
-   the tables). With ``--variant NAME``: the campaign's tables go into the already published ``OUT`` as
-   ``tables/variant_NAME_filter.parquet`` and ``tables/variant_NAME_frames.parquet``.
-3. ``renderlab report OUT`` (the report of every table of ``OUT/tables``, the comparison of the modes:
-   :mod:`renderlab.studies.coastline_ekf.comparison`).
-
-``--truth-cache OTHER_WORK/work/truth_cache`` reuses another campaign's renders (the cache is keyed by the render
-scenario and the truth code, so a mismatch renders anew).
+"""Publish the image-in-the-loop coastline campaign beside the paper's idealised (geometric) measurements: the
+campaign (``renderlab campaign``, then ``renderlab publish``), the same scenario in geometric mode as
+``geometric_filter``, the frames' ``contact_sheet.png``; ``--variant NAME`` adds a campaign's tables as
+``variant_NAME_{filter,frames}``; ``--truth-cache`` reuses another campaign's renders. The commands of the published
+folder: results/coastline_ekf/image_in_the_loop/README.md.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 from dataclasses import replace
 from pathlib import Path
 
 from renderlab.campaign import store
+from renderlab.campaign.compact import compact_folder, write_compact
 from renderlab.campaign.plan import make_plan, run_seed_sequence
 from renderlab.campaign.publish import is_published, publish_campaign
 from renderlab.campaign.runner import run_campaign_file
-from renderlab.errors import UserError
+from renderlab.errors import UserError, run_main
 from renderlab.report.campaign_report import make_report
 from renderlab.scenario import load_scenario
 from renderlab.studies.coastline_ekf.geometric import run_batch
+from renderlab.studies.coastline_ekf.publish import publish_tables
 from renderlab.studies.coastline_ekf.study import geometric_options
 
 
@@ -55,15 +39,6 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _write_table(table, path: Path) -> None:
-    """One zstd Parquet table, written beside its target and renamed into place."""
-    import pyarrow.parquet as pq
-
-    tmp = path.with_name(f".{path.name}.{os.getpid()}")
-    pq.write_table(table, str(tmp), compression="zstd", compression_level=9)
-    os.replace(tmp, path)
-
-
 def _geometric(args) -> object:
     """The scenario in geometric mode with the campaign's seeds → its filter table."""
     sc, _ = load_scenario(args.scenario, args.overrides)
@@ -79,7 +54,6 @@ def main(argv=None) -> int:
         raise UserError(f"--variant {args.variant!r} needs an identifier and an already published --out folder "
                         "(publish the main campaign there first)")
     if args.truth_cache is not None and not (args.work / store.MANIFEST).is_file():
-
         sc0, base0 = load_scenario(args.scenario, args.overrides)
         store.open_campaign(args.work, make_plan(sc0, base0, args.runs), resume=False)
         (args.work / "work").mkdir(exist_ok=True)
@@ -88,14 +62,15 @@ def main(argv=None) -> int:
                       resume=(args.work / store.MANIFEST).is_file())
     if args.variant is None:
         publish_campaign(args.work, args.out)
-        _write_table(_geometric(args), args.out / "tables" / "geometric_filter.parquet")
+        write_compact(_geometric(args), args.out / "tables" / "geometric_filter.parquet")
         sheets = sorted((args.work / "work" / "truth_cache").glob("*/contact_sheet.png"))
         if sheets:
             shutil.copyfile(sheets[0], args.out / "contact_sheet.png")
     else:
         tables = store.load_tables(args.work)
         for kind in ("filter", "frames"):
-            _write_table(tables[f"coastline_{kind}"], args.out / "tables" / f"variant_{args.variant}_{kind}.parquet")
+            write_compact(tables[f"coastline_{kind}"], args.out / "tables" / f"variant_{args.variant}_{kind}.parquet")
+    compact_folder(args.out, publish_tables, command="the publish_image commands of README.md")
     page = make_report(args.out, args.out / "report")
     print((args.out / "report" / "comparison.csv").read_text())
     print(f"published {args.out}; report {page}")
@@ -103,6 +78,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    from renderlab.studies.coastline_ekf.publish import run_module
-
-    raise SystemExit(run_module(main))
+    raise SystemExit(run_main(main))

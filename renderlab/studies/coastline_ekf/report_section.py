@@ -1,29 +1,25 @@
-"""The coastline-EKF section of ``renderlab report``: Figs. 5-9, ANEES/ANIS with their χ² bands, PCRB.
-
-The coastline NIS of an image has 2m degrees of freedom (m matched LOS), not the 2 per row a generic filter
-table would take, so the study reports its ``coastline_filter`` table itself (``own_tables`` of its
-:class:`~renderlab.contracts.study.Study`; the generic filter section skips it). The consistency is computed with
-:func:`renderlab.studies.coastline_ekf.scoring.per_time_summary` (99 % two-sided χ² bands, Bar-Shalom §5.4)
-and shown with pass/fail badges; a value outside its band gets the study's known reason. The posterior
-Cramér–Rao bound needs the truth geometry; :mod:`renderlab.studies.coastline_ekf.publish` adds it, the campaign
-report shows it when given. One time unit for the whole section (:func:`~renderlab.report.filter_section.time_unit`).
-Hooked in through ``report_sections`` of :mod:`renderlab.studies.coastline_ekf.study`.
+"""The coastline-EKF sections of ``renderlab report``: Figs. 5-9, ANEES/ANIS with their 99 % χ² bands (the NIS of an
+image has 2m dof, so the study reports its filter tables itself: ``own_tables``), PCRB when published, pass/fail
+badges and the study's known reason for a value outside its band; and the comparison of the modes of a published
+image folder (``coastline_filter``, ``geometric_filter``, ``variant_<name>_filter``: ``comparison.csv`` and
+``comparison.png``; docs/coastline_ekf.md).
 """
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 
 from renderlab.report import style
 from renderlab.report.campaign_report import render_blocks
+from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import table as html_table
 from renderlab.studies.coastline_ekf.figures import plot_consistency, plot_errors, time_unit
 from renderlab.studies.coastline_ekf.scoring import nis_total_test, per_time_summary, steady_state
 
-__all__ = ["is_coastline_table", "coastline_section", "summary_blocks"]
+__all__ = ["is_coastline_table", "coastline_section", "summary_blocks", "is_comparison_table", "modes", "mode_summary",
+           "plot_comparison", "comparison_sections"]
 
 _ROWS = [("r", "m", "radial position", 1, "m"), ("i", "m", "in-track position", 1, "m"),
          ("c", "m", "cross-track position", 1, "m"), ("vr", "mps", "radial velocity", 1e3, "mm/s"),
@@ -46,17 +42,6 @@ GEOMETRIC = ("Known causes of an ANEES above its band in the geometric mode are 
 def is_coastline_table(table) -> bool:
     """A coastline filter table: the filter columns plus the per-image LOS count ``n_meas``."""
     return {"run", "t_s", "nees", "nis", "n_meas"} <= set(table.column_names)
-
-
-def _render(blocks: list[dict]) -> str:
-    return render_blocks(blocks)
-
-
-def _write_steady_state(path: Path, ss: dict) -> None:
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(ss), lineterminator="\n")
-        w.writeheader()
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in ss.items()})
 
 
 def _steady_table(ss: dict) -> str:
@@ -137,70 +122,29 @@ def _frames_note(frames) -> str:
 
 def coastline_section(name: str, table, stage: Path, pcrb_sigma: np.ndarray | None = None,
                       frames=None) -> tuple[str, str]:
-    """The coastline section of filter table ``name``.
-
-    Parameters
-    ----------
-    name : str
-        Table name (file prefix).
-    table : pyarrow.Table
-        The study's filter table, all runs on one time grid.
-    stage : Path
-        Report folder: ``<name>_coastline_{errors,consistency}.png`` and
-        ``<name>_coastline_steady_state.csv`` are written there.
-    pcrb_sigma : ndarray (K, 6), optional
-        PCRB σ per RIC axis.
-    frames : pyarrow.Table, optional
-        The image mode's ``coastline_frames`` table (per-image diagnostics); ``None`` in the geometric mode.
-
-    Returns
-    -------
-    (str, str)
-        Section title and HTML body.
-    """
+    """(title, HTML) of the coastline section of filter table ``name`` (all runs on one time grid); writes
+    ``<name>_coastline_{errors,consistency}.png`` and ``<name>_coastline_steady_state.csv`` into ``stage``.
+    ``pcrb_sigma`` (K, 6): PCRB σ per RIC axis; ``frames``: the image mode's ``coastline_frames`` (None: geometric)."""
     runs, t = table["run"].to_numpy(), table["t_s"].to_numpy()
     n_runs = len(np.unique(runs))
     title = f"Coastline EKF (Straub & Christian Figs. 5-9): {name}"
     if len(t) % n_runs or len(np.unique(t)) != len(t) // n_runs:
-        return title, _render([{"kind": "text", "html": "Runs do not share one time grid; no coastline summary."}])
+        return title, render_blocks([{"kind": "text", "html": "Runs do not share one time grid; no coastline summary."}])
     pcrb = pcrb_sigma if pcrb_sigma is not None and len(pcrb_sigma) == len(t) // n_runs else None
     summary = per_time_summary(table, pcrb)
     mode = "image in the loop" if frames is not None else "geometric"
     ss, blocks = summary_blocks(name, summary, table, nis_total_test(table), stage, f"Coastline EKF, {mode}",
                                 mode, frames=frames)
-    _write_steady_state(stage / f"{name}_coastline_steady_state.csv", ss)
-    return title, _render(blocks + [{"kind": "links", "files": [f"{name}_coastline_steady_state.csv"]}])
+    write_csv(stage / f"{name}_coastline_steady_state.csv", [ss])
+    return title, render_blocks(blocks + [{"kind": "links", "files": [f"{name}_coastline_steady_state.csv"]}])
 
 
 def summary_blocks(name: str, summary, sample, nis: dict, stage: Path, figure_title: str, mode: str, frames=None,
                    unit: tuple[float, str] | None = None) -> tuple[dict, list[dict]]:
-    """Steady-state numbers and the report blocks (tables, verdicts, both figures) of one per-time summary.
-
-    Parameters
-    ----------
-    name : str
-        File prefix: ``<name>_coastline_{errors,consistency}.png`` are written into ``stage``.
-    summary : pyarrow.Table
-        :func:`~renderlab.studies.coastline_ekf.scoring.per_time_summary` of all runs (PCRB columns optional).
-    sample : pyarrow.Table
-        Per-run filter rows of the runs drawn as thin lines (all runs or a sample of them).
-    nis : dict
-        :func:`~renderlab.studies.coastline_ekf.scoring.nis_band_test` of all runs.
-    stage : Path
-        Report folder.
-    figure_title, mode : str
-        First line of the figures' titles; ``"geometric"`` or ``"image in the loop"`` for the text.
-    frames : pyarrow.Table, optional
-        The image mode's per-image diagnostics.
-    unit : (divisor, name), optional
-        The report's time unit (default: :func:`time_unit` of the summary's times).
-
-    Returns
-    -------
-    (dict, list of dict)
-        :func:`~renderlab.studies.coastline_ekf.scoring.steady_state` plus ``runs``, the NIS and ANEES verdicts;
-        the blocks.
-    """
+    """(:func:`.scoring.steady_state` plus ``runs`` and the verdicts, report blocks) of one per-time ``summary``
+    (PCRB columns optional): tables, verdicts and both figures (``<name>_coastline_*.png`` in ``stage``); ``sample``:
+    the per-run rows drawn as thin lines; ``nis``: :func:`.scoring.nis_band_test` of all runs; ``figure_title``
+    and ``mode`` (``"geometric"`` or ``"image in the loop"``) for the texts; ``unit``: the report's time unit."""
     n_runs = int(summary["n_runs"].to_numpy()[0])
     pcrb = "pcrb_sig_r_m" in summary.column_names
     div, tname = unit if unit is not None else time_unit(summary["t_s"].to_numpy())
@@ -236,3 +180,112 @@ def summary_blocks(name: str, summary, sample, nis: dict, stage: Path, figure_ti
         {"kind": "figure", "png": cons[0], "svg": cons[1], "alt": f"{name} coastline consistency",
          "caption": "ANEES and ANIS per dof against their 99 % χ² bands; crosses: outside the band."}]
     return ss, blocks
+
+
+_POS = (("r", "radial"), ("i", "in-track"), ("c", "cross-track"))
+
+
+def is_comparison_table(name: str) -> bool:
+    """A table shown only in the comparison (not as a section of its own)."""
+    return name == "geometric_filter" or (name.startswith("variant_") and name.endswith("_filter"))
+
+
+def modes(tables: dict) -> list[tuple[str, object, object]]:
+    """``[(label, filter table, frames table or None), ...]``: geometric, the campaign, then the variants."""
+    out = [("geometric (idealised LOS)", tables["geometric_filter"], None),
+           ("image", tables["coastline_filter"], tables.get("coastline_frames"))]
+    for name in sorted(n for n in tables if is_comparison_table(n) and n != "geometric_filter"):
+        key = name[len("variant_"):-len("_filter")]
+        out.append((f"image, {key.replace('_', ' ')}", tables[name], tables.get(f"variant_{key}_frames")))
+    return out
+
+
+def mode_summary(label: str, table, frames=None) -> tuple[dict, object]:
+    """One row of ``comparison.csv`` and the per-time summary of one mode's filter table."""
+    core = table.drop([c for c in ("campaign", "has_result", "reason") if c in table.column_names])
+    s = per_time_summary(core)
+    n = int(s["n_runs"].to_numpy()[0])
+    row = {"mode": label, "runs": n, "images": int(len(s) - 1), "los_per_image_mean": float(np.mean(s["n_meas"].to_numpy()[1:]))}
+    for a, u, _, scale, shown in _ROWS:
+        unit = shown.replace("/", "p")                                   # m, mmps
+        row[f"final_rms_{a}_{unit}"] = float(s[f"mc_rms_{a}_{u}"].to_numpy()[-1] * scale)
+        row[f"final_filter_sig_{a}_{unit}"] = float(s[f"filter_sig_{a}_{u}"].to_numpy()[-1] * scale)
+    t = core["t_s"].to_numpy()
+    for a, _ in _POS:                    # the run-mean error at the last time and its standard error over runs
+        row[f"final_mean_{a}_m"] = float(s[f"mc_mean_{a}_m"].to_numpy()[-1])
+        final = core[f"err_{a}_m"].to_numpy()[t == t.max()]
+        row[f"final_mean_sem_{a}_m"] = float(np.std(final, ddof=1) / np.sqrt(n)) if n > 1 else np.nan
+    anees, lo, hi = (s[c].to_numpy() for c in ("anees", "anees_lo", "anees_hi"))
+    inside = (anees >= lo) & (anees <= hi)
+    row.update(anees_final=float(anees[-1]), anees_lo=float(lo[-1]), anees_hi=float(hi[-1]),
+               anees_final_inside_99=bool(inside[-1]), anees_inside_99_fraction=float(np.mean(inside)),
+               anees_by_time=" ".join(f"{v:.1f}" for v in anees))       # prior, then one value per image
+    nis = nis_total_test(core)
+    row.update(nis_total_over_dof=nis["ratio"], nis_total_inside_99=nis["inside"])
+    if frames is not None:
+        row["los_err_px_median_over_images"] = float(np.nanmedian(frames["los_err_px_median"].to_numpy()))
+        row["images_without_match_fraction"] = float(np.mean(frames["n_matched"].to_numpy() == 0))
+    return row, s
+
+
+def plot_comparison(summaries: dict, stem: Path) -> list[str]:
+    """RMS position error and filter σ per RIC axis, and ANEES with its 99 % band, for every mode (PNG; SVG under ``--svg``)."""
+    plt = style.plt()
+    fig, axs = plt.subplots(1, 4, figsize=(16, 4.4), constrained_layout=True)
+    for j, (mode, s) in enumerate(summaries.items()):
+        colour = style.OKABE_ITO[j % len(style.OKABE_ITO)]
+        t = s["t_s"].to_numpy() - s["t_s"].to_numpy()[0]
+        for ax, (a, name) in zip(axs[:3], _POS):
+            ax.plot(t, s[f"mc_rms_{a}_m"].to_numpy(), "-", color=colour, label=f"{mode}: Monte Carlo RMS")
+            ax.plot(t, s[f"filter_sig_{a}_m"].to_numpy(), "--", color=colour, label=f"{mode}: filter σ")
+            ax.set_ylabel(f"{name} position error (m)")
+        anees, lo, hi = (s[c].to_numpy() for c in ("anees", "anees_lo", "anees_hi"))
+        if j == 0:
+            axs[3].fill_between(t, lo, hi, color="0.8", label=f"99 % χ² band ({int(s['n_runs'][0].as_py())} runs)")
+        inside = (anees >= lo) & (anees <= hi)
+        axs[3].plot(t, anees, "-", color=colour, lw=1.0)
+        axs[3].plot(t[inside], anees[inside], "o", color=colour, ms=4, label=f"{mode}: inside its band")
+        if (~inside).any():
+            axs[3].plot(t[~inside], anees[~inside], "x", color=colour, ms=7, mew=2, label=f"{mode}: outside its band")
+    axs[3].set_ylabel("ANEES (6 dof)")
+    for ax in axs:
+        ax.set_xlabel("time since the prior (s)")
+        ax.grid(alpha=0.3)
+    axs[0].legend(fontsize=7)
+    axs[3].legend(fontsize=7)
+    for ax, (_, name) in zip(axs[:3], _POS):
+        ax.set_title(f"{name} position: RMS (solid), filter σ (dashed)")
+    axs[3].set_title("ANEES against its 99 % χ² band")
+    fig.suptitle("Coastline EKF: idealised LOS (geometric, the paper's simulation) vs rendered images (extraction, "
+                 "matching, map error, clouds); same orbit, times, σθ, P0 and seeds")
+    return style.save(fig, stem)
+
+
+def comparison_sections(tables: dict, stage: Path) -> list[tuple[str, str]]:
+    """The comparison section (``comparison.csv``, ``comparison.png``) when ``geometric_filter`` is present."""
+    if "geometric_filter" not in tables or "coastline_filter" not in tables:
+        return []
+    rows, summaries = [], {}
+    for label, table, frames in modes(tables):
+        row, summaries[label] = mode_summary(label, table, frames)
+        rows.append(row)
+    write_csv(Path(stage) / "comparison.csv", rows)
+    png, svg = plot_comparison(summaries, Path(stage) / "comparison")
+    shown = [{**r, "anees_badge": style.badge(r["anees_final_inside_99"]), "nis_badge": style.badge(r["nis_total_inside_99"]),
+              "pos": " / ".join(f"{r[f'final_rms_{a}_m']:.0f}" for a, _ in _POS),
+              "sig": " / ".join(f"{r[f'final_filter_sig_{a}_m']:.0f}" for a, _ in _POS),
+              "band": f"[{r['anees_lo']:.2f}, {r['anees_hi']:.2f}]"} for r in rows]
+    cols = [("mode", "mode"), ("los_per_image_mean", "LOS per image (mean)"),
+            ("pos", "RMS error R / I / C at the last image (m)"), ("sig", "filter σ R / I / C (m)"),
+            ("anees_final", "ANEES at the last image"), ("band", "99 % band"), ("anees_badge", "consistent?"),
+            ("anees_inside_99_fraction", "share of times inside"), ("nis_total_over_dof", "total NIS / dof"),
+            ("nis_badge", "NIS consistent?")]
+    blocks = [{"kind": "text", "html": "All modes share the orbit, image times, σθ, P0, star tracker and seeds; "
+                                       "only the measurements differ."},
+              {"kind": "table", "html": html_table(shown, cols, left=("mode", "pos", "sig", "band"),
+                                                   raw=("anees_badge", "nis_badge"))},
+              {"kind": "figure", "png": png, "svg": svg, "alt": "coastline modes compared",
+               "caption": "RMS position error and filter σ per RIC axis, and ANEES against its 99 % χ² band "
+                          "(crosses: outside the band), for every mode."},
+              {"kind": "links", "files": ["comparison.csv"]}]
+    return [("Coastline EKF: image in the loop vs idealised measurements", render_blocks(blocks))]

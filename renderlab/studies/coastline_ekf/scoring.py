@@ -1,22 +1,6 @@
-r"""Scoring of the coastline-EKF Monte Carlo: Monte Carlo vs filter σ, ANEES/ANIS with χ² bands, the
-posterior Cramér–Rao bound, and the steady-state numbers of Table 1 (Straub & Christian).
-
-Theory
-------
-- ANEES at time k over N runs: :math:`\bar\epsilon_k = N^{-1}\sum_j \tilde x_{jk}^T P_{jk}^{-1}\tilde x_{jk}`.
-  For a consistent filter :math:`N\bar\epsilon_k \sim \chi^2(6N)`, so the two-sided 99 % band is
-  :math:`[\chi^2_{0.005}(6N)/N,\ \chi^2_{0.995}(6N)/N]` (Bar-Shalom, Li & Kirubarajan §5.4).
-- ANIS likewise with :math:`2m_k` degrees of freedom per run at an image with :math:`m_k` LOS (the NIS uses
-  :math:`S^+`, rank 2 per LOS). Innovations of a consistent filter are white, so the NIS summed over all
-  images and runs is :math:`\chi^2(N\sum_k 2m_k)` (:func:`nis_total_test`).
-- PCRB (Tichavský, Muravchik & Nehorai 1998, additive Gaussian noise): information recursion
-  :math:`J_{k} = (\Phi_k J_{k-1}^{-1}\Phi_k^T + Q_k)^{-1} + H_k^T R_k^{+} H_k`, :math:`J_0 = P_0^{-1}`, with
-  Φ and H (eq. 13, 17) evaluated on the *true* trajectory and the same matched points as the Monte Carlo.
-  :math:`R_k^+` is the pseudo-inverse of the stacked rank-2m covariance (eq. 18 plus the shared star-tracker
-  term), computed with ``numpy.linalg.pinv`` (independent of the filter's eq. 19 algebra). The deterministic
-  truth makes the expectation trivial.
-- Steady state (Table 1): the Monte Carlo RMS error per RIC axis over the last ``fraction`` of the time span,
-  reported as 3σ, next to the filter's 3σ and the PCRB's 3σ over the same window.
+"""Scoring of the coastline-EKF Monte Carlo: Monte Carlo vs filter σ, ANEES/ANIS with 99 % χ² bands (Bar-Shalom,
+Li & Kirubarajan §5.4), the posterior Cramér–Rao bound (Tichavský et al. 1998, doi:10.1109/78.668800) and the
+steady-state numbers of Table 1 (Straub & Christian). The theory: docs/coastline_ekf.md.
 """
 
 from __future__ import annotations
@@ -25,26 +9,16 @@ import numpy as np
 
 from estimators.coastline.dynamics import propagate_state_stm, white_acceleration_qd
 from estimators.coastline.los import los_jacobian_position, los_predict, skew_batch
-from renderlab.studies.coastline_ekf.geometric import ric_axes
+from renderlab.dynamics.orbits import ric_axes
+from renderlab.stats.consistency import chi2_band_mean, chi2_sum_test
 
 __all__ = ["AXES", "chi2_band", "per_time_summary", "pcrb_ric_sigma", "steady_state", "nis_total_test",
            "nis_band_test"]
+chi2_band, nis_band_test = chi2_band_mean, chi2_sum_test  # the study's names (99 % bands)
 
 AXES = [("r", "m"), ("i", "m"), ("c", "m"), ("vr", "mps"), ("vi", "mps"), ("vc", "mps")]
 ERR = [f"err_{a}_{u}" for a, u in AXES]
 SIG = [f"sig_{a}_{u}" for a, u in AXES]
-
-
-def chi2_band(dof_per_run, n_runs: int, p: float = 0.99) -> tuple[np.ndarray, np.ndarray]:
-    """Two-sided p band of the run-average of χ²(dof) variables: χ²_{(1∓p)/2}(N·dof)/N."""
-    from scipy.stats import chi2
-
-    dof = np.asarray(dof_per_run, dtype=np.float64) * n_runs
-    a = 0.5 * (1.0 - p)
-    with np.errstate(invalid="ignore"):
-        lo = np.where(dof > 0, chi2.ppf(a, np.maximum(dof, 1)) / n_runs, np.nan)
-        hi = np.where(dof > 0, chi2.ppf(1.0 - a, np.maximum(dof, 1)) / n_runs, np.nan)
-    return lo, hi
 
 
 def _columns(table) -> tuple[dict[str, np.ndarray], int, int]:
@@ -57,20 +31,12 @@ def _columns(table) -> tuple[dict[str, np.ndarray], int, int]:
 
 
 def per_time_summary(table, pcrb_sigma: np.ndarray | None = None, p: float = 0.99):
-    """One row per time: MC mean and RMS error, mean filter σ, PCRB σ, ANEES/ANIS and their χ² bands.
-
-    Parameters
-    ----------
-    table : pyarrow.Table
-        The study's filter table (``run, t_s, err_*, sig_*, nees, nis, n_meas``), all runs on the same times.
-    pcrb_sigma : ndarray (K, 6), optional
-        From :func:`pcrb_ric_sigma`.
-    """
+    """One row per time of the filter table (all runs on the same times): MC mean and RMS error, RMS filter σ, PCRB σ
+    (``pcrb_sigma`` (K, 6) of :func:`pcrb_ric_sigma`, optional), ANEES/ANIS and their χ² bands."""
     import pyarrow as pa
 
     c, N, K = _columns(table)
-    # mean LOS count over runs (equal in the geometric mode; the image mode's can differ per run): the summed NIS
-    # of N runs at one time is χ²(Σ 2 m_n) = χ²(N · 2 mean(m)), so the band below stays exact
+    # mean LOS count over runs (the image mode's can differ per run; the band stays exact: docs/coastline_ekf.md)
     out = {"t_s": c["t_s"][0], "n_meas": c["n_meas"].astype(np.float64).mean(axis=0)}
     for e, s in zip(ERR, SIG):
         out[e.replace("err_", "mc_mean_")] = c[e].mean(axis=0)
@@ -94,17 +60,8 @@ def nis_total_test(table, p: float = 0.99) -> dict:
     return nis_band_test(float(np.nansum(c["nis"])), float(np.sum(2 * c["n_meas"])), p)
 
 
-def nis_band_test(total: float, dof: float, p: float = 0.99) -> dict:
-    """A NIS sum ``total`` of ``dof`` degrees of freedom against its two-sided p band of χ²(dof)."""
-    from scipy.stats import chi2
-
-    lo, hi = chi2.ppf(0.5 * (1 - p), dof), chi2.ppf(0.5 * (1 + p), dof)
-    return {"total": total, "dof": dof, "lo": lo, "hi": hi, "ratio": total / dof, "inside": bool(lo <= total <= hi)}
-
-
 def pcrb_ric_sigma(geometry, options) -> np.ndarray:
     """Posterior Cramér–Rao bound σ per RIC axis (K, 6) for the study's truth and matched points."""
-
     x, t, T = geometry.x_true, geometry.t_s, geometry.T_cam_from_eci
     K = len(t)
     sd0 = options.initial_sigmas()

@@ -8,17 +8,20 @@ by a smooth, seeded random field (east, north) of ``error_m`` 1σ per axis (the 
 map's. Measured with the default ``scale_m`` = 100 km over Iberia, 24 seeds (``tests/test_earth_coast_db.py``
 and its probe): per-axis RMS 282-296 m for 300 m set; correlation of two vertices' displacements 0.99 within
 50 km, 0.84 at 50-150 km, 0.38 at 150-400 km, 0.10 beyond 400 km, so across one 540 km footprint the error is
-largely common. Output: polylines ``segment_id, lon_deg, lat_deg, x/y/z_ecef_m`` (WGS-84, height 0).
+largely common. Output: polylines ``segment_id, lon_deg, lat_deg, x/y/z_ecef_m`` (WGS-84, height 0);
+:func:`coast_db_ecef`: the ECEF points of one realisation over a lon/lat box, cached.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 
 from renderlab.worlds.earth import wgs84
 from renderlab.worlds.earth.clouds import CloudField
+from renderlab.worlds.earth.gshhg import load_gshhg
 
 M_PER_DEG = 111320.0
 
@@ -53,3 +56,13 @@ def build_coast_db(gshhg, region, opt: CoastDBOptions) -> dict[str, np.ndarray]:
         p = wgs84.geodetic_to_ecef(lat, lon)  # back on the ellipsoid
     return {"segment_id": seg.astype(np.int64), "lon_deg": np.degrees(lon), "lat_deg": np.degrees(lat),
             "x_ecef_m": p[:, 0], "y_ecef_m": p[:, 1], "z_ecef_m": p[:, 2]}
+
+
+@functools.lru_cache(maxsize=4)
+def coast_db_ecef(bounds: tuple, opt: CoastDBOptions) -> np.ndarray:
+    """ECEF points (n, 3) of the database of one realisation ``opt`` over the lon/lat box ``bounds``
+    (lon_min, lat_min, lon_max, lat_max in degrees); the last few are cached."""
+    import shapely
+
+    cols = build_coast_db(load_gshhg(), shapely.box(*bounds), opt)
+    return np.stack([cols["x_ecef_m"], cols["y_ecef_m"], cols["z_ecef_m"]], -1)
