@@ -42,8 +42,8 @@ def _options(world, base, coarse, gm, j2, r_ref):
 
 def _flight(path: Path, options: dict, coarse) -> None:
     from renderlab.campaign.cache import loaded_world
+    from renderlab.dynamics.closed_loop import fly
     from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
-    from renderlab.studies.descent_gnc.loop import fly
     from renderlab.studies.descent_gnc.study import Setup, section
 
     facets = [None, *coarse]

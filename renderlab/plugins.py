@@ -78,7 +78,7 @@ BUILTIN: dict[str, tuple[str, dict[str, str]]] = {
         "cycles": "renderlab.render.cycles_backend:CyclesBackend",
     }),
     "guidance": ("renderlab.guidance", {  # factories (GuidanceOptions) -> renderlab.contracts.guidance.GuidanceLaw
-        "zem_zev": "renderlab.studies.descent_gnc.guidance:ZemZevLaw",
+        "zem_zev": "renderlab.measurement.builtin_guidance:ZemZevLaw",
     }),
     "result_folders": ("renderlab.result_folders", {  # renderlab.contracts.result_folder.ResultFolderKind objects
         "crosscheck": "renderlab.crosscheck.figures:RESULT_FOLDER",

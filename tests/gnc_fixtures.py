@@ -34,7 +34,7 @@ class BumpSite:
 def world():
     """(shape, site, t0, x0, waypoints) of the descent from the 200 m waypoint to a target 0.7 m east, 0.4 m south
     of the site centre, touchdown at 5 cm/s."""
-    from renderlab.studies.descent_gnc import arrm_waypoints
+    from renderlab.studies.descent_gnc.waypoints import arrm_waypoints
     from renderlab.worlds.ev5 import stream
     from renderlab.worlds.ev5.config import EV5DescentTrajectory, EV5World
     from renderlab.worlds.ev5.descent import DescentProfile

@@ -9,7 +9,7 @@ import gnc_fixtures as fx
 import numpy as np
 
 from estimators.gnc import ThrusterModel, ThrusterOptions
-from renderlab.studies.descent_gnc import TruthPlusNoise, fly
+from renderlab.dynamics.closed_loop import TruthPlusNoise, fly
 
 
 def _run(seed: int):

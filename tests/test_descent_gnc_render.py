@@ -49,8 +49,9 @@ def _run(renderer, seed: int):
     from renderlab import plugins
     from renderlab.contracts.guidance import GuidanceOptions
     from renderlab.dynamics.descent_truth import ContactSurface, DescentTruth, PointMassJ2
-    from renderlab.studies.descent_gnc import arrm_waypoints
-    from renderlab.studies.descent_gnc.render_loop import ClosedLoopOptions, fly_closed_loop
+    from renderlab.studies.descent_gnc.config import DescentGncConfig
+    from renderlab.studies.descent_gnc.render_loop import fly_closed_loop
+    from renderlab.studies.descent_gnc.waypoints import arrm_waypoints
     from renderlab.worlds.ev5.descent import DescentProfile
 
     model = renderer.plan.model
@@ -61,9 +62,11 @@ def _run(renderer, seed: int):
     law = plugins.guidance.get("zem_zev")(GuidanceOptions(wps, 3.19, (0.0, 0.0, omega), 1.0))
     t0 = wps[0].t_s                                            # from the spin-matched 50 m waypoint
     x0 = np.r_[wps[0].r_m, 0.0, 0.0, 0.0]
-    opts = ClosedLoopOptions(initial_position_sigma_m=0.3, initial_velocity_sigma_mps=0.005, keep_images=True)
-    return fly_closed_loop(renderer, METHOD, law, truth=truth, t0_s=t0, x0=x0, t_max_s=t0 + 3.0, seed=seed,
-                           options=opts)
+    cfg = DescentGncConfig(camera_period_s=1.0, initial_position_sigma_m=0.3, initial_velocity_sigma_mps=0.005,
+                           gsd_ratio_range=(0.4, 2.5), sigma_ground_m=0.0, widen_factors=[1.0],
+                           nis_reject_probability=1.0)
+    return fly_closed_loop(renderer, METHOD, law, cfg, truth=truth, t0_s=t0, x0=x0, t_max_s=t0 + 3.0, seed=seed,
+                           keep_images=True)
 
 
 def test_closed_loop_renders_the_true_state_and_replays_for_a_seed(renderer):

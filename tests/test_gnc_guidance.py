@@ -50,7 +50,7 @@ def test_sampled_law_is_the_minimum_energy_hold_sequence_and_tends_to_the_contin
 
 @pytest.mark.parametrize("gravity", ["point_mass_j2", "polyhedron"])
 def test_touchdown_with_perfect_navigation_and_thrusters(gravity):
-    from renderlab.studies.descent_gnc import fly
+    from renderlab.dynamics.closed_loop import fly
 
     shape, site, t0, x0, wps = fx.world()
     flight = fly(fx.truth(gravity), fx.guidance(), t0, x0, control_period_s=1.0, t_max_s=wps[-1].t_s + 60)
@@ -69,7 +69,7 @@ def test_touchdown_with_perfect_navigation_and_thrusters(gravity):
 
 def _thruster_flight(seed: int, sigma: float):
     """From the 50 m waypoint, point mass + J2 truth, thrusters with errors of scale ``sigma``."""
-    from renderlab.studies.descent_gnc import fly
+    from renderlab.dynamics.closed_loop import fly
 
     _, _, _, _, wps = fx.world()
     opts = ThrusterOptions(mass_kg=500.0, max_accel_mps2=0.05, min_impulse_bit_ns=0.05 * (sigma > 0),
@@ -133,8 +133,8 @@ def test_thruster_model_statistics_and_impulse_bit():
 def test_registry_protocol_and_a_users_own_law():
     from renderlab import plugins
     from renderlab.contracts.guidance import GuidanceLaw, GuidanceOptions
-    from renderlab.studies.descent_gnc import fly
-    from renderlab.studies.descent_gnc.guidance import ZemZevLaw
+    from renderlab.dynamics.closed_loop import fly
+    from renderlab.measurement.builtin_guidance import ZemZevLaw
 
     assert plugins.guidance.get("zem_zev") is ZemZevLaw
     assert isinstance(fx.guidance(), GuidanceLaw)

@@ -54,7 +54,7 @@ def test_reason_colours_are_never_method_colours():
 
 
 def test_lambert_photocentre_against_integration():
-    from renderlab.studies.analytic_pointing.report import lambert_photocentre
+    from estimators.centre_limb.phase import lambert_offset
 
     x = np.linspace(-1, 1, 1601)
     X, Y = np.meshgrid(x, x)
@@ -64,7 +64,7 @@ def test_lambert_photocentre_against_integration():
         a = math.radians(deg)
         mu0 = X * math.sin(a) + Z * math.cos(a)  # cos(incidence), Sun in the x-z plane, view along z
         w = np.where(inside & (mu0 > 0), mu0, 0.0)  # Lambert radiance ∝ cos(incidence)
-        assert abs(float(lambert_photocentre(a)) - (w * X).sum() / w.sum()) < 2e-4, deg
+        assert abs(float(lambert_offset(a)) - (w * X).sum() / w.sum()) < 2e-4, deg
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +86,7 @@ def test_analytic_report_opens_with_what_it_measures(analytic_report):
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from renderlab.studies.analytic_pointing.report import lambert_photocentre
+    from estimators.centre_limb.phase import lambert_offset
 
     page = (analytic_report / "rep" / "index.html").read_text()
     h2 = re.findall(r"<h2[^>]*>([^<]+)</h2>", page)
@@ -96,7 +96,7 @@ def test_analytic_report_opens_with_what_it_measures(analytic_report):
     t = pa.concat_tables([pq.read_table(p) for p in sorted((analytic_report / "camp").glob("runs/*/measurements.parquet"))])
     d = t.to_pydict()
     light = np.hypot(np.subtract(d["centre_of_light_s"], d["truth_s"]), np.subtract(d["centre_of_light_l"], d["truth_l"]))
-    pred = lambert_photocentre(np.radians(d["phase_deg"]), np.asarray(d["target_radius_px"]))
+    pred = lambert_offset(np.radians(d["phase_deg"])) * np.asarray(d["target_radius_px"])
     # the rendered truth's centre of light is the Lambert sphere's photocentre up to perspective, the box's shadow
     # and pixel sampling (11 px radius here)
     assert np.all(np.abs(light / pred - 1) < 0.25), light / pred

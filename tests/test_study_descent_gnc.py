@@ -127,3 +127,29 @@ def test_an_overconfident_filter_rejects_images_widens_its_search_and_records_th
     assert [im["widen"][i] for i in measured[:3]] == [1.0, 2.0, 4.0][: len(measured[:3])]
     assert r["track_lost"] == [True] and r["loss_cause"] == ["nis_rejected"]
     assert r["loss_t_s"][0] == im["t_s"][measured[1]]
+
+
+def test_published_folder_ships_the_columns_the_report_reads_and_reports_the_same(campaign):
+    """``renderlab publish`` keeps only the columns the report reads (Study.publish_tables), records the full tables
+    in raw_tables.json, and the report of the published folder writes the same CSVs as the raw campaign's."""
+    import pyarrow.parquet as pq
+
+    from renderlab.campaign.compact import read_raw_tables
+
+    d, run_tabs, img_tabs = campaign
+    assert main(["publish", "--out", str(d / "pub"), str(d / "camp")]) == 0
+    assert main(["report", str(d / "pub"), "--tables-only"]) == 0
+    raw = read_raw_tables(d / "pub" / "tables")
+    for name, tabs in (("gnc_images", img_tabs), ("gnc_runs", run_tabs)):
+        pub = pq.read_table(d / "pub" / "tables" / f"{name}.parquet")
+        assert set(pub.column_names) < set(tabs[0].column_names) and "campaign" not in pub.column_names
+        assert raw[name]["columns"] == tabs[0].column_names and raw[name]["rows"] == sum(t.num_rows for t in tabs)
+        full = pa.concat_tables(tabs)
+        for c in pub.column_names:                                       # the kept columns, bit for bit
+            x, y = pub.column(c), full.column(c)
+            if pa.types.is_floating(x.type):
+                assert np.asarray(x).tobytes() == np.asarray(y).tobytes(), c
+            else:
+                assert x.to_pylist() == y.to_pylist(), c
+    for f in ("gnc_summary.csv", "gnc_timeseries.csv", "gnc_track_loss.csv"):
+        assert (d / "pub" / "report" / f).read_bytes() == (d / "report" / f).read_bytes(), f

@@ -12,6 +12,8 @@ and what else it measures (limb ellipse, limb points, camera-to-body vector and 
 - :mod:`.ellipse_fit`: (b) limb scan + direct least-squares ellipse fit (Fitzgibbon, Pilu & Fisher 1999) or
   ``cv2.fitEllipse``, the fitted conic turned into the body's position (eqs. 19–20).
 - :mod:`.horizon`: (c) Christian & Robinson's non-iterative horizon-based OpNav (Cholesky factorisation), eqs. 15–18.
+- :mod:`.blob`: an Otsu blob's centroid and an ellipse fitted to its outline, in a window about the predicted
+  centre (the analytic proving scene's smoke-test methods).
 - :mod:`.common`: the a-priori geometry (the limb cone of :mod:`renderlab.geometry.conic`), the result, the reasons.
 
 Self-contained: numpy, scipy, OpenCV and ``renderlab.geometry`` only. Pixels in the lab's convention ((0, 0) the

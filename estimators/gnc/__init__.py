@@ -34,7 +34,7 @@ Use
 ``g = ZemZevGuidance(ZemZevOptions(waypoints=(Waypoint(t, r, v), ...), gm_m3_s2=μ, omega_rad_s=(0, 0, ω),
 control_period_s=Δ))``; every Δ: ``a_cmd = g.command(t, x_est)``; ``a = thr.realise(a_cmd, Δ)`` with
 ``thr = ThrusterModel(ThrusterOptions(...), np.random.default_rng(seed))``; integrate the truth with ``a`` held.
-The lab's contract adapter is ``renderlab.studies.descent_gnc.guidance.ZemZevLaw`` (registered guidance law
+The lab's contract adapter is ``renderlab.measurement.builtin_guidance.ZemZevLaw`` (registered guidance law
 ``zem_zev``, :data:`renderlab.plugins.guidance`).
 
 References

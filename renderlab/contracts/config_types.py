@@ -20,6 +20,8 @@ NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Vec3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
 Vec2 = Annotated[list[Positive], Field(min_length=2, max_length=2)]
 Seed = Annotated[int, Field(ge=0)]
+#: a name looked up in a registry (:mod:`renderlab.plugins`): a method, filter, guidance law
+RegisteredName = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]
 
 
 def accepts_bool(tp: Any) -> bool:

@@ -1,7 +1,5 @@
-"""Study ``analytic_pointing``: the sphere's centre measured by a blob centroid and an ellipse fit on the
-analytic proving scene, scored against its projected truth (a smoke test of the campaign engine).
-See :mod:`.run`; :mod:`.report` says on the report what the numbers measure (the lit-limb offset of a blob
-centre)."""
+"""Study ``analytic_pointing``: the sphere's centre by a blob centroid and an ellipse fit on the analytic proving
+scene, scored against its projected truth (a smoke test of the campaign engine); :mod:`.run`, :mod:`.report`."""
 
 from renderlab.contracts.study import Study, lazy
 

@@ -1,19 +1,7 @@
-"""Report section of ``analytic_pointing``: what its numbers measure, said before them.
-
-The truth is the sphere's **geometric centre**; both methods find the **lit** part of the sphere. At a phase angle
-α > 0 the lit part is a gibbous disc, so a centre of brightness lands toward the Sun by the photocentre offset of a
-Lambert sphere (orthographic view, uniform albedo, radius R):
-
-    δ(α) = (3π/16) R sin α (1 + cos α) / (sin α + (π − α) cos α)
-
-(0 at α = 0, 0.30 R at 45°, 0.59 R at 90°; ``tests/test_analytic_pointing_report.py`` checks it against a direct
-integration over the disc). The Otsu threshold cuts the dim terminator side as well, so the ``centroid`` and the
-``ellipse`` fit (the lit blob's outline) land further toward the Sun than δ. That offset, some 5–10 px on the
-README's example, is expected: it is what a blob centre measures, not an estimator failure. It also changes with
-the phase from frame to frame, so the spread over runs and frames is the offset's variation, not noise, and the
-registration CRLB (a bound on noise alone) is not its scale. This section puts those numbers side by side, from
-the table's truth columns ``centre_of_light_s/_l`` (the radiance-weighted centroid of the noise-free truth render)
-and ``target_radius_px``.
+"""Report section of ``analytic_pointing``: what its numbers measure, said before them. The truth is the sphere's
+geometric centre; both methods find the lit part, which at phase α > 0 lies toward the Sun by the Lambert-sphere
+photocentre offset δ(α) (:func:`estimators.centre_limb.phase.lambert_offset`, eq. 6 there) and further (the Otsu
+threshold cuts the dim terminator side): an expected offset, not an estimator failure (``docs/analytic_pointing.md``).
 """
 
 from __future__ import annotations
@@ -23,14 +11,9 @@ import math
 
 import numpy as np
 
+from estimators.centre_limb.phase import lambert_offset
+
 LEAD_TITLE = "What this campaign measures"  # renderlab.report.campaign_report.LEAD_TITLE: opens the page
-
-
-def lambert_photocentre(phase_rad, radius=1.0):
-    """Offset of a Lambert sphere's centre of light from its centre, toward the Sun (module docstring), in the unit
-    of ``radius``; valid for 0 ≤ α < π."""
-    a = np.asarray(phase_rad, float)
-    return 3 * np.pi / 16 * radius * np.sin(a) * (1 + np.cos(a)) / (np.sin(a) + (np.pi - a) * np.cos(a))
 
 
 def _col(t, name, dtype=float):
@@ -44,7 +27,7 @@ def _rows(t) -> list[dict]:
     cs, cl = _col(t, "centre_of_light_s"), _col(t, "centre_of_light_l")
     rad, ph = _col(t, "target_radius_px"), np.radians(_col(t, "phase_deg"))
     light = np.hypot(cs - ts, cl - tl)
-    pred = lambert_photocentre(ph, rad)
+    pred = lambert_offset(ph) * rad
     out = []
     for m in sorted(set(meth)):
         s = (meth == m) & ok & np.isfinite(es) & np.isfinite(el)

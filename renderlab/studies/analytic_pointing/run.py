@@ -1,34 +1,21 @@
 """Study ``analytic_pointing``: where is the sphere in the image? An end-to-end exercise of the engine.
 
-Each run perturbs an analytic scenario (camera pose, focal length, principal point, distortion, sun
-direction; :mod:`renderlab.campaign.perturb`), renders every frame of its trajectory from the perturbed
-(true) pose through the truth cache, and measures the image position of the target sphere's centre with
-two independent image-only methods, both seeded by a window around the *predicted* centre (nominal
-camera, a-priori pose = nominal + a-priori error):
-
-* ``centroid``: Otsu threshold (OpenCV) in the window, largest connected component, DN-weighted centroid
-  above the threshold (classic centre-of-brightness; biased toward the Sun at non-zero phase);
-* ``ellipse``: OpenCV ``fitEllipse`` (least-squares conic) on the same component's outer contour.
-
-Truth is the true sphere centre projected through the true camera and pose of the manifest (the
-pinhole/distortion model of Wright et al. eqs. 1-4). Extra columns: ``phase_deg`` (Sun–target–camera
-angle, eq. 8), ``range_m``, ``gsd_ratio`` (true over assumed metres per pixel at the target),
-``centre_of_light_s``/``centre_of_light_l`` (px: the radiance-weighted centroid of the target's pixels in the
-noise-free truth render, where a perfect centre-of-brightness lands, offset from the centre toward the Sun),
-``target_radius_px`` (the true apparent radius, mean focal length × tan(asin(radius / range))),
-``shadow_fraction`` (unlit share of the target's visible pixels, N·s ≤ 0, eq. 6), ``albedo_contrast``
-(Michelson contrast target vs. other surfaces in the window, truth radiance) and the registration
-Cramér–Rao bound ``crlb_s``/``crlb_l`` (px, :func:`renderlab.campaign.scoring.registration_crlb`).
+Each run perturbs an analytic scenario (:mod:`renderlab.campaign.perturb`), renders every frame from the perturbed
+(true) pose through the truth cache and measures the sphere's centre with the two image-only methods of
+:mod:`estimators.centre_limb.blob` (``centroid``, ``ellipse``), seeded at the centre predicted from the nominal
+camera and the a-priori pose. Truth: the true centre projected through the true camera and pose (Wright et al.
+eqs. 1-4). Extra columns (``docs/analytic_pointing.md``): phase, range, GSD ratio, the truth render's centre of light,
+the true apparent radius, shadow fraction, albedo contrast and the registration CRLB in the window.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
 
+from estimators.centre_limb.blob import METHODS, measure_sphere
 from renderlab.campaign.cache import cached_truthset
 from renderlab.campaign.perturb import draw_perturbation, perturb_pose, perturb_scenario_dict
 from renderlab.campaign.scoring import dn_variance, registration_crlb
@@ -41,8 +28,6 @@ from renderlab.scenario import scenario_from_dict
 from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.worlds.base import frame_specs
 
-METHODS = ("centroid", "ellipse")
-
 
 def _target(scenario):
     want = scenario.campaign.target
@@ -53,88 +38,6 @@ def _target(scenario):
             return k, np.asarray(b.center_m, float), float(b.radius_m)
     raise UserError(f"campaign.target: no sphere named '{want}' in world.bodies" if want
                     else "analytic_pointing needs a sphere in world.bodies")
-
-
-def _otsu(values: np.ndarray) -> float | None:
-    """Otsu threshold of a sample (OpenCV on an 8-bit rescale), in the sample's units."""
-    import cv2
-
-    lo, hi = float(values.min()), float(values.max())
-    if hi - lo < 1.0:
-        return None
-    u8 = np.clip((values - lo) / (hi - lo) * 255.0, 0, 255).astype(np.uint8).reshape(-1, 1)
-    t8, _ = cv2.threshold(u8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
-    return lo + (t8 + 0.5) / 255.0 * (hi - lo)
-
-
-def _segment(win: np.ndarray, levels: int = 3):
-    """The brightest blob as (component mask, threshold in DN), or None.
-
-    Otsu threshold, largest 8-connected component; while it touches the window's edge (bright ground
-    around the target), threshold again inside the bright class (multi-level Otsu), up to ``levels``.
-    """
-    import cv2
-
-    sample = win.ravel()
-    best = None
-    for _ in range(levels):
-        thr = _otsu(sample)
-        if thr is None:
-            break
-        n, labels, stats, _ = cv2.connectedComponentsWithStats((win > thr).astype(np.uint8), connectivity=8)
-        if n < 2:
-            break
-        k = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-        best = (labels == k, thr)
-        x, y, w, h = stats[k, :4]
-        if x > 0 and y > 0 and x + w < win.shape[1] and y + h < win.shape[0]:
-            break
-        sample = sample[sample > thr]
-        if sample.size < 10:
-            break
-    return best
-
-
-def measure_sphere(dn: np.ndarray, pred_sl: np.ndarray, radius_px: float) -> dict[str, tuple]:
-    """Both methods on one image: ``{method: (s, l, score, reason, t_ms)}`` (NaN s, l when no result; reason a
-    :class:`~renderlab.contracts.reasons.LandmarkReason` value)."""
-    import cv2
-
-    h, w = dn.shape
-    half = int(math.ceil(1.5 * radius_px + 4))
-    c = np.rint(pred_sl).astype(int) if np.all(np.isfinite(pred_sl)) else np.array([-10**9, -10**9])
-    s0, s1 = max(c[0] - half, 0), min(c[0] + half + 1, w)
-    l0, l1 = max(c[1] - half, 0), min(c[1] + half + 1, h)
-    out = {m: (math.nan, math.nan, math.nan, R.OFF_IMAGE.value, 0.0) for m in METHODS}
-    if s1 - s0 < 5 or l1 - l0 < 5:
-        return out
-    t0 = time.perf_counter()
-    win = dn[l0:l1, s0:s1].astype(np.float64)
-    seg = _segment(win)
-    t_seg = time.perf_counter() - t0
-    if seg is None:
-        return {m: (math.nan, math.nan, math.nan, R.NO_DETECTION.value, 1e3 * t_seg) for m in METHODS}
-    mask, thr = seg
-    ll, ss = np.nonzero(mask)
-    edge = ll.min() == 0 or ss.min() == 0 or ll.max() == mask.shape[0] - 1 or ss.max() == mask.shape[1] - 1
-    if edge or len(ll) < 5:
-        why = (R.SEARCH_BORDER if edge else R.TOO_FEW_PIXELS).value
-        return {m: (math.nan, math.nan, math.nan, why, 1e3 * t_seg) for m in METHODS}
-    t1 = time.perf_counter()
-    wgt = win[ll, ss] - thr
-    wgt = np.where(wgt > 0, wgt, 0.0) + 1e-12
-    cs, cl = float(np.dot(wgt, ss) / wgt.sum()) + s0, float(np.dot(wgt, ll) / wgt.sum()) + l0
-    out["centroid"] = (cs, cl, float(len(ll)), R.OK.value, 1e3 * (t_seg + time.perf_counter() - t1))
-    t2 = time.perf_counter()
-    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    cont = max(contours, key=len)
-    if len(cont) >= 5:
-        (es, el), (a, b), _ = cv2.fitEllipse(cont)
-        out["ellipse"] = (float(es) + s0, float(el) + l0, float(min(a, b) / max(a, b, 1e-12)), R.OK.value,
-                          1e3 * (t_seg + time.perf_counter() - t2))
-    else:
-        out["ellipse"] = (math.nan, math.nan, math.nan, R.TOO_FEW_PIXELS.value, 1e3 * t_seg)
-    return out
 
 
 def _truth_scenario(sc_dict: dict, position, R, seed: int) -> dict:
@@ -186,7 +89,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 
     import pyarrow as pa
     from scipy.spatial.transform import Rotation
-
 
     if scenario.world.kind != "analytic":
         raise UserError(f"study analytic_pointing needs world.kind 'analytic', got '{scenario.world.kind}'")

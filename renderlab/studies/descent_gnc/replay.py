@@ -1,21 +1,14 @@
-"""The open-loop replay beside the closed loops: the guidance flies on the truth, every method's filter on the same
-images.
-
-:func:`fly_replay` flies :func:`renderlab.studies.descent_gnc.loop.fly` with perfect navigation (the guidance
-gets the true state, so the true path does not depend on any estimate — the open-loop design of
-``results/descent_navigation``), the same thrusters, and at every camera time renders the true state **once**
-(:meth:`ImageNavigation.render <renderlab.studies.descent_gnc.render_loop.ImageNavigation.render>`) and gives that
-image to each method's own :class:`~renderlab.studies.descent_gnc.render_loop.ImageNavigation` (its own descent EKF,
-initial estimate, star-tracker and accelerometer draws from the same seed as its closed loop: paired). The render
-time of an image is shared equally among the methods' records.
-"""
+"""The open-loop replay beside the closed loops: the guidance flies on the truth (the open-loop design of
+``results/descent_navigation``), each camera time is rendered **once**, and every method's own
+:class:`~renderlab.studies.descent_gnc.render_loop.ImageNavigation` (its filter and draws from the same seed as its
+closed loop: paired) measures that image; an image's render time is shared equally among the methods' records."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from renderlab.studies.descent_gnc.loop import fly
-from renderlab.studies.descent_gnc.render_loop import ClosedLoopOptions, ClosedLoopRun, ImageNavigation
+from renderlab.dynamics.closed_loop import fly
+from renderlab.studies.descent_gnc.render_loop import ClosedLoopRun, ImageNavigation
 
 
 class ReplayNavigation:
@@ -38,12 +31,12 @@ class ReplayNavigation:
         return x_true.copy()
 
 
-def fly_replay(renderer, methods, guidance, *, truth, t0_s: float, x0, t_max_s: float, seed: int,
-               options: ClosedLoopOptions = ClosedLoopOptions(), thrusters=None, look_at_m=None) -> dict:
+def fly_replay(renderer, methods, guidance, cfg, *, truth, t0_s: float, x0, t_max_s: float, seed: int,
+               thrusters=None, look_at_m=None) -> dict:
     """``{method: ClosedLoopRun}`` of the replay (module docstring); every run holds the same flight."""
     target = renderer.plan.model.site.origin_m if look_at_m is None else look_at_m
-    navs = [ImageNavigation(renderer, m, options, t0_s, x0, seed, target) for m in methods]
-    flight = fly(truth, guidance, t0_s, x0, control_period_s=options.control_period_s, t_max_s=t_max_s,
+    navs = [ImageNavigation(renderer, m, cfg, t0_s, x0, seed, target) for m in methods]
+    flight = fly(truth, guidance, t0_s, x0, control_period_s=cfg.control_period_s, t_max_s=t_max_s,
                  navigation=ReplayNavigation(navs), thrusters=thrusters)
     return {m: ClosedLoopRun(flight, nav.images, nav.dn, nav.x0_est, nav.filt.x, nav.filt.P, nav.loss)
             for m, nav in zip(methods, navs)}

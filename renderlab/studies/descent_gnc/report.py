@@ -6,22 +6,21 @@ PASS/FAIL and one conclusion sentence per method."""
 
 from __future__ import annotations
 
-import csv
 import html
 from pathlib import Path
 
+from renderlab.report import csvio
 from renderlab.report.style import badge, fmt
 from renderlab.studies.descent_gnc.report_figures import consistency_figure, dispersion_figure, history_figure
 from renderlab.studies.descent_gnc.scoring import cols, lost_keys, summary, timeseries, track_loss_rows
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
-    keys = list(dict.fromkeys(k for r in rows for k in r)) if rows else ["none"]
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=keys, lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
+    """:func:`renderlab.report.csvio.write_csv`; an empty table is the header ``none``."""
+    if rows:
+        csvio.write_csv(path, rows)
+    else:
+        Path(path).write_text("none\n", encoding="utf-8")
 
 
 def _ci(r: dict, key: str, digits: int = 3) -> str:
@@ -54,6 +53,7 @@ def _table(rows: list[dict]) -> str:
 def _loss_html(loss: list[dict]) -> str:
     if not loss:
         return "<p>Track loss: none, in any flight (closed loops and replays).</p>"
+
     def item(x: dict) -> str:
         again = "re-acquired" if x["reacquired"] else "not re-acquired"
         return (f"<li>{html.escape(x['method'])} {x['mode']} run {x['run']}: {x['cause']} at t = {x['t_s']:.0f} s "

@@ -27,8 +27,7 @@ def dispersion_figure(r: dict, out_dir: Path) -> list[str]:
     clipped to the panel edge and counted."""
     methods = sorted(set(r["method"]))
     colors = method_colors(methods)
-    pyplot = plt()
-    fig, axes = pyplot.subplots(2, len(methods), figsize=(3.7 * len(methods), 7.2), squeeze=False)
+    fig, axes = plt().subplots(2, len(methods), figsize=(3.7 * len(methods), 7.2), squeeze=False)
     for j, m in enumerate(methods):
         for i, (pre, unit, label) in enumerate((("", "m", "position"), ("v", "mps", "velocity"))):
             ax = axes[i, j]
@@ -52,12 +51,9 @@ def dispersion_figure(r: dict, out_dir: Path) -> list[str]:
             if lost.any():
                 ax.plot(np.clip(e[lost], -lim, lim), np.clip(n[lost], -lim, lim), "x", color="#D00000", ms=7,
                         mew=1.5, label=f"lost track ({int(lost.sum())})")
-            ax.set_xlim(-lim, lim)
-            ax.set_ylim(-lim, lim)
-            ax.set_aspect("equal")
             u = "m" if unit == "m" else "m/s"
-            ax.set_xlabel(f"east {label} error ({u})")
-            ax.set_ylabel(f"north {label} error ({u})")
+            ax.set(xlim=(-lim, lim), ylim=(-lim, lim), aspect="equal", xlabel=f"east {label} error ({u})",
+                   ylabel=f"north {label} error ({u})")
             ax.axhline(0, color="0.85", lw=0.5)
             ax.axvline(0, color="0.85", lw=0.5)
             if i == 0:
@@ -72,8 +68,7 @@ def history_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
     per image time, closed loop and replay, with the filter's 3σ, one panel per method."""
     methods = sorted({t["method"] for t in ts_rows})
     colors = method_colors(methods)
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, len(methods), figsize=(3.8 * len(methods), 3.8), squeeze=False, sharey=True)
+    fig, axes = plt().subplots(1, len(methods), figsize=(3.8 * len(methods), 3.8), squeeze=False, sharey=True)
     for ax, m in zip(axes[0], methods):
         for mode, ls in (("closed", "-"), ("replay", ":")):
             rows = [t for t in ts_rows if t["method"] == m and t["mode"] == mode and t["runs"] == "all"]
@@ -91,9 +86,8 @@ def history_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
             if mode == "closed":
                 ax.plot(t, pos("sig3_h_rms_m"), "--", color=colors[m], lw=0.8,
                         label="filter 3σ (RMS), closed")
-        ax.set_yscale("log")
+        ax.set(yscale="log", xlabel="time (s)")
         ax.set_ylim(bottom=1e-3)         # the replay meets its waypoints to ~1e-5 m: below the axis
-        ax.set_xlabel("time (s)")
         ax.set_title(f"{m}: horizontal, RMS over runs\n(control error at the first image is 0: not drawn)", fontsize=9)
         ax.legend(fontsize=6)
     axes[0, 0].set_ylabel("horizontal error (m)")
@@ -107,8 +101,7 @@ def consistency_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
     rows_all = [t for t in ts_rows if t["mode"] == "closed" and t["runs"] == "all"]
     methods = sorted({t["method"] for t in rows_all})
     colors = method_colors(methods)
-    pyplot = plt()
-    fig, axes = pyplot.subplots(1, 2, figsize=(10, 3.8), squeeze=False)
+    fig, axes = plt().subplots(1, 2, figsize=(10, 3.8), squeeze=False)
     for ax, (key, lo, hi, ok_key, title) in zip(axes[0], (
             ("anees_over_6", "anees_lo", "anees_hi", "anees_pass", "ANEES / 6 (state, 6 dof)"),
             ("anis_per_dof", "anis_lo", "anis_hi", "anis_pass", "ANIS / dof (landmark pixels)"))):
@@ -124,9 +117,7 @@ def consistency_figure(ts_rows: list[dict], out_dir: Path) -> list[str]:
             ax.plot(t[ok], v[ok], "o", color=colors[m], ms=4)
             ax.plot(t[~ok], v[~ok], "x", color=colors[m], ms=6, mew=1.5)
         ax.axhline(1.0, color="k", lw=0.6)
-        ax.set_yscale("log")
-        ax.set_xlabel("time (s)")
-        ax.set_ylabel(f"{title.split(' (')[0]} (—)")
+        ax.set(yscale="log", xlabel="time (s)", ylabel=f"{title.split(' (')[0]} (—)")
         ax.set_title(f"{title}, closed loops, all runs\nshaded: 95 % χ² band; ● inside (PASS), ✕ outside (FAIL)",
                      fontsize=8)
         ax.legend(fontsize=8)

@@ -1,17 +1,8 @@
-"""Scores of the GN&C descent campaign from its two tables alone (``gnc_images``, ``gnc_runs``).
-
-Runs are independent; the images of a run are not. Every interval is a 95 % percentile bootstrap that resamples
-whole runs (:func:`renderlab.stats.bootstrap.cluster_bootstrap`, cluster = run, seed 0). Per method and mode:
-
-* **touchdown**: horizontal miss |(e, n)| of the true contact point from the target, median and 95th percentile;
-  vertical and horizontal speed error; the runs' own 3σ (3 √λ_max of the sample covariance of (e, n)) beside the
-  3σ the filter claims at contact (3 √λ_max of its horizontal covariance, RMS over runs);
-* **Δv and propellant** (L1 over the thruster axes; propellant = impulse / (I_sp g0)), mean;
-* **consistency**: ANEES/6 = the mean over runs of each run's mean NEES/6 over its images; ANIS/dof = Σ NIS / Σ dof
-  over the images the filter kept; PASS when 1 lies inside the run-bootstrap interval; per image index the run
-  average against its χ² band (ANEES: χ²(6N)/(6N), N runs; ANIS: χ²(Σ dof)/Σ dof, two-sided 95 %), and the share
-  of image times inside; each over **all runs** and over the **runs that kept track**;
-* **track loss**: runs with a track loss (``track_loss_images`` consecutive missed images), by cause.
+"""Scores of the GN&C descent campaign from its two tables alone (``gnc_images``, ``gnc_runs``): touchdown miss and
+its 3σ (the runs' and the filter's claim), Δv, propellant, ANEES/ANIS with χ² bands over all runs and over the runs
+that kept track, track loss. Every interval is a 95 % percentile bootstrap over whole runs
+(:func:`renderlab.stats.bootstrap.cluster_bootstrap`, seed 0): runs are independent, a run's images are not.
+Definitions: ``docs/descent_gnc.md``.
 """
 
 from __future__ import annotations
@@ -22,16 +13,33 @@ import numpy as np
 
 from renderlab.stats.bootstrap import cluster_bootstrap
 from renderlab.stats.consistency import chi2_band_sum
+from renderlab.studies.descent_gnc.tables import MISSES
+
+#: columns read by the report, the published-tier test (t_end_s), the README (widen, search_px), bench_descent_gnc (t_*_ms)
+PUBLISHED = {"gnc_images": ("run", "method", "mode", "image", "status", "nis", "nis_dof", "nees", "t_s", "altitude_m",
+                            "widen", "search_px", "err_e_m", "err_n_m", "err_u_m", "sig_e_m", "sig_n_m", "ctl_e_m",
+                            "ctl_n_m", "ctl_u_m"),
+             "gnc_runs": ("run", "method", "mode", "touchdown", "t_end_s", "track_lost", "td_e_m", "td_n_m", "td_ve_mps",
+                          "td_vn_mps", "td_vu_mps", "nav_e_m", "nav_n_m", "sig_e_m", "sig_n_m", "rho_en", "sig_ve_mps",
+                          "sig_vn_mps", "rho_ven", "delta_v_mps", "propellant_kg", "loss_cause", "loss_t_s",
+                          "loss_altitude_m", "reacquired", "init_pos_err_max_sigma", "init_vel_err_max_sigma",
+                          "t_render_ms", "t_measure_ms", "t_filter_ms", "t_flight_ms")}
+
+
+def publish_tables(tables: dict) -> dict:
+    """The published tables (``Study.publish_tables``): the :data:`PUBLISHED` columns, full precision."""
+    from renderlab.campaign.compact import keep_columns
+
+    return keep_columns(tables, PUBLISHED)
 
 
 def cols(table) -> dict:
     """Every column of a pyarrow table as a numpy array (dictionary columns as strings)."""
-    out = {}
-    for n in table.column_names:
-        c = table.column(n)
-        out[n] = np.asarray(c.to_pylist() if "dictionary" in str(c.type) or c.type == "string" else
-                            c.to_numpy(zero_copy_only=False))
-    return out
+    def one(c):
+        return np.asarray(c.to_pylist() if "dictionary" in str(c.type) or c.type == "string" else
+                          c.to_numpy(zero_copy_only=False))
+
+    return {n: one(table.column(n)) for n in table.column_names}
 
 
 def sigma3_max(cov: np.ndarray) -> float:
@@ -52,15 +60,13 @@ def _ci(values, runs, stat="mean") -> tuple[float, float, float]:
 
 def _consistency(im: dict, sel: np.ndarray, prefix: str) -> dict:
     """ANEES/6 and ANIS/dof of the selected image rows with run-bootstrap intervals (module docstring)."""
-    out = {}
-    runs = im["run"][sel]
+    keys = [f"{prefix}{k}{s}" for k in ("anees_over_6", "anis_per_dof") for s in ("", "_lo", "_hi")]
+    out = dict.fromkeys(keys, math.nan)
     if not sel.any():
-        return {f"{prefix}{k}": math.nan for k in ("anees_over_6", "anees_over_6_lo", "anees_over_6_hi",
-                                                  "anis_per_dof", "anis_per_dof_lo", "anis_per_dof_hi")}
+        return out
+    runs = im["run"][sel]
     ur = np.unique(runs)
-    per_run = np.array([np.mean(im["nees"][sel][runs == u]) / 6.0 for u in ur])
-    out[f"{prefix}anees_over_6"], out[f"{prefix}anees_over_6_lo"], out[f"{prefix}anees_over_6_hi"] = \
-        _ci(per_run, ur)
+    out.update(zip(keys[:3], _ci(np.array([np.mean(im["nees"][sel][runs == u]) / 6.0 for u in ur]), ur)))
     has = sel & (im["status"] == "ok") & (im["nis_dof"] > 0)
     nis, dof, rr = im["nis"][has], im["nis_dof"][has].astype(float), im["run"][has]
 
@@ -69,10 +75,7 @@ def _consistency(im: dict, sel: np.ndarray, prefix: str) -> dict:
 
     if has.any():
         iv = cluster_bootstrap(np.arange(len(nis)), rr, lambda ix: ratio(ix.astype(int)))
-        out[f"{prefix}anis_per_dof"], out[f"{prefix}anis_per_dof_lo"], out[f"{prefix}anis_per_dof_hi"] = \
-            ratio(np.arange(len(nis))), float(iv.lo), float(iv.hi)
-    else:
-        out.update({f"{prefix}anis_per_dof{s}": math.nan for s in ("", "_lo", "_hi")})
+        out.update(zip(keys[3:], (ratio(np.arange(len(nis))), float(iv.lo), float(iv.hi))))
     return out
 
 
@@ -107,8 +110,7 @@ def timeseries(im: dict, lost: set) -> list[dict]:
                                 "anees_pass": bool(lo <= anees / 6.0 <= hi),
                                 "anis_per_dof": anis, "anis_lo": nlo, "anis_hi": nhi,
                                 "anis_pass": bool(nlo <= anis <= nhi) if dof else None,
-                                "misses": int(np.isin(im["status"][s], ("no_match", "all_gated", "nis_rejected",
-                                                                       "diverged")).sum())})
+                                "misses": int(np.isin(im["status"][s], MISSES).sum())})
     return out
 
 
@@ -126,10 +128,8 @@ def summary(im: dict, r: dict, ts_rows: list[dict]) -> list[dict]:
             vh = np.hypot(r["td_ve_mps"][sel], r["td_vn_mps"][sel])
             row = {"method": m, "mode": mode, "n_runs": int(sel.sum()), "touchdowns": int(r["touchdown"][sel].sum()),
                    "track_lost_runs": int(r["track_lost"][sel].sum())}
-            for key, vals, stat in (("td_h_median_m", h, "median"), ("td_vu_err_mean_mps", r["td_vu_mps"][sel],
-                                                                      "mean"),
-                                    ("td_vh_median_mps", vh, "median"), ("delta_v_mean_mps", r["delta_v_mps"][sel],
-                                                                         "mean"),
+            for key, vals, stat in (("td_h_median_m", h, "median"), ("td_vu_err_mean_mps", r["td_vu_mps"][sel], "mean"),
+                                    ("td_vh_median_mps", vh, "median"), ("delta_v_mean_mps", r["delta_v_mps"][sel], "mean"),
                                     ("propellant_mean_kg", r["propellant_kg"][sel], "mean")):
                 row[key], row[key + "_lo"], row[key + "_hi"] = _ci(vals, runs, stat)
             row["td_h_p95_m"] = float(np.percentile(h, 95))
@@ -139,12 +139,10 @@ def summary(im: dict, r: dict, ts_rows: list[dict]) -> list[dict]:
             row["td_h_3sig_claimed_m"] = sigma3_max(claimed_cov(r, sel, "", "m"))
             row["td_vh_3sig_runs_mps"] = sigma3_max(np.cov(vel)) if sel.sum() > 2 else math.nan
             row["td_vh_3sig_claimed_mps"] = sigma3_max(claimed_cov(r, sel, "v", "mps"))
-            nav = np.hypot(r["nav_e_m"][sel], r["nav_n_m"][sel])
-            row["nav_h_median_m"] = float(np.median(nav))
+            row["nav_h_median_m"] = float(np.median(np.hypot(r["nav_e_m"][sel], r["nav_n_m"][sel])))
             isel = (im["method"] == m) & (im["mode"] == mode)
             keep = np.array([(m, mode, int(x)) not in lost for x in im["run"]])
-            row.update(_consistency(im, isel, ""))
-            row.update(_consistency(im, isel & keep, "kept_"))
+            row.update({**_consistency(im, isel, ""), **_consistency(im, isel & keep, "kept_")})
             tsr = [t for t in ts_rows if t["method"] == m and t["mode"] == mode and t["runs"] == "all"]
             row["anees_times_in_band"] = float(np.mean([t["anees_pass"] for t in tsr])) if tsr else math.nan
             nis_t = [t["anis_pass"] for t in tsr if t["anis_pass"] is not None]
@@ -162,12 +160,10 @@ def lost_keys(r: dict) -> set:
 
 def track_loss_rows(r: dict) -> list[dict]:
     """One row per flight that lost track: when, where, why, and the initial error it drew."""
-    out = []
-    for i in np.flatnonzero(r["track_lost"]):
-        out.append({"method": str(r["method"][i]), "mode": str(r["mode"][i]), "run": int(r["run"][i]),
-                    "cause": str(r["loss_cause"][i]), "t_s": float(r["loss_t_s"][i]),
-                    "altitude_m": float(r["loss_altitude_m"][i]), "reacquired": bool(r["reacquired"][i]),
-                    "init_vel_err_max_sigma": float(r["init_vel_err_max_sigma"][i]),
-                    "init_pos_err_max_sigma": float(r["init_pos_err_max_sigma"][i]),
-                    "td_h_m": float(np.hypot(r["td_e_m"][i], r["td_n_m"][i]))})
+    out = [{"method": str(r["method"][i]), "mode": str(r["mode"][i]), "run": int(r["run"][i]),
+            "cause": str(r["loss_cause"][i]), "t_s": float(r["loss_t_s"][i]),
+            "altitude_m": float(r["loss_altitude_m"][i]), "reacquired": bool(r["reacquired"][i]),
+            "init_vel_err_max_sigma": float(r["init_vel_err_max_sigma"][i]),
+            "init_pos_err_max_sigma": float(r["init_pos_err_max_sigma"][i]),
+            "td_h_m": float(np.hypot(r["td_e_m"][i], r["td_n_m"][i]))} for i in np.flatnonzero(r["track_lost"])]
     return sorted(out, key=lambda x: (x["method"], x["mode"], x["run"]))

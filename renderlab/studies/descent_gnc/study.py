@@ -1,19 +1,12 @@
 """Study ``descent_gnc``: each landmark method flies its own closed GN&C loop down to contact, the open-loop replay
 beside it on the same draws.
 
-One Monte Carlo run (:func:`run`): the world is loaded once per process
-(:func:`renderlab.campaign.cache.loaded_world`); the run's seed gives two children — the navigation draws (initial
-estimate x̂0 = x0 + N(0, P0), star tracker per image, accelerometer per control period, sensor noise per image) and
-the thruster draws (bias, misalignment, per-command errors) — and **every method's flight uses the same two**
-(paired: the same draws per run index across methods and modes). Per method the closed loop
-(:func:`~renderlab.studies.descent_gnc.render_loop.fly_closed_loop`): guidance on the method's own filter, truth
-integrated under the commanded and corrupted thrust to contact, each image rendered where that flight's vehicle
-really is. Then the replay (:func:`~renderlab.studies.descent_gnc.replay.fly_replay`): guidance on the truth, one
-image per camera time shared by all methods' filters. The nominal (perfect navigation, ideal thrusters) is flown once
-per process: the control error is the true position minus the nominal one at the same time.
-
-Tables (:mod:`.tables`): ``gnc_images`` (one row per run, method, mode and image) and ``gnc_runs`` (one row per run,
-method and mode: touchdown, the filter's claim, Δv, propellant, track loss, timings); reported by :mod:`.report`.
+One run (:func:`run`): the run's seed gives two children, the navigation draws and the thruster draws, and **every
+method's flight uses the same two** (paired). Per method the closed loop
+(:func:`~renderlab.studies.descent_gnc.render_loop.fly_closed_loop`), then the replay
+(:func:`~renderlab.studies.descent_gnc.replay.fly_replay`). The nominal flight (perfect navigation, ideal thrusters)
+is flown once per process: the control error is the true position minus the nominal one at the same time. Tables:
+:mod:`.tables`; report: :mod:`.report`; ``docs/descent_gnc.md``.
 """
 
 from __future__ import annotations
@@ -26,6 +19,7 @@ import numpy as np
 
 from renderlab import plugins
 from renderlab.campaign.run_truth import truth_perturbations_on
+from renderlab.dynamics.closed_loop import fly
 from renderlab.errors import UserError
 from renderlab.studies.descent_gnc.config import DescentGncConfig
 
@@ -42,8 +36,7 @@ def check(scenario) -> None:
     if scenario.world.kind != "ev5" or scenario.trajectory.kind != "ev5_descent":
         raise UserError(f"study descent_gnc needs world.kind 'ev5' with an 'ev5_descent' trajectory, got "
                         f"'{scenario.world.kind}'")
-    p = scenario.perturbations
-    on = truth_perturbations_on(p)
+    on = truth_perturbations_on(scenario.perturbations)
     if on:
         raise UserError(f"study descent_gnc flies its own true trajectories; perturbations.{on[0]} is not supported "
                         "(the study disperses the initial estimate, the sensors and the thrusters)")
@@ -51,31 +44,6 @@ def check(scenario) -> None:
     for name in cfg.methods:
         plugins.landmark_methods.get(name, where="descent_gnc.methods: ")
     plugins.guidance.get(cfg.guidance, where="descent_gnc.guidance: ")
-
-
-def loop_options(cfg: DescentGncConfig, spp=None):
-    """The :class:`~renderlab.studies.descent_gnc.render_loop.ClosedLoopOptions` of the section."""
-    from renderlab.studies.descent_gnc.render_loop import ClosedLoopOptions
-
-    return ClosedLoopOptions(
-        control_period_s=cfg.control_period_s, camera_period_s=cfg.camera_period_s, sigma_px=cfg.sigma_px,
-        star_tracker_sigma_rad=math.radians(cfg.star_tracker_sigma_arcsec / 3600.0),
-        accel_sigma_mps2=cfg.accel_sigma_mps2, initial_position_sigma_m=cfg.initial_position_sigma_m,
-        initial_velocity_sigma_mps=cfg.initial_velocity_sigma_mps, gm_filter_m3_s2=cfg.gm_filter_m3_s2,
-        q_acc_m2_s3=cfg.q_acc_m2_s3, max_landmarks=cfg.max_landmarks, gsd_ratio_range=tuple(cfg.gsd_ratio_range),
-        n_sigma=cfg.n_sigma, min_search_px=cfg.min_search_px, max_search_px=cfg.max_search_px, spp=spp,
-        sigma_ground_m=cfg.sigma_ground_m, widen_factors=tuple(cfg.widen_factors),
-        nis_reject_probability=cfg.nis_reject_probability, track_loss_images=cfg.track_loss_images)
-
-
-def thruster_options(cfg: DescentGncConfig):
-    from estimators.gnc import ThrusterOptions
-
-    return ThrusterOptions(mass_kg=cfg.mass_kg, max_accel_mps2=cfg.max_accel_mps2,
-                           min_impulse_bit_ns=cfg.min_impulse_bit_ns, scale_bias_sigma=cfg.scale_bias_sigma,
-                           scale_sigma=cfg.scale_sigma,
-                           misalignment_sigma_rad=math.radians(cfg.misalignment_sigma_deg),
-                           pointing_sigma_rad=math.radians(cfg.pointing_sigma_deg), isp_s=cfg.isp_s)
 
 
 class Setup:
@@ -115,14 +83,16 @@ class Setup:
         """A fresh thruster set drawing from ``seed`` (None: ideal, no errors)."""
         from estimators.gnc import ThrusterModel, ThrusterOptions
 
-        opts = thruster_options(self.cfg) if seed is not None else ThrusterOptions(mass_kg=self.cfg.mass_kg,
-                                                                                   isp_s=self.cfg.isp_s)
+        c = self.cfg
+        opts = ThrusterOptions(mass_kg=c.mass_kg, isp_s=c.isp_s) if seed is None else ThrusterOptions(
+            mass_kg=c.mass_kg, max_accel_mps2=c.max_accel_mps2, min_impulse_bit_ns=c.min_impulse_bit_ns,
+            scale_bias_sigma=c.scale_bias_sigma, scale_sigma=c.scale_sigma,
+            misalignment_sigma_rad=math.radians(c.misalignment_sigma_deg),
+            pointing_sigma_rad=math.radians(c.pointing_sigma_deg), isp_s=c.isp_s)
         return ThrusterModel(opts, np.random.default_rng(0 if seed is None else seed))
 
     def nominal(self, key: str):
         """The nominal flight (perfect navigation, ideal thrusters), flown once per process and world."""
-        from renderlab.studies.descent_gnc.loop import fly
-
         if key not in _NOMINAL:
             _NOMINAL.clear()
             _NOMINAL[key] = fly(self.truth, self.guidance(), self.t0, self.x0,
@@ -147,19 +117,18 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     nominal = setup.nominal(truth_key(truth_sc.to_dict()) + cfg.model_dump_json())
     ss_nav, ss_thr = seed_sequence.spawn(2)
     nav_seed, thr_seed = int(ss_nav.generate_state(1)[0]), int(ss_thr.generate_state(1)[0])
-    opts = loop_options(cfg)
-    rec = Recorder(scenario.name, int(run_index), setup, nominal, opts)
+    rec = Recorder(scenario.name, int(run_index), setup, nominal, cfg)
     for method in cfg.methods:
         thr = setup.thrusters(thr_seed)
         t_start = time.perf_counter()
-        flown = fly_closed_loop(renderer, method, setup.guidance(), truth=setup.truth, t0_s=setup.t0, x0=setup.x0,
-                                t_max_s=setup.t_max, seed=nav_seed, options=opts, thrusters=thr)
+        flown = fly_closed_loop(renderer, method, setup.guidance(), cfg, truth=setup.truth, t0_s=setup.t0,
+                                x0=setup.x0, t_max_s=setup.t_max, seed=nav_seed, thrusters=thr)
         rec.add(method, "closed", flown, thr, time.perf_counter() - t_start)
     if cfg.replay:
         thr = setup.thrusters(thr_seed)
         t_start = time.perf_counter()
-        flown = fly_replay(renderer, list(cfg.methods), setup.guidance(), truth=setup.truth, t0_s=setup.t0,
-                           x0=setup.x0, t_max_s=setup.t_max, seed=nav_seed, options=opts, thrusters=thr)
+        flown = fly_replay(renderer, list(cfg.methods), setup.guidance(), cfg, truth=setup.truth, t0_s=setup.t0,
+                           x0=setup.x0, t_max_s=setup.t_max, seed=nav_seed, thrusters=thr)
         wall = (time.perf_counter() - t_start) / len(cfg.methods)
         for method in cfg.methods:
             rec.add(method, "replay", flown[method], thr, wall)

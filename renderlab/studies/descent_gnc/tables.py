@@ -1,12 +1,8 @@
-"""The tables of study ``descent_gnc``: one row per image and one row per flight, in the landing site's frame.
-
-Site frame: east, north, up (``site.R_body_from_site`` columns), origin the site centre. Errors are estimate − truth
-(``err_*``) with the filter's 1σ (``sig_*``) and NEES (6 dof) after each image; the control error ``ctl_*`` is the true
-position minus the nominal flight's (perfect navigation, ideal thrusters) at the same time. Touchdown: true position
-and velocity minus the touchdown waypoint's (``td_*``), the navigation error at contact (``nav_*``) and the filter's
-claimed horizontal covariance there (``sig_e_m``, ``sig_n_m``, ``rho_en`` and the same for velocity) — what the
-landing ellipses are drawn from. Wall times ``t_*_ms`` (render, landmark measurement, filter update, whole flight).
-No per-landmark rows: the tables stay small.
+"""The tables of study ``descent_gnc``: one row per image (``gnc_images``) and one per flight (``gnc_runs``), in the
+site frame (east, north, up; origin the site centre). Errors are estimate − truth (``err_*``) with the filter's 1σ
+(``sig_*``) and NEES; ``ctl_*`` = true minus nominal position; ``td_*`` = touchdown minus the target waypoint,
+``nav_*`` the navigation error at contact with the filter's claimed covariance there; wall times ``t_*_ms``.
+Column list: ``docs/descent_gnc.md``.
 """
 
 from __future__ import annotations
@@ -26,6 +22,12 @@ def _site(R: np.ndarray, x: np.ndarray, P: np.ndarray | None = None):
     return (T @ x, None) if P is None else (T @ x, T @ P @ T.T)
 
 
+def _pv(name: str, v) -> dict:
+    """``{name_e_m, name_n_m, name_u_m, name_ve_mps, name_vn_mps, name_vu_mps}`` of a site-frame 6-vector."""
+    return {**{f"{name}_{a}_m": float(v[i]) for i, a in enumerate(AXES)},
+            **{f"{name}_v{a}_mps": float(v[3 + i]) for i, a in enumerate(AXES)}}
+
+
 class Recorder:
     """Collects the rows of one run (module docstring)."""
 
@@ -33,17 +35,13 @@ class Recorder:
         self.campaign, self.run, self.setup, self.opts = campaign, int(run), setup, opts
         self.R = np.asarray(setup.site.R_body_from_site, float)
         self.o = np.asarray(setup.site.origin_m, float)
-        self.nominal = nominal
-        self.image_rows: list[dict] = []
-        self.run_rows: list[dict] = []
+        self.nominal, self.image_rows, self.run_rows = nominal, [], []
         wp = setup.waypoints[-1]
         self.target = np.r_[np.asarray(wp.r_m, float), np.asarray(wp.v_mps, float)]
 
     def _nominal_at(self, t: float) -> np.ndarray:
         f = self.nominal
-        k = int(round((t - f.t_s[0]) / self.opts.control_period_s))
-        k = min(max(k, 0), len(f.t_s) - 1)
-        return f.x_true[k]
+        return f.x_true[min(max(int(round((t - f.t_s[0]) / self.opts.control_period_s)), 0), len(f.t_s) - 1)]
 
     def add(self, method: str, mode: str, flown, thrusters, wall_s: float) -> None:
         base = {"campaign": self.campaign, "run": self.run, "method": method, "mode": mode}
@@ -53,20 +51,16 @@ class Recorder:
             x_true = flown.flight.x_true[k]
             e, P = _site(self.R, im["x_est"] - x_true, im["P"])
             ctl = self.R.T @ (x_true[:3] - self._nominal_at(im["t_s"])[:3])
-            nees = float(e @ np.linalg.solve(P, e))
             n_miss += im["status"] in MISSES
             row = {**base, "image": j, "t_s": float(im["t_s"]),
                    "altitude_m": float((x_true[:3] - self.o) @ self.R[:, 2]), "status": im["status"],
                    "n_candidates": im["n_candidates"], "n_attempted": im["n_attempted"],
                    "n_results": im["n_results"], "n_kept": im["n_kept"], "nis": float(im["nis"]),
                    "nis_dof": int(im["nis_dof"]), "widen": float(im["widen"]), "search_px": float(im["search_px"]),
-                   "nees": nees}
-            row.update({f"err_{a}_m": float(e[i]) for i, a in enumerate(AXES)})
-            row.update({f"err_v{a}_mps": float(e[3 + i]) for i, a in enumerate(AXES)})
-            row.update({f"sig_{a}_m": float(math.sqrt(P[i, i])) for i, a in enumerate(AXES)})
-            row.update({f"sig_v{a}_mps": float(math.sqrt(P[3 + i, 3 + i])) for i, a in enumerate(AXES)})
-            row.update({f"ctl_{a}_m": float(ctl[i]) for i, a in enumerate(AXES)})
-            row.update({"t_render_ms": 1e3 * im["t_render_s"], "t_measure_ms": 1e3 * im["t_measure_s"],
+                   "nees": float(e @ np.linalg.solve(P, e))}
+            row.update({**_pv("err", e), **_pv("sig", [math.sqrt(P[i, i]) for i in range(6)]),
+                        **{f"ctl_{a}_m": float(ctl[i]) for i, a in enumerate(AXES)},
+                        "t_render_ms": 1e3 * im["t_render_s"], "t_measure_ms": 1e3 * im["t_measure_s"],
                         "t_filter_ms": 1e3 * im["t_filter_s"]})
             self.image_rows.append(row)
         self.run_rows.append(self._run_row(base, flown, thrusters, wall_s, n_miss))
@@ -79,11 +73,7 @@ class Recorder:
         sig0 = np.r_[np.full(3, self.opts.initial_position_sigma_m), np.full(3, self.opts.initial_velocity_sigma_mps)]
         d0 = (flown.x0_est - f.x_true[0]) / sig0
         loss = flown.loss or {}
-        row = {**base, "touchdown": bool(f.touchdown), "t_end_s": float(f.t_s[-1])}
-        row.update({f"td_{a}_m": float(td[i]) for i, a in enumerate(AXES)})
-        row.update({f"td_v{a}_mps": float(td[3 + i]) for i, a in enumerate(AXES)})
-        row.update({f"nav_{a}_m": float(nav[i]) for i, a in enumerate(AXES)})
-        row.update({f"nav_v{a}_mps": float(nav[3 + i]) for i, a in enumerate(AXES)})
+        row = {**base, "touchdown": bool(f.touchdown), "t_end_s": float(f.t_s[-1]), **_pv("td", td), **_pv("nav", nav)}
         for off, pre, unit in ((0, "", "m"), (3, "v", "mps")):
             se, sn = math.sqrt(P[off, off]), math.sqrt(P[off + 1, off + 1])
             row.update({f"sig_{pre}e_{unit}": se, f"sig_{pre}n_{unit}": sn,
@@ -96,22 +86,17 @@ class Recorder:
                     "reacquired": bool(loss.get("reacquired", False)),
                     "init_pos_err_max_sigma": float(np.abs(d0[:3]).max()),
                     "init_vel_err_max_sigma": float(np.abs(d0[3:]).max())})
-        ims = flown.images
-        row.update({"t_render_ms": 1e3 * float(sum(i["t_render_s"] for i in ims)),
-                    "t_measure_ms": 1e3 * float(sum(i["t_measure_s"] for i in ims)),
-                    "t_filter_ms": 1e3 * float(sum(i["t_filter_s"] for i in ims)), "t_flight_ms": 1e3 * wall_s})
+        row.update({f"t_{k}_ms": 1e3 * float(sum(i[f"t_{k}_s"] for i in flown.images)) for k in ("render", "measure",
+                                                                                              "filter")})
+        row["t_flight_ms"] = 1e3 * wall_s
         return row
 
     def tables(self) -> dict:
         import pyarrow as pa
 
         def table(rows: list[dict], categorical: tuple) -> pa.Table:
-            t = pa.table({k: [r[k] for r in rows] for k in rows[0]})
-            for c in categorical:
-                i = t.column_names.index(c)
-                t = t.set_column(i, c, t.column(c).dictionary_encode())
-            return t
+            return pa.table({k: pa.array([r[k] for r in rows]).dictionary_encode() if k in categorical else
+                             [r[k] for r in rows] for k in rows[0]})
 
-        cats = ("method", "mode", "status")
-        return {"gnc_images": table(self.image_rows, cats),
+        return {"gnc_images": table(self.image_rows, ("method", "mode", "status")),
                 "gnc_runs": table(self.run_rows, ("method", "mode", "loss_cause"))}

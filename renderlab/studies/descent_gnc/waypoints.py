@@ -1,17 +1,6 @@
-r"""The ARRM descent as guidance waypoints in the asteroid-fixed frame, and the state the closed loop starts from.
-
-From the profile of :mod:`renderlab.worlds.ev5.descent` (site centre o, site normal n, altitude h(t), spin ω about
-body +z, spin-match time t_m):
-
-* start: the 200 m waypoint at t_w, on the line fixed in inertial space,
-  :math:`\mathbf r = R_z(\omega(t_m - t_w))(\mathbf o + h_w\mathbf n)`, at rest in inertial space:
-  :math:`\mathbf v = -\boldsymbol\omega\times\mathbf r` (W1);
-* the spin-match waypoint: :math:`\mathbf o + h_m\mathbf n` at t_m, at rest in the rotating frame (W2);
-* the end of the constant-rate descent: :math:`\mathbf o + h_f\mathbf n` at the profile's end t_f, velocity
-  :math:`-\dot h\,\mathbf n` (W3; ``via_final_altitude``);
-* touchdown: the DEM surface point p_T under the target (site x, y), velocity :math:`-v_{td}\mathbf n`, at
-  :math:`t_T = t_f + 2(h_f - h_T)/(\dot h + v_{td})` (a linear speed change from the descent rate to the touchdown
-  speed; h_T the target's height along n) (W4).
+"""The ARRM descent as guidance waypoints in the asteroid-fixed frame, and the state the closed loop starts from:
+the 200 m waypoint at rest in inertial space (W1), the spin-matched 50 m waypoint (W2), the end of the
+constant-rate descent (W3) and touchdown on the site DEM under the target (W4); derivation in ``docs/descent_gnc.md``.
 """
 
 from __future__ import annotations
@@ -31,21 +20,10 @@ def _rz(theta: float) -> np.ndarray:
 
 def arrm_waypoints(profile, omega_rad_s: float, site, *, target_xy=(0.0, 0.0), touchdown_speed_mps: float = 0.05,
                    via_final_altitude: bool = True) -> tuple[float, np.ndarray, tuple]:
-    """(t_start, x_start (6,), waypoints) of the descent from the 200 m waypoint to touchdown (module docstring).
-
-    Parameters
-    ----------
-    profile : renderlab.worlds.ev5.descent.DescentProfile
-        The ARRM altitude profile (its ``h`` and ``t`` breakpoints and ``traj.descent_rate_mps``).
-    omega_rad_s : float
-        Spin rate about body +z.
-    site : object
-        ``origin_m``, ``R_body_from_site`` (columns east, north, up) and ``height_at(x, y)`` of the landing site.
-    target_xy : (float, float)
-        Touchdown point in site coordinates (east, north), m.
-    touchdown_speed_mps : float
-        Speed along −n at contact, m/s (> 0).
-    """
+    """(t_start, x_start (6,), waypoints) from the 200 m waypoint to touchdown (W1–W4, module docstring): ``profile``
+    the ARRM :class:`~renderlab.worlds.ev5.descent.DescentProfile`, ``omega_rad_s`` the spin about body +z, ``site``
+    with ``origin_m``, ``R_body_from_site`` (east, north, up) and ``height_at(x, y)``, the touchdown point
+    ``target_xy`` (site east, north, m) reached at ``touchdown_speed_mps`` (> 0) along −n."""
     if not touchdown_speed_mps > 0:
         raise UserError(f"touchdown speed must be positive, got {touchdown_speed_mps}")
     o, R = np.asarray(site.origin_m, float), np.asarray(site.R_body_from_site, float)

@@ -13,9 +13,7 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from renderlab.contracts.config_types import Finite, Positive, Strict
-
-Name = Annotated[str, Field(pattern=r"^[A-Za-z_][A-Za-z0-9_.-]*$")]
+from renderlab.contracts.config_types import Finite, Positive, RegisteredName, Strict
 
 
 class PlanetOpNavConfig(Strict):
@@ -29,7 +27,7 @@ class PlanetOpNavConfig(Strict):
     laws: Annotated[list[Literal["lambert", "lommel_seeliger", "mcewen", "hapke"]], Field(min_length=1,
                                                                                         max_length=4)] = Field(
         ["lambert", "lommel_seeliger"], description="Photometric laws of the grid (world.law per cell)")
-    methods: Annotated[list[Name], Field(min_length=1, max_length=16)] = Field(
+    methods: Annotated[list[RegisteredName], Field(min_length=1, max_length=16)] = Field(
         ["centroid_raw", "centroid_phase", "limb_ellipse", "horizon_opnav", "bsk_hough_circles",
          "bsk_hough_pixel_line", "bsk_limb_horizon"], description="Registered centre_limb method names")
     offset_deg: Annotated[list[Finite], Field(min_length=2, max_length=2)] = Field(

@@ -1,13 +1,11 @@
-"""The closed GN&C loop without images: navigation → guidance → thrusters → truth dynamics, until contact.
+"""The closed GN&C loop: navigation → guidance → thrusters → truth dynamics, every control period until contact.
 
-Every control period Δ (times t_k = t_0 + kΔ): the navigation gives its estimate of the true state
-(``navigation.estimate(t_k, x_true)``; default: the truth itself), the guidance law its command
-(``guidance.command(t_k, x_est)``, :mod:`renderlab.contracts.guidance`), the thrusters the delivered acceleration
-(``thrusters.realise(a_cmd, Δ)``, :mod:`estimators.gnc.thrusters`; default: the command), and the truth dynamics
-(:class:`renderlab.dynamics.descent_truth.DescentTruth`) carry the true state to t_{k+1} with it held, or to contact.
-A navigation with an ``after_step(t0, t1, a_delivered)`` method is told what was applied (an accelerometer, a
-filter's propagation). :class:`TruthPlusNoise` is the navigation of the smoke example: the truth plus a decaying
-initial error and seeded white noise.
+At t_k = t_0 + kΔ the navigation estimates the true state (``navigation.estimate(t_k, x_true)``; default the truth),
+the guidance law commands (``guidance.command(t_k, x_est)``, :mod:`renderlab.contracts.guidance`), the thrusters
+deliver (``thrusters.realise(a_cmd, Δ)``, e.g. :class:`estimators.gnc.ThrusterModel`; default the command) and the
+truth (:class:`renderlab.dynamics.descent_truth.DescentTruth`) carries the state to t_{k+1} with it held, or to
+contact. A navigation with ``after_step(t0, t1, a_delivered)`` is told what was applied (an accelerometer, a
+filter's propagation). Used by study ``descent_gnc`` (image navigation), the guidance tests and benchmarks.
 """
 
 from __future__ import annotations
@@ -22,21 +20,9 @@ from renderlab.errors import UserError
 
 @dataclass
 class Flight:
-    """One flown descent.
-
-    Attributes
-    ----------
-    t_s : ndarray (K + 1,)
-        Control times, then the end time (touchdown or ``t_max``).
-    x_true : ndarray (K + 1, 6)
-        True state at those times (the last at touchdown), asteroid-fixed frame.
-    x_est : ndarray (K, 6)
-        The navigation's estimate each command was made from.
-    a_cmd, a_delivered : ndarray (K, 3)
-        Commanded and delivered acceleration, m/s².
-    touchdown : bool
-        Ended in contact with the surface.
-    """
+    """One flown descent: control times then the end time ``t_s`` (K + 1,), the true state there ``x_true``
+    (K + 1, 6; the last at contact), the estimate each command was made from ``x_est`` (K, 6), the commanded and
+    delivered accelerations ``a_cmd``, ``a_delivered`` (K, 3) m/s², and whether it ended in contact."""
 
     t_s: np.ndarray
     x_true: np.ndarray
@@ -56,20 +42,9 @@ class Flight:
 
 
 class TruthPlusNoise:
-    """Navigation = truth + an initial error that decays + white noise: x̂(t) = x(t) + e₀ exp(−(t − t₀)/τ) + w,
-    w ~ N(0, diag(σ_r² I, σ_v² I)) drawn per call from ``rng`` (6 normals each); t₀ is the first call's time.
-
-    Parameters
-    ----------
-    sigma_r_m, sigma_v_mps : float
-        White noise per position / velocity axis.
-    rng : numpy.random.Generator
-        Seeded generator of the noise.
-    initial_error : array (6,), optional
-        e₀, the navigation error at the first call.
-    decay_s : float
-        τ (inf: the initial error stays).
-    """
+    """Navigation = truth + a decaying initial error + white noise: x̂(t) = x(t) + e₀ exp(−(t − t₀)/τ) + w, w ~
+    N(0, diag(σ_r² I, σ_v² I)) from the seeded ``rng`` (6 normals a call); t₀ the first call's time, τ = ``decay_s``
+    (inf: the error stays), e₀ = ``initial_error`` (default 0)."""
 
     def __init__(self, sigma_r_m: float, sigma_v_mps: float, rng: np.random.Generator, initial_error=None,
                  decay_s: float = math.inf):

@@ -1,8 +1,8 @@
-"""The built-in guidance law ``zem_zev`` behind the lab's contract (:mod:`renderlab.contracts.guidance`).
-
-:class:`ZemZevLaw` is the registered factory: it takes the lab's :class:`~renderlab.contracts.guidance.GuidanceOptions`
-and makes the onboard :class:`estimators.gnc.zem_zev.ZemZevGuidance` (eqs. G1–G5 there). ``options.params`` may set
-``prediction_step_s`` and ``min_t_go_s``; a ``control_period_s`` of 0 selects the continuous gains (G3).
+"""The built-in guidance law ``zem_zev`` (:data:`renderlab.plugins.guidance`) behind the lab's contract
+(:mod:`renderlab.contracts.guidance`), beside the built-in method and filter adapters: :class:`ZemZevLaw` makes the
+onboard :class:`estimators.gnc.zem_zev.ZemZevGuidance` (eqs. G1–G5 there) from the lab's
+:class:`~renderlab.contracts.guidance.GuidanceOptions`. ``options.params`` may set ``prediction_step_s`` and
+``min_t_go_s``; a ``control_period_s`` of 0 selects the continuous gains (G3).
 """
 
 from __future__ import annotations
