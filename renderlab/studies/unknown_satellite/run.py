@@ -84,18 +84,13 @@ def score_row(summary: dict, run: int) -> dict:
             continue
         if k in ("stage2_w_rms_deg_s", "stage2_w_rms_aligned_deg_s"):
             row.update({k.replace("_w_", f"_w{a}_"): float(x) for a, x in zip("xyz", v)})
-        elif k == "axes_relabelling":
-            row[k] = str(v)
         elif k == "rigidity_rejected_tracks":
             row["rigidity_rejected"] = len(v)
         elif k == "rigidity_rejected_matched_knob":
             row["rigidity_rejected_knobs"] = sum(1 for x in v if x >= 0)
-        elif isinstance(v, (bool, np.bool_)):
-            row[k] = bool(v)
-        elif isinstance(v, (int, np.integer)):
-            row[k] = int(v)
-        else:
-            row[k] = float(v)
+        else:  # text, flag, count or value
+            row[k] = v if isinstance(v, str) else bool(v) if isinstance(v, (bool, np.bool_)) else (
+                int(v) if isinstance(v, (int, np.integer)) else float(v))
     # principal axes may come out relabelled (x↔y etc.: the same images): compare the sorted moments too
     m_est = np.sort(np.array([s["ratio_I1_I3_est"], s["ratio_I2_I3_est"], 1.0]))
     m_true = np.sort(np.array([s["ratio_I1_I3_true"], s["ratio_I2_I3_true"], 1.0]))

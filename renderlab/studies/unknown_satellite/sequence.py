@@ -65,11 +65,6 @@ class SequenceResult:
     gauge_free: object = None            # estimators.pose.gauge.GaugeFree at the stage-1 solution
 
 
-def _stage2_text(flags: int) -> str:
-    """Stage 2's per-frame flag bits (:data:`estimators.pose.stage2.FLAG_NAMES`) as text."""
-    return ",".join(n for b, n in FLAG_NAMES.items() if flags & b)
-
-
 def _rot(q):
     from scipy.spatial.transform import Rotation
 
@@ -208,7 +203,7 @@ def _stage2_rows(s2, t: _Truth, times, P, run: int):
     s2_rows = {"run": [run] * len(frames), "method": ["stage2_cgkf"] * len(frames), "frame": frames.tolist(),
                "t_s": times.tolist(), "n_points": s2.n_points.tolist(), "has_result": (s2.flags == 0).tolist(),
                "reason": ["ok" if f == 0 else "no_measurement" for f in s2.flags],
-               "diagnostics": [_stage2_text(int(f)) for f in s2.flags],
+               "diagnostics": [",".join(n for b, n in FLAG_NAMES.items() if int(f) & b) for f in s2.flags],
                "rms_px": s2.rms_px.tolist(), "err_att_deg": e_att.tolist(),
                "err_meas_r_m": np.linalg.norm(s2.r_meas - tr["r_lvlh_m"], axis=1).tolist()}
     for a, ax in enumerate("xyz"):
