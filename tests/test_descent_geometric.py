@@ -158,3 +158,32 @@ def test_unknown_source_kind_and_filter_are_one_line_errors(tmp_path, capsys):
         assert main(["campaign", str(p), "--runs", "1", "--out", str(tmp_path / key), "--quiet"]) != 0
         err = capsys.readouterr().err.strip()
         assert msg in err and "Traceback" not in err and len(err.splitlines()) == 1, err
+
+
+def test_the_published_tables_give_the_report_of_the_raw_tables(tmp_path):
+    """The study's publish_tables (the filter columns the report reads; the landmark rows the filter kept) gives the
+    same report CSVs and the same calibration fit as the full tables of a tiny campaign in which the gate rejects
+    landmarks (gate probability 0.95: rows that are not kept exist and are dropped)."""
+    from renderlab.studies.descent_navigation import STUDY
+    from renderlab.studies.descent_navigation.calibrate import fit
+    from renderlab.studies.descent_navigation.report import report_sections
+    from renderlab.studies.descent_navigation.run import run
+
+    sc = _scenario([{"name": "matched"}, {"name": "biased", "bias_px": [0.1, 0.1], "sigma_bias_px": 0.05}],
+                   gate_probability=0.95)
+    out = [run(sc, GEOMETRIC.parent, i, run_seed_sequence(int(sc.campaign.seed), i), tmp_path) for i in range(3)]
+    raw = {k: pa.concat_tables([o[k] for o in out]) for k in out[0]}
+    small = STUDY.publish_tables(raw)
+    lm, lm_small = raw["descent_landmarks"], small["descent_landmarks"]
+    assert 0 < lm_small.num_rows < lm.num_rows and lm_small.num_columns < lm.num_columns
+    assert small["descent_filter"].num_rows == raw["descent_filter"].num_rows
+    assert small["descent_filter"].num_columns < raw["descent_filter"].num_columns
+    csvs = {}
+    for name, tables in (("raw", raw), ("small", small)):
+        (tmp_path / name).mkdir()
+        report_sections(tables, tmp_path / name)
+        csvs[name] = {p.name: p.read_text() for p in sorted((tmp_path / name).glob("*.csv"))}
+    assert {"descent_summary.csv", "descent_independence.csv", "descent_pattern.csv", "descent_sources.csv",
+            "descent_bias_by_tier.csv"} <= set(csvs["raw"])
+    assert csvs["small"] == csvs["raw"]
+    assert repr(fit(lm_small)) == repr(fit(lm))              # NaN-safe: the same floats print the same

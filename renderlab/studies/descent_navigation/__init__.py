@@ -10,4 +10,5 @@ STUDY = Study(name="descent_navigation", run=lazy("renderlab.studies.descent_nav
               description="closed-loop descent navigation: landmark methods driving one EKF down the ARRM descent",
               check=lazy("renderlab.studies.descent_navigation.run:check"),
               report_sections=lazy("renderlab.studies.descent_navigation.report:report_sections"),
-              own_tables=("descent_filter", "descent_landmarks"), clusters=("run",))
+              own_tables=("descent_filter", "descent_landmarks"), clusters=("run",),
+              publish_tables=lazy("renderlab.studies.descent_navigation.scoring:publish_tables"))

@@ -1,25 +1,6 @@
-r"""The landmark error model the map-state filter declares, fitted on a *calibration* campaign's landmark table
-(never on the campaign it is scored on).
-
-Model, per method, for the kept landmarks of one track (one landmark in one run; images k, GSD g_k = depth / fx,
-error e_k in px per image axis, its bias β removed):
-
-.. math::  e_k - \beta = \mathbf b / g_k + w_k,\qquad \mathbf b \sim N(0, \sigma_{map}^2),\;
-           w_k \sim N(0, \sigma_{px}^2)   \quad (C1)
-
-— a landmark offset **b** fixed on the ground for the whole track (the maplet's mapping-error realisation and the
-method's rendering error of that landmark) plus white pixel noise. In metres, :math:`m_k = (e_k - \beta) g_k`:
-:math:`E[m_k m_{k'}] = \sigma_{map}^2` for two images k ≠ k' of one track (C2): σ_map² is the mean of these
-cross products over all pairs of all tracks (both axes pooled: the offset is horizontal and isotropic). σ_px² is
-the residual variance of the per-track least-squares fit of C1 (b fitted per track and axis; n − 1 dof per track
-and axis; C3), floored at ``floor_px``. β (per axis) is the mean error of the
-method's kept landmarks: the model describes zero-mean errors, so a method's bias is *not* absorbed and still shows
-as filter inconsistency. The normal component of the map error is not seen to first order by a near-nadir camera;
-it is declared equal to the horizontal one.
-
-The fit is made per method and landmark tier (maplet spacing): the error on the ground grows where the mapping
-error's slopes are steep (3 cm rms on 4-cm cells). ``python -m renderlab.studies.descent_navigation.calibrate
-FOLDER`` prints the fit of a published campaign folder as JSON, then as the scenario's ``landmark_error_by_method``.
+r"""The landmark error model the map-state filter declares (eqs. C1–C3 of docs/descent_navigation.md), fitted per
+method and maplet tier on a *calibration* campaign's landmark table. ``python -m
+renderlab.studies.descent_navigation.calibrate FOLDER`` prints the fit as JSON, then as ``landmark_error_by_method``.
 """
 
 from __future__ import annotations

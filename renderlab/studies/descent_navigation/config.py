@@ -1,25 +1,5 @@
-"""Scenario section ``[descent_navigation]`` of the closed-loop descent-navigation study. Light: pydantic.
-
-The truth's gravity (point mass ``gm_true_m3_s2`` + J2 ``j2_true`` about the spin pole at reference radius
-``r_ref_m``) is *not* the filter's (point mass ``gm_filter_m3_s2``, no J2): the filter's process noise
-``q_acc_m2_s3`` has to cover the difference. EV5's mass is not measured; the defaults assume a 400 m body
-(Busch et al. 2011) of bulk density 1.3 g/cm³ (C-type): GM = 2.9 m³/s², an oblate top-shape J2 of 0.05, and an
-onboard GM 10 % high. ``sigma_px`` is the pixel noise the filter declares for every method (overridden per method by
-``sigma_px_by_method``); it is the same knob for every method so that a method's bias or excess noise shows up as
-filter inconsistency (NEES/NIS outside their bands) instead of being tuned away. ``sigma_ground_m`` adds a landmark
-error fixed on the ground (the maplets' mapping error does not shrink with the GSD), σ_i² = σ_px² + (σ_g/GSD_i)².
-
-The onboard map: ``map_realisation = "shared"`` uses the truth set's maplet catalogue in every run (one map, one
-mapping-error realisation, shared by all runs); ``"per_run"`` rebuilds the catalogue from the site DEM with a fresh
-mapping- and albedo-error draw from the run's seeded generator (:mod:`renderlab.campaign.maplets`), so that runs are
-independent in their map errors too (the truth images stay shared). ``map_states`` switches the filter's landmark
-map-error states (:mod:`estimators.descent_nav.map_states`): their prior is the declared map accuracy,
-``map_sigma_h_m`` per horizontal maplet axis and ``map_sigma_v_m`` along the maplet normal.
-
-``sources`` adds measurement sources that are not image-based landmark methods, by registered kind
-(:data:`renderlab.plugins.measurement_sources`; built in: ``"geometric"``, :mod:`.sources`, eq. G1): each is scored
-like a method under its ``name``. ``filter`` names the registered navigation filter every method and source drives.
-"""
+"""Scenario section ``[descent_navigation]`` of the closed-loop descent-navigation study (pydantic; the truth vs
+filter gravity, the declared landmark and map errors, the onboard map: docs/descent_navigation.md)."""
 
 from __future__ import annotations
 

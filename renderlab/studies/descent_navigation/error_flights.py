@@ -1,55 +1,10 @@
-r"""Geometric descents of the onboard filter with injected landmark errors: any error model flown along the truth.
-
-Description
------------
-The onboard descent filter (``descent_ekf``, :mod:`estimators.descent_nav`, default options of
-:func:`renderlab.studies.descent_navigation.run.filter_options` and the scenario's ``[descent_navigation]``
-section) flown along the descent study's truth (:mod:`renderlab.studies.descent_navigation.truth`; e.g. the 15
-images 200 → 50 m of ``results/descent_navigation/scenario.toml``) with **geometric** measurements: no rendering;
-landmark i in image k is measured at its true pixel (the maplet centre projected through the true camera, Wright
-et al. eqs. 1–4) plus an error drawn from a landmark error model
-(:class:`renderlab.contracts.error_model.LandmarkErrorModel`):
-
-.. math::
-
-    \mathbf z_{ik} = \pi(\mathbf T_k, \mathbf c_i) + \boldsymbol\mu(R_{ik}) + \boldsymbol\sigma_b(R_{ik})
-    \odot \boldsymbol\beta_i + \boldsymbol\sigma_n(R_{ik}) \odot \boldsymbol\epsilon_{ik}     \quad (N1)
-
-with β_i, ε_ik ~ N(0, I₂) (β_i constant for landmark i over the descent: its per-landmark bias; ε white), per
-image axis (s, l): μ the model's mean error, σ_b the landmark-to-landmark spread of the per-landmark bias, σ_n the
-noise sd, all at R_ik, the landmark's depth in the camera. Everything else is the descent study's run i exactly —
-the filter's initial estimate, the star tracker's attitude error per image and the accelerometer's noise come
-from ``SeedSequence(campaign seed, spawn_key=(i,))`` spawned as :func:`renderlab.studies.descent_navigation.run.run`
-does, so run i pairs with run i of the rendered campaign — and the landmarks are selected as there
-(:func:`renderlab.studies.descent_navigation.sources.select_landmarks`, at the filter's a-priori pose), with the
-filter's declared σ_px and the star tracker's σ in R (eq. M3). The draws β, ε come from ``SeedSequence(flight seed,
-spawn_key=(i,))``, the same for every model (common random numbers: differences between models are paired).
-Not modelled: the search window (a measurement is never lost because the truth lies outside it), no-result rates,
-gross errors, and the correlation across landmarks of a run of per-run knowledge errors.
-
-The *floor* (``floor`` labels given) is run i flown with no landmark error: what the initial estimate, the star
-tracker, the accelerometer and the gravity model the filter lacks leave.
-
-This module knows nothing of where the models come from (the error budget builds them,
-:mod:`renderlab.studies.retina_vs_spc.budget.navigation`; :mod:`renderlab.commands.navigation_budget` joins the
-two).
-
-Tuning
-------
-``runs``, ``seed`` of the landmark draws (β, ε), ``workers``.
-
-Use
----
-:func:`fly_models` (scenario, models, runs, seed) → one touchdown-proxy row per model (and floor) and run: error
-at the last image and the filter's 1σ (east, north, up in the site frame), NEES there, ANEES, landmarks kept, track
-loss, the injected μ, σ_b, σ_n at the last image's depth; :func:`rendered_touchdown` → the rendered campaign's
-touchdown rows beside the scenario, to validate against. :func:`descent_geometry`, :func:`run_draws`,
-:func:`landmark_draws` and :func:`fly` are the pieces (one descent each).
-"""
+r"""Geometric descents of the onboard filter with injected landmark errors (eq. N1 of docs/descent_navigation.md):
+any :class:`~renderlab.contracts.error_model.LandmarkErrorModel` flown along the descent study's truth, run i paired
+with run i of the rendered campaign. :func:`fly_models` (scenario, models, runs, seed) → one touchdown-proxy row per
+model (and floor) and run; :func:`rendered_touchdown` → the rendered campaign's rows to validate against."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +18,7 @@ from renderlab.contracts.navigation import FilterMeasurement
 from renderlab.errors import UserError
 from renderlab.scenario import load_scenario
 from renderlab.studies.descent_navigation.run import check, filter_options, section
+from renderlab.studies.descent_navigation.run import run_draws as study_draws
 from renderlab.studies.descent_navigation.sources import select_landmarks
 from renderlab.studies.descent_navigation.truth import planned_descent
 
@@ -92,7 +48,6 @@ def descent_geometry(scenario_path) -> Geometry:
     :func:`renderlab.studies.descent_navigation.truth.planned_descent`)."""
     from pathlib import Path
 
-
     scenario, base = load_scenario(Path(scenario_path))
     check(scenario)
     cfg = section(scenario)
@@ -105,28 +60,8 @@ def descent_geometry(scenario_path) -> Geometry:
 
 def run_draws(geom: Geometry, run: int) -> dict:
     """Run ``run``'s initial estimate, star tracker and accelerometer, drawn as the descent study draws them."""
-    from scipy.spatial.transform import Rotation
-
-
-    cfg = geom.cfg
     _, ss_x0, ss_st, ss_acc = run_seed_sequence(geom.campaign_seed, run).spawn(4)
-    sig_st = math.radians(cfg.star_tracker_sigma_arcsec / 3600.0)
-    dth = np.random.default_rng(ss_st).standard_normal((len(geom.times), 3)) * sig_st
-    R_star = np.einsum("kij,kjl->kil", geom.R_true, Rotation.from_rotvec(dth).as_matrix())
-    sd0 = np.r_[np.full(3, cfg.initial_position_sigma_m), np.full(3, cfg.initial_velocity_sigma_mps)]
-    x0 = geom.truth.state(geom.times[0]) + np.random.default_rng(ss_x0).standard_normal(6) * sd0
-    spans = []
-    for a, b in zip(geom.times[:-1], geom.times[1:]):
-        n = max(1, int(math.ceil((b - a) * cfg.accel_rate_hz - 1e-9)))
-        e = np.linspace(a, b, n + 1)
-        spans.append(np.stack([e[:-1], e[1:]], 1))
-    allsp = np.concatenate(spans)
-    u = geom.truth.accelerometer(allsp[:, 0], allsp[:, 1], cfg.accel_sigma_mps2, np.random.default_rng(ss_acc))
-    accel, j = [[]], 0
-    for sp in spans:
-        accel.append([(float(t0), float(t1), u[j + i]) for i, (t0, t1) in enumerate(sp)])
-        j += len(sp)
-    return {"x0": x0, "P0": np.diag(sd0 ** 2), "R_star": R_star, "accel": accel, "sigma_st": sig_st}
+    return study_draws(geom.truth, geom.times, geom.R_true, geom.cfg, (ss_x0, ss_st, ss_acc))
 
 
 def landmark_draws(geom: Geometry, seed: int, run: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,16 +1,5 @@
-"""One landmark method driving the descent filter closed-loop over the images of one run.
-
-Per image k (time t_k): the filter is propagated from the previous image with the accelerometer's readings (one
-per ``1/accel_rate_hz``, eq. D5 of :mod:`estimators.descent_nav.dynamics`); the landmark method gets the a-priori
-pose (position = the filter's, attitude = the star tracker's) and per landmark the search distance n_σ·√λ_max of the
-projected covariance (the filter's position block and the star tracker's σ; Wright et al. eq. 1–4 projection);
-the landmarks it measures ((s, l) = pred + (Δs, Δl); or a measurement source's, :mod:`.sources`) update the filter (kind ``"pixel"``, R of eq. M3 with
-σ_i² = σ_px² + (σ_ground/GSD_i)² per landmark, the
-method's outlier flags in ``context["flagged"]``), whose χ² gate rejects what does not fit.
-Landmarks attempted (:func:`.sources.select_landmarks`): those the a-priori pose predicts inside the image whose
-GSD ratio (predicted range / fx / maplet spacing) lies in ``gsd_ratio_range``, at most ``max_landmarks`` per image,
-GSD ratio closest to 1 first.
-"""
+"""One landmark method or measurement source driving the descent filter closed-loop over the images of one run
+(per image: propagate, measure at the a-priori pose, update; docs/descent_navigation.md, "One run")."""
 
 from __future__ import annotations
 
@@ -97,7 +86,6 @@ def _landmark_rows(inp, method, k, sel, results, upd, cam, true_pose) -> list[di
 def _prior_cols(filt, R_star) -> dict:
     """The a-priori pose the method gets (body frame) and the filter's largest position σ at that time."""
     from scipy.spatial.transform import Rotation
-
 
     q = quat_xyzw(Rotation.from_matrix(R_star))
     return {**{f"apriori_pos_{a}_m": float(v) for a, v in zip("xyz", filt.x[:3])},

@@ -7,7 +7,6 @@ injected-error sources, the bias sweep (:mod:`.report_sources`)."""
 
 from __future__ import annotations
 
-import csv
 import html
 import math
 from pathlib import Path
@@ -15,18 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.report.axes import note_outside, typical_limit
+from renderlab.report.csvio import write_csv
+from renderlab.report.html_table import plain_table
 from renderlab.report.style import badge, fmt, method_colors, plt, save
 from renderlab.studies.descent_navigation.report_independence import independence_section
 from renderlab.studies.descent_navigation.report_sources import sources_section
 from renderlab.studies.descent_navigation.scoring import POS, VEL, columns, method_summary, timeseries, tracked
-
-
-def _write_csv(rows: list[dict], path: Path) -> None:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
 
 def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
@@ -104,7 +97,7 @@ def _html_table(summary: list[dict]) -> str:
     head = ("method", "runs", "ANEES/6 [95 % CI]", "times in NEES band", "ANIS/dof [95 % CI]", "times in NIS band",
             "at 50 m (last image) |δr| median / p95 (m)", "at 50 m 3σ (m)", "track lost (runs)",
             "kept bias s, l (px)", "gated / flagged")
-    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    out = []
     for r in summary:
         ok_nees = r["anees_over_6_lo"] <= 1.0 <= r["anees_over_6_hi"]
         ok_nis = r["anis_per_dof_lo"] <= 1.0 <= r["anis_per_dof_hi"]
@@ -117,9 +110,8 @@ def _html_table(summary: list[dict]) -> str:
                  fmt(r["touchdown_pos_3sig_rms_m"], 3), r["track_lost_runs"],
                  f"{fmt(r.get('kept_bias_s_px', math.nan), 2)}, {fmt(r.get('kept_bias_l_px', math.nan), 2)}",
                  f"{r['gated_frac']:.1%} / {r['flagged_frac']:.1%}"]
-        out.append("<tr>" + "".join(f"<td>{c if isinstance(c, str) and c.count('<') else html.escape(str(c))}</td>"
-                                    for c in cells) + "</tr>")
-    return "\n".join(out) + "</table>"
+        out.append(cells)
+    return plain_table(head, out)
 
 
 def _word(v: float, lo: float, hi: float, what: str) -> str:
@@ -155,18 +147,16 @@ def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
     out_dir = Path(out_dir)
     ts_rows = timeseries(ftab)
     summary = method_summary(ftab, tables.get("descent_landmarks"), ts_rows)
-    _write_csv(summary, out_dir / "descent_summary.csv")
-    _write_csv(ts_rows, out_dir / "descent_timeseries.csv")
+    write_csv(out_dir / "descent_summary.csv", summary)
+    write_csv(out_dir / "descent_timeseries.csv", ts_rows)
     figs = error_figure(ftab, "position", out_dir) + error_figure(ftab, "velocity", out_dir) \
         + consistency_figure(ts_rows, out_dir)
     extra = ""
     if "white_0" in ftab.column_names:             # campaigns that wrote the whitened errors (map-state study)
-
-        extra, more = independence_section(ftab, tables.get("descent_landmarks"), ts_rows, out_dir, _write_csv)
+        extra, more = independence_section(ftab, tables.get("descent_landmarks"), ts_rows, out_dir)
         figs += more
     if "src_kind" in ftab.column_names:            # campaigns with injected-error sources (.sources)
-
-        more_html, more = sources_section(ftab, summary, out_dir, _write_csv)
+        more_html, more = sources_section(ftab, summary, out_dir)
         extra += more_html
         figs += more
     imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f and f.endswith(".png"))

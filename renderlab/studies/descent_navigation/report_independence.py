@@ -6,11 +6,12 @@ inside each band), ``descent_bias_by_tier.csv`` (kept-landmark bias and rms per 
 
 from __future__ import annotations
 
-import html
 from pathlib import Path
 
 import numpy as np
 
+from renderlab.report.csvio import write_csv
+from renderlab.report.html_table import plain_table
 from renderlab.report.style import fmt, method_colors, plt, save
 from renderlab.stats.bootstrap import cluster_bootstrap
 from renderlab.stats.independence import (
@@ -87,28 +88,27 @@ def bias_by_tier(ftab, ltab) -> list[dict]:
     return out
 
 
-def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path, write_csv) -> tuple[str, list[str]]:
+def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path) -> tuple[str, list[str]]:
     """(HTML table, figure files) of the independence piece; writes its two CSVs."""
     rows = independence_rows(ftab, ltab, ts_rows)
     bands = band_summary(rows)
-    write_csv(rows, out_dir / "descent_independence.csv")
-    write_csv(bands, out_dir / "descent_bands.csv")
+    write_csv(out_dir / "descent_independence.csv", rows)
+    write_csv(out_dir / "descent_bands.csv", bands)
     if ltab is not None and "spacing_m" in ltab.column_names:
-
-        write_csv(bias_by_tier(ftab, ltab), out_dir / "descent_bias_by_tier.csv")
-        write_csv(pattern_rows(ftab, ltab), out_dir / "descent_pattern.csv")
+        write_csv(out_dir / "descent_bias_by_tier.csv", bias_by_tier(ftab, ltab))
+        write_csv(out_dir / "descent_pattern.csv", pattern_rows(ftab, ltab))
     head = ("method", "images in NEES band (plain / N_eff)", "images in NIS band (plain / N_eff)",
             "ρ state mean (max)", "N_eff min", "ρ_ν innovations mean", "landmark-error share s, l")
-    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    out = []
     for b in bands:
         cells = (b["method"], f"{b['nees_inside_plain']:.0%} / {b['nees_inside_eff']:.0%}",
                  f"{b['nis_inside_plain']:.0%} / {b['nis_inside_eff']:.0%}",
                  f"{fmt(b['rho_state_mean'], 2)} ({fmt(b['rho_state_max'], 2)})", fmt(b["n_eff_min"], 3),
                  fmt(b["rho_innov_mean"], 2),
                  f"{fmt(b['common_share_err_s_mean'], 2)}, {fmt(b['common_share_err_l_mean'], 2)}")
-        out.append("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in cells) + "</tr>")
+        out.append(cells)
     note = ("<p>Share common to all runs: of the whitened state error (ρ), of the innovations (ρ_ν) and of the "
             "landmark errors, per image (descent_independence.csv). The effective band treats the runs as "
             "N_eff = N/(1 + (N−1)ρ²) independent ones; it is shown beside the plain χ² band, PASS/FAIL marks are "
             "against the plain band.</p>")
-    return "\n".join(out) + "</table>" + note, independence_figure(rows, out_dir)
+    return plain_table(head, out) + note, independence_figure(rows, out_dir)

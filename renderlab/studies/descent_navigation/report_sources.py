@@ -1,25 +1,15 @@
 """Report section of the descent study's injected-error sources (:mod:`.sources`, eq. G1): consistency and
-touchdown error against the injected bias, from the ``descent_filter`` table alone.
-
-Per source (its injected μ, σ_b, κ, σ_n, map offset are constant columns of its rows): the run-mean ANEES/6 and
-ANIS/dof with their 95 % run-bootstrap intervals (:func:`.scoring.method_summary`; PASS = 1 inside the interval),
-the share of images inside the per-image χ² bands, and at the last image (the touchdown proxy, 50 m) ANEES/6 with
-its band χ²₀.₀₂₅,₀.₉₇₅(6N)/(6N) — the runs are independent here (their own initial estimate, star tracker,
-accelerometer and injected-error draws; nothing rendered is shared), which the study's independence score checks
-(:mod:`.independence`) — and the touchdown position error (median, RMS, p95) against the filter's 3σ, with the
-mean error and the filter's RMS 1σ per site axis (east, north, up: a bias moves the mean).
-``descent_sources.csv`` holds the table; ``descent_bias_sweep.png`` draws ANEES/6 and the touchdown error
-against the common bias μ (the sources that inject only μ), the other sources as reference lines.
-"""
+touchdown error against the injected bias, from the ``descent_filter`` table alone (docs/descent_navigation.md)."""
 
 from __future__ import annotations
 
-import html
 import math
 from pathlib import Path
 
 import numpy as np
 
+from renderlab.report.csvio import write_csv
+from renderlab.report.html_table import plain_table
 from renderlab.report.style import OKABE_ITO, badge, fmt, plt, save
 from renderlab.studies.descent_navigation.scoring import POS, chi2_band_sum, columns, tracked
 
@@ -124,19 +114,19 @@ def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
     return save(fig, out_dir / "descent_bias_sweep")
 
 
-def sources_section(ftab, summary: list[dict], out_dir: Path, write_csv) -> tuple[str, list[str]]:
-    """(HTML, figure names) of the injected-error sources; ``write_csv(rows, path)`` the report's CSV writer."""
+def sources_section(ftab, summary: list[dict], out_dir: Path) -> tuple[str, list[str]]:
+    """(HTML, figure names) of the injected-error sources."""
     rows = source_rows(ftab, summary)
     if not rows:
         return "", []
-    write_csv(rows, Path(out_dir) / "descent_sources.csv")
+    write_csv(Path(out_dir) / "descent_sources.csv", rows)
     head = ("source", "μ s, l (px)", "σ_b (px)", "scale", "σ_n (px)", "runs (tracked)", "ANEES/6 [95 % CI]",
             "last image ANEES/6 [χ² band]", "ANIS/dof [95 % CI]", "touchdown |δr| median / RMS / p95 (m)",
             "filter 3σ (m)", "track lost")
-    out = ["<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>"]
+    out = []
     for r in rows:
         sn = "declared" if math.isnan(r["inj_sigma_noise_px"]) else fmt(r["inj_sigma_noise_px"], 3)
-        cells = [html.escape(r["source"]), f"{fmt(r['inj_bias_s_px'], 3)}, {fmt(r['inj_bias_l_px'], 3)}",
+        cells = [r["source"], f"{fmt(r['inj_bias_s_px'], 3)}, {fmt(r['inj_bias_l_px'], 3)}",
                  fmt(r["inj_sigma_bias_px"], 3), fmt(r["inj_scale"], 3), sn,
                  f"{r['n_runs']} ({r['n_tracked_runs']})",
                  f"{fmt(r['anees_over_6'], 3)} [{fmt(r['anees_over_6_lo'], 3)}, {fmt(r['anees_over_6_hi'], 3)}] "
@@ -148,9 +138,9 @@ def sources_section(ftab, summary: list[dict], out_dir: Path, write_csv) -> tupl
                  f"{fmt(r['touchdown_pos_err_median_m'], 3)} / {fmt(r['touchdown_pos_err_rms_m'], 3)} / "
                  f"{fmt(r['touchdown_pos_err_p95_m'], 3)}", fmt(r["touchdown_pos_3sig_rms_m"], 3),
                  str(r["track_lost_runs"])]
-        out.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+        out.append(cells)
     note = ("<p>Injected-error sources (eq. G1 of renderlab.studies.descent_navigation.sources): the true pixel of "
             "each landmark plus the injected error; σ_n 'declared' is each landmark's declared filter σ. The runs "
             "are independent (nothing rendered or mapped is shared); CIs resample whole runs; PASS: 1 inside the "
             "interval or the band.</p>")
-    return "<h3>Injected-error sources</h3>" + "\n".join(out) + "</table>" + note, sweep_figure(rows, out_dir)
+    return "<h3>Injected-error sources</h3>" + plain_table(head, out) + note, sweep_figure(rows, out_dir)

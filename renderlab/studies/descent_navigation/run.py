@@ -1,18 +1,6 @@
-"""Study ``descent_navigation``: each landmark method drives the descent EKF closed-loop down the ARRM descent.
-
-The truth render depends only on the nominal scenario (the truth cache, :mod:`renderlab.campaign.cache`): it is
-rendered once along the true trajectory and serves every run, because a run disperses only what the onboard system
-does not control in the truth — the filter's initial estimate (x0 = truth + N(0, P0)), the star tracker's attitude
-error per image, the accelerometer's noise per sample and the sensor noise (the cached radiance re-exposed with the
-run's own Poisson + read noise, :mod:`renderlab.campaign.reexpose`). Every method of a run sees the same images and
-draws (paired comparison); each drives its own filter (:mod:`.loop`). With ``map_realisation = "per_run"`` the run
-also draws its own onboard map (the maplets rebuilt with a fresh mapping/albedo error, the same for all its
-methods). Truth perturbations (they would change the
-rendered image) are refused. Measurement sources (``sources``, :mod:`.sources`) drive their own filters beside the
-methods with the same draws; their injected errors come from a sixth seed-sequence child of the run; when only
-sources that need no image run, nothing is rendered (the frames come from the world's plan). Tables: ``descent_filter`` (one row per run, method and image, plus the prior) and
-``descent_landmarks`` (one row per landmark attempted), reported by :mod:`.report`.
-"""
+"""Study ``descent_navigation``: one Monte Carlo run, each landmark method (:mod:`.loop`) and measurement source
+(:mod:`.sources`) driving the descent EKF closed-loop on the cached truth render re-exposed with the run's noise, with
+the run's own initial estimate, star-tracker and accelerometer draws (docs/descent_navigation.md, "One run")."""
 
 from __future__ import annotations
 
@@ -70,42 +58,40 @@ def filter_options(cfg, omega_rad_s: float) -> dict:
             "iterations": cfg.iterations}
 
 
-def _accel_intervals(truth, times, cfg, rng) -> list:
-    """Per image k: the accelerometer samples [(t0, t1, u)] from the previous image to t_k (none for k = 0)."""
+def run_draws(truth, times, R_true, cfg, ss) -> dict:
+    """The run's initial estimate ``x0`` (P0), star tracker ``R_star`` (K, 3, 3) and accelerometer ``accel`` (per
+    image k: the samples [(t0, t1, u)] from the previous image, none for k = 0); ``ss`` = (x0, star, accel) seeds."""
+    from scipy.spatial.transform import Rotation
+
+    ss_x0, ss_st, ss_acc = ss
+    sig_st = math.radians(cfg.star_tracker_sigma_arcsec / 3600.0)
+    dth = np.random.default_rng(ss_st).standard_normal((len(times), 3)) * sig_st
+    R_star = np.einsum("kij,kjl->kil", R_true, Rotation.from_rotvec(dth).as_matrix())
+    sd0 = np.r_[np.full(3, cfg.initial_position_sigma_m), np.full(3, cfg.initial_velocity_sigma_mps)]
+    x0 = truth.state(times[0]) + np.random.default_rng(ss_x0).standard_normal(6) * sd0
     spans = []
     for a, b in zip(times[:-1], times[1:]):
-        n = max(1, int(math.ceil((b - a) * cfg.accel_rate_hz - 1e-9)))
-        edges = np.linspace(a, b, n + 1)
+        edges = np.linspace(a, b, max(1, int(math.ceil((b - a) * cfg.accel_rate_hz - 1e-9))) + 1)
         spans.append(np.stack([edges[:-1], edges[1:]], 1))
     allspans = np.concatenate(spans) if spans else np.zeros((0, 2))
-    u = truth.accelerometer(allspans[:, 0], allspans[:, 1], cfg.accel_sigma_mps2, rng)
-    out, j = [[]], 0
+    u = truth.accelerometer(allspans[:, 0], allspans[:, 1], cfg.accel_sigma_mps2, np.random.default_rng(ss_acc))
+    accel, j = [[]], 0
     for sp in spans:
-        out.append([(float(t0), float(t1), u[j + i]) for i, (t0, t1) in enumerate(sp)])
+        accel.append([(float(t0), float(t1), u[j + i]) for i, (t0, t1) in enumerate(sp)])
         j += len(sp)
-    return out
+    return {"x0": x0, "P0": np.diag(sd0**2), "R_star": R_star, "accel": accel, "sigma_st": sig_st}
 
 
 def run_inputs(ts, frames, truth, maplets, cfg, scenario, run_index, ss) -> object:
     """The run's shared :class:`~renderlab.studies.descent_navigation.loop.RunInputs` (every draw from ``ss``);
     ``frames`` as :func:`~renderlab.studies.descent_navigation.truth.planned_descent` gives them, ``ts`` the
     re-exposed truth set (None when no source needs images)."""
-    from scipy.spatial.transform import Rotation
-
-
-    ss_x0, ss_st, ss_acc = ss
-    times, R_true = frames["times"], frames["R_true"]
-    sig_st = math.radians(cfg.star_tracker_sigma_arcsec / 3600.0)
-    dth = np.random.default_rng(ss_st).standard_normal((len(times), 3)) * sig_st
-    R_star = np.einsum("kij,kjl->kil", R_true, Rotation.from_rotvec(dth).as_matrix())
-    sd0 = np.r_[np.full(3, cfg.initial_position_sigma_m), np.full(3, cfg.initial_velocity_sigma_mps)]
-    x0 = truth.state(times[0]) + np.random.default_rng(ss_x0).standard_normal(6) * sd0
-    centres = np.array([m.center_m for m in maplets], float)
-    return RunInputs(ts=ts, truth=truth, maplets=maplets, centres=centres,
-                     spacing=np.array([m.spacing_m for m in maplets], float), R_site=frames["R_site"], times=times,
-                     R_true=R_true, pos_true=frames["pos_true"], cameras=frames["cameras"], R_star=R_star,
-                     accel=_accel_intervals(truth, times, cfg, np.random.default_rng(ss_acc)), x0=x0,
-                     P0=np.diag(sd0**2), sigma_st_rad=sig_st, campaign=scenario.name, run=int(run_index))
+    d = run_draws(truth, frames["times"], frames["R_true"], cfg, ss)
+    return RunInputs(ts=ts, truth=truth, maplets=maplets, centres=np.array([m.center_m for m in maplets], float),
+                     spacing=np.array([m.spacing_m for m in maplets], float), R_site=frames["R_site"],
+                     times=frames["times"], R_true=frames["R_true"], pos_true=frames["pos_true"],
+                     cameras=frames["cameras"], R_star=d["R_star"], accel=d["accel"], x0=d["x0"], P0=d["P0"],
+                     sigma_st_rad=d["sigma_st"], campaign=scenario.name, run=int(run_index))
 
 
 def _rendered_inputs(scenario, base_dir, workdir, cfg, ss_noise, ss_map):
@@ -117,7 +103,6 @@ def _rendered_inputs(scenario, base_dir, workdir, cfg, ss_noise, ss_map):
     ts = ReexposedTruthSet(ts0, SensorOptions(**scenario.sensor.options_dict()), noise_seeds, cache=True)
     maplets = read_catalog(path)
     if cfg.map_realisation == "per_run":
-
         maplets = respaced_maplets(maplets, scenario.world, base_dir, 1.0, np.random.default_rng(ss_map))
     return ts, truthset_frames(ts0), true_descent(ts0, scenario, cfg), maplets, ts0
 

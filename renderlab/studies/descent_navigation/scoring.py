@@ -1,15 +1,5 @@
-"""Scores of the descent campaign from its tables alone: consistency per method and image, per-method summary.
-
-Consistency is scored over the runs that never lost track (a run that lost track is counted in ``track_lost_runs``
-and its NEES/NIS reported apart as ``*_all``: a diverged run's NEES, 10⁴–10⁵, would otherwise be the average).
-Per method and image time (runs are independent, so the run average of a χ² variable has the band of χ²(N·dof)/N):
-ANEES = mean over runs of NEES (6 dof), band χ²₀.₀₂₅,₀.₉₇₅(6N)/N; ANIS = Σ NIS / Σ dof over the runs (dof varies
-with the landmarks kept), band χ²(Σ dof)/Σ dof; position RMS error and the RMS of the filter's 3σ. Per method:
-the time-mean ANEES / 6 and ANIS / dof (each with a 95 % percentile bootstrap interval that resamples whole runs,
-so the correlation of a run's images is kept), the share of image times inside the bands, the error at the last
-image ("touchdown proxy", 50 m), track loss, the landmark errors of the kept landmarks (bias with a run-cluster
-bootstrap interval), and the gate's and the method's rejections.
-"""
+"""Scores of the descent campaign from its tables alone: consistency per method and image over the runs that kept
+track, per-method summary with run-bootstrap intervals (docs/descent_navigation.md, "Scores")."""
 
 from __future__ import annotations
 
@@ -22,6 +12,28 @@ from renderlab.stats.consistency import chi2_band_sum, columns, tracked
 
 POS = ("err_e_m", "err_n_m", "err_u_m")
 VEL = ("err_ve_mps", "err_vn_mps", "err_vu_mps")
+#: the columns the report, calibrate.py, error_flights.rendered_touchdown and the published-tier tests read
+FILTER_READ = ("run", "method", "frame", "t_s", "nees", "nis", "dof", "n_results", "n_flagged", "n_gated", "n_kept",
+               "track_lost", *POS, *VEL, *(c.replace("err_", "sig_") for c in POS + VEL),
+               *(f"white_{k}" for k in range(6)), "src_kind", "inj_bias_s_px", "inj_bias_l_px", "inj_sigma_bias_px",
+               "inj_scale", "inj_sigma_noise_px", "inj_map_offset_h_m", "inj_map_offset_v_m")
+LANDMARK_READ = ("run", "method", "frame", "item", "kept", "pred_s", "pred_l", "meas_s", "meas_l", "truth_s",
+                 "truth_l", "err_s", "err_l", "gsd_m", "spacing_m")
+
+
+def publish_tables(tables: dict) -> dict:
+    """The tables a published folder ships (``Study.publish_tables``): the filter columns that are read
+    (``FILTER_READ``); of the landmarks only the rows the filter kept (no score reads another) and their read columns.
+    """
+    import pyarrow.compute as pc
+
+    out = dict(tables)
+    for name, read in (("descent_filter", FILTER_READ), ("descent_landmarks", LANDMARK_READ)):
+        t = out.get(name)
+        if t is not None and t.num_rows:
+            t = t.filter(pc.field("kept")) if name == "descent_landmarks" else t
+            out[name] = t.select([c for c in t.column_names if c in read])
+    return out
 
 
 def timeseries(ftab) -> list[dict]:
@@ -61,14 +73,11 @@ def timeseries(ftab) -> list[dict]:
     return out
 
 
-def _run_bootstrap(per_run: np.ndarray, seed: int = 0, n_boot: int = 2000) -> tuple[float, float]:
-    """95 % percentile interval of the mean of per-run values (runs resampled whole)."""
+def _run_ci(per_run: np.ndarray) -> tuple[float, float]:
+    """95 % percentile interval of the mean of per-run values (runs resampled whole, seed 0, 2000 resamples)."""
     v = per_run[np.isfinite(per_run)]
-    if v.size < 2:
-        return math.nan, math.nan
-    rng = np.random.default_rng(seed)
-    means = v[rng.integers(0, v.size, (n_boot, v.size))].mean(1)
-    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+    iv = cluster_bootstrap(v, np.arange(v.size), "mean", cluster_name="runs")
+    return iv.lo, iv.hi
 
 
 def _per_run(c, m, value, reduce) -> np.ndarray:
@@ -90,8 +99,7 @@ def method_summary(ftab, ltab, ts_rows) -> list[dict]:
     keep = columns(tracked(ftab), ("run", "method", "frame", "nees", "nis", "dof"))
     c = columns(ftab, ("run", "method", "frame", "nees", "nis", "dof", "track_lost", "n_gated", "n_flagged",
                        "n_results", "n_kept", *POS, *VEL))
-    lc = columns(tracked(ltab) if ltab is not None and "track_lost" in ltab.column_names else ltab,
-                 ("run", "method", "err_s", "err_l", "kept", "has_result")) if ltab is not None else None
+    lc = columns(ltab, ("run", "method", "err_s", "err_l", "kept")) if ltab is not None else None
     if lc is not None:                      # landmark statistics over the runs that kept track, as the consistency
         ok = {(m, r) for m, r in zip(keep["method"].tolist(), keep["run"].tolist())}
         sel = np.array([(m, r) in ok for m, r in zip(lc["method"].tolist(), lc["run"].tolist())], bool)
@@ -105,12 +113,11 @@ def method_summary(ftab, ltab, ts_rows) -> list[dict]:
         td = np.sqrt(sum(c[a][last] ** 2 for a in POS))
         tdv = np.sqrt(sum(c[a][last] ** 2 for a in VEL))
         rows = [r for r in ts_rows if r["method"] == m and r["frame"] >= 0]
+        (a_lo, a_hi), (n_lo, n_hi) = _run_ci(nees_run), _run_ci(nis_run)
         row = {"method": m, "n_runs": int(last.sum()), "n_tracked_runs": int(len(nees_run)),
-               "anees_over_6": float(np.nanmean(nees_run)),
-               "anees_over_6_lo": _run_bootstrap(nees_run)[0], "anees_over_6_hi": _run_bootstrap(nees_run)[1],
+               "anees_over_6": float(np.nanmean(nees_run)), "anees_over_6_lo": a_lo, "anees_over_6_hi": a_hi,
                "anees_inside_frac": float(np.mean([bool(r["anees_inside"]) for r in rows])),
-               "anis_per_dof": float(np.nanmean(nis_run)), "anis_per_dof_lo": _run_bootstrap(nis_run)[0],
-               "anis_per_dof_hi": _run_bootstrap(nis_run)[1],
+               "anis_per_dof": float(np.nanmean(nis_run)), "anis_per_dof_lo": n_lo, "anis_per_dof_hi": n_hi,
                "anis_inside_frac": float(np.mean([bool(r["anis_inside"]) for r in rows if r["anis_inside"] is not None]
                                                  or [False])),
                "anees_over_6_all": float(np.nanmean(nees_all)), "anis_per_dof_all": float(np.nanmean(nis_all)),

@@ -1,46 +1,6 @@
-r"""Measurement sources of the descent study: what turns image k of a run into the filter's landmark measurement.
-
-Description
------------
-The closed loop (:func:`renderlab.studies.descent_navigation.loop.run_method`) asks a *measurement source* for each
-image: ``source.measure(inp, k, filt)`` → (selected landmark indices, one
-:class:`~renderlab.contracts.landmark.LandmarkResult` per selected landmark, a
-:class:`~renderlab.contracts.navigation.FilterMeasurement` or None). Two kinds exist:
-
-* :class:`LandmarkMethodSource` — a registered image-based landmark method (Retina, SPC, ...) run on the run's
-  re-exposed truth image at the filter's a-priori pose (the study's original path; ``methods`` of the scenario);
-* registered source kinds (:data:`renderlab.plugins.measurement_sources`, built in ``"geometric"`` =
-  :class:`GeometricSource`), one per entry of the scenario's ``sources``; an installed package adds its own kind
-  through the ``renderlab.measurement_sources`` entry-point group. A kind is a factory
-  ``make(spec, cfg) -> source`` with ``name``, ``needs_images``, ``prepare(inp, seed_sequence)``, ``measure`` and
-  ``columns()`` (constant columns of its filter rows).
-
-The geometric source needs no image. Landmark i of image k (selected as for a method,
-:func:`select_landmarks`, at the filter's a-priori pose) is measured at
-
-.. math::
-
-    \mathbf z_{ik} = \mathbf c + (1+\kappa)\,\bigl(\pi(\mathbf T_k, \mathbf p_i + \boldsymbol\delta_i)
-    - \mathbf c\bigr) + \boldsymbol\mu + \sigma_b\,\boldsymbol\beta_i + \sigma_{n,ik}\,\boldsymbol\epsilon_{ik}
-    \quad (G1)
-
-π the true camera's projection (the truth pose of image k, Wright et al. eqs. 1–4, as the study's ``truth_s/l``
-columns), **p**_i the maplet centre the filter uses, **c** the principal point, κ an image-scale error, μ a bias
-common to every landmark (px, per axis), β_i ~ N(0, I₂) one draw per landmark and run (the per-landmark bias of
-rms σ_b), ε_ik ~ N(0, I₂) white, σ_n,ik = ``sigma_noise_px`` or, when None, the landmark's declared σ of the filter
-(σ_px² + (σ_ground/GSD)², as in :func:`~renderlab.studies.descent_navigation.loop._measure`), and
-δ_i = R_bm diag(σ_h, σ_h, σ_v) γ_i, γ_i ~ N(0, I₃), a landmark offset fixed on the ground (``map_offset_*``; the
-true landmark moved while the map keeps **p**_i). The filter's R is eq. M3 with the declared σ and the star
-tracker's σ, exactly as for a method. **Model-matched** (the filter's own measurement model): μ = σ_b = κ = 0,
-σ_n = None, and either no map offset with ``map_states = "off"`` and ``sigma_ground_m = 0``, or a map offset of
-the declared map accuracy (``map_offset_h_m = map_sigma_h_m``) with map states on; what remains unmatched is the
-truth's gravity (J2, GM; covered by the process noise) — and the EKF's linearisation.
-
-β, γ, ε come from the run's own seed-sequence child (the same child for every source of the run: common random
-numbers, so that sources differing only in μ are compared pairwise). Not modelled: the search window (a
-measurement is never lost outside it), no-result rates, gross errors; a landmark whose true pixel is off the image
-or behind the camera gets no result (``off_image``).
-"""
+r"""Measurement sources of the descent study: what turns image k of a run into the filter's landmark measurement —
+a registered landmark method on the image (:class:`LandmarkMethodSource`) or a registered source kind such as
+``geometric`` (:class:`GeometricSource`, true pixel + injected error, eq. G1 of docs/descent_navigation.md)."""
 
 from __future__ import annotations
 

@@ -1,21 +1,5 @@
-r"""The true descent the filter navigates: the kinematic ARRM trajectory, the truth's gravity, the control it implies.
-
-Position (body frame) as :mod:`renderlab.worlds.ev5.descent` renders it: :math:`\mathbf q(t) = \mathbf o + h(t)\mathbf n`
-and, above the spin-match altitude, :math:`\mathbf r(t) = R_z(\omega(t_m - t))\,\mathbf q(t)` (a line fixed in
-inertial space). Velocity and acceleration by central differences (steps 1 ms and 10 ms: rounding below 1e-9 m/s
-and 1e-9 m/s² for |r| < 1 km). The truth's gravity is a point mass plus J2 about the spin pole (body +z):
-
-.. math::
-
-    \mathbf g_T = -\frac{\mu\mathbf r}{r^3} - \frac{3 J_2\mu R^2}{2 r^5}
-    \begin{bmatrix} x(1-5z^2/r^2) \\ y(1-5z^2/r^2) \\ z(3-5z^2/r^2)\end{bmatrix}   \quad (T1)
-
-(Vallado, *Fundamentals of Astrodynamics and Applications*, 4th ed., eq. 8-30). The control acceleration the
-kinematic trajectory needs follows from eq. D1 of :mod:`estimators.descent_nav.dynamics` solved for u:
-:math:`\mathbf u = \ddot{\mathbf r} - \mathbf g_T + 2\boldsymbol\omega\times\dot{\mathbf r}
-+ \boldsymbol\omega\times(\boldsymbol\omega\times\mathbf r)` (T2). The accelerometer reports the mean of u over its
-sample (Simpson's rule) plus white noise.
-"""
+r"""The true descent the filter navigates: the kinematic ARRM trajectory, the truth's gravity (point mass + J2,
+eq. T1) and the control it implies (eq. T2), docs/descent_navigation.md "The true descent"."""
 
 from __future__ import annotations
 
@@ -102,10 +86,12 @@ def site_frame(ts) -> tuple[np.ndarray, np.ndarray]:
 def true_descent(ts, scenario, cfg) -> TrueDescent:
     """The :class:`TrueDescent` of an EV5 descent truth set: the site and spin as rendered (``site.json``, the
     frames' ``ev5.spin``), the profile of ``scenario.trajectory``, the truth gravity of ``cfg``."""
-    origin, R = site_frame(ts)
-    period = float(ts.frames[0]["ev5"]["spin"]["period_s"])
-    return TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / period, origin, R[:, 2],
-                       float(cfg.gm_true_m3_s2), float(cfg.j2_true), float(cfg.r_ref_m))
+    return _true(scenario, cfg, float(ts.frames[0]["ev5"]["spin"]["period_s"]), *site_frame(ts))
+
+
+def _true(scenario, cfg, period_s: float, origin, R_site) -> TrueDescent:
+    return TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / period_s, np.asarray(origin, float),
+                       np.asarray(R_site, float)[:, 2], float(cfg.gm_true_m3_s2), float(cfg.j2_true), float(cfg.r_ref_m))
 
 
 _PLANNED: dict = {}
@@ -119,16 +105,12 @@ def planned_descent(scenario, base_dir, cfg) -> tuple[dict, TrueDescent, list]:
     import json
     from pathlib import Path
 
-
     key = (json.dumps(scenario.to_dict(), sort_keys=True, default=str), str(Path(base_dir).resolve()))
     if key not in _PLANNED:
         plan = make_plan(scenario, Path(base_dir))
         model, states = plan.model, plan.states
-        site = model.site
-        R_site = np.asarray(site.R_body_from_site, float)
-        truth = TrueDescent(DescentProfile(scenario.trajectory), 2.0 * np.pi / model.spin.period_s,
-                            np.asarray(site.origin_m, float), R_site[:, 2], float(cfg.gm_true_m3_s2),
-                            float(cfg.j2_true), float(cfg.r_ref_m))
+        R_site = np.asarray(model.site.R_body_from_site, float)
+        truth = _true(scenario, cfg, model.spin.period_s, model.site.origin_m, R_site)
         cam = CameraModel.from_dict(scenario.camera.model_dump())
         frames = {"times": np.array([s.time_s for s in states], float),
                   "R_true": np.stack([s.pose.rotation.as_matrix() for s in states]),
