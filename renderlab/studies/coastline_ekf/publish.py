@@ -156,18 +156,14 @@ def _from_runs(summary, runs):
 
 def publish_tables(tables: dict) -> dict:
     """What a published coastline folder ships (:attr:`renderlab.contracts.study.Study.publish_tables`): the tables
-    as the report reads them. Filter tables keep :data:`FILTER_COLUMNS`, frames tables the columns the report reads;
-    in the geometric layout every run's rows become what the report makes of them (per-time summary, the sample
+    as the report reads them. Filter tables keep :data:`FILTER_COLUMNS` (frames tables stay whole: the image README
+    quotes their per-image counts); in the geometric layout every run's rows become what the report makes of them (per-time summary, the sample
     drawn), the per-run NIS totals one sum per orbit (the report adds them up) and the summary loses the run means."""
     import pyarrow as pa
 
     out = {}
     for name, t in tables.items():
-        if name.endswith("_filter") or name == "coastline_filter":
-            t = t.select([c for c in t.column_names if c in FILTER_COLUMNS])
-        elif name.endswith("_frames"):
-            t = t.select([c for c in t.column_names if c in ("run", "frame", "n_matched", "los_err_px_median")])
-        out[name] = t
+        out[name] = t.select([c for c in t.column_names if c in FILTER_COLUMNS]) if name.endswith("_filter") else t
     if not is_geometric(tables):
         return out
     cases = list(dict.fromkeys(tables["coastline_orbits"]["case"].to_pylist()))
