@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.pose import EstimationError, MeasurementDatabase, Stage1Options, Stage1Problem
-from renderlab.errors import UserError
+from renderlab.errors import UserError, run_main
 from renderlab.geometry.camera import CameraModel
 from renderlab.geometry.rotations import skew
 from renderlab.scenario import apply_overrides, load_scenario, scenario_from_dict
@@ -183,7 +183,6 @@ def main(argv=None) -> int:
     published study folder's ``tables/`` where its report draws it (:mod:`.observability_report`)."""
     import argparse
     import os
-    import sys
     from pathlib import Path
 
     from renderlab.campaign.compact import write_compact
@@ -194,22 +193,19 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True, help="Parquet file to write")
     ap.add_argument("--set", action="append", default=[], dest="overrides", metavar="KEY=VALUE")
     args = ap.parse_args(argv)
+    sc, _ = load_scenario(Path(args.scenario), args.overrides)
+    table = inertia_observability_table(sc, progress=True)
+    out = Path(args.out)
+    tmp = out.with_name(f".{out.name}.{os.getpid()}")
     try:
-        sc, _ = load_scenario(Path(args.scenario), args.overrides)
-        table = inertia_observability_table(sc, progress=True)
-        out = Path(args.out)
-        tmp = out.with_name(f".{out.name}.{os.getpid()}")
         write_compact(table, tmp)
         os.replace(tmp, out)
-    except UserError as exc:
-        print(f"renderlab: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"renderlab: error: cannot write {args.out}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+    except OSError as exc:  # nothing half-written
+        tmp.unlink(missing_ok=True)
+        raise UserError(f"cannot write {args.out}: {exc.strerror or exc}") from None
     print(f"renderlab: wrote {out} ({table.num_rows} rows)")
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(run_main(main))
