@@ -1,7 +1,7 @@
 """Study ``unknown_satellite``: monocular pose and inertia of an unknown tumbling satellite (Ivanov et al.):
 :mod:`.sequence` (one rendered sequence through stage 1 and stage 2), :mod:`.run` (one campaign run),
-:mod:`.figures`, :mod:`.report_section`, :mod:`.observability` (Fisher information vs arc length) and its
-report blocks :mod:`.observability_report`, :mod:`.demo`."""
+:mod:`.figures`, :mod:`.report_section`, :mod:`.observability` (Fisher information vs arc length; its report blocks in
+:mod:`.report_section`), :mod:`.demo`."""
 
 from renderlab.contracts.study import Study, lazy
 

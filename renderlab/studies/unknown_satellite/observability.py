@@ -180,7 +180,7 @@ def inertia_observability_table(scenario, arcs=DEFAULT_ARCS, *, sigma_px: float 
 def main(argv=None) -> int:
     """``python -m renderlab.studies.unknown_satellite.observability SCENARIO --out FILE.parquet [--set K=V]``: the
     table of :func:`inertia_observability_table` (the lab's compact writer, written atomically), e.g. into a
-    published study folder's ``tables/`` where its report draws it (:mod:`.observability_report`)."""
+    published study folder's ``tables/`` where its report draws it (:func:`.report_section.observability_blocks`)."""
     import argparse
     import os
     from pathlib import Path

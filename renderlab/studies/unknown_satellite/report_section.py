@@ -1,7 +1,7 @@
 """The unknown-satellite section of ``renderlab report``: score tables, run flags as a rate with "k of N runs",
-Figs 5-7 and 13-14 (:mod:`.figures`), the Fisher-information blocks where the folder has the
-``inertia_observability`` table (:mod:`.observability_report`), and the explanation of a large stage-2 attitude
-error from the tables (docs/unknown_satellite.md)."""
+Figs 5-7 and 13-14 (:mod:`.figures`), the explanation of a large stage-2 attitude error from the tables, and where
+the folder has the ``inertia_observability`` table (:mod:`.observability`; eq. 7, doi:10.1155/2018/9731512) the
+Cramér–Rao σ of the inertia ratios against arc length as a figure, a table and a CSV (docs/unknown_satellite.md)."""
 
 from __future__ import annotations
 
@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.report import style
 from renderlab.report.campaign_report import render_blocks, write_csv
 from renderlab.report.html_table import table as html_table
 from renderlab.studies.unknown_satellite.figures import SCORES, campaign_figures, column, same_pairs, score_summary
-from renderlab.studies.unknown_satellite.observability_report import observability_blocks
 
-__all__ = ["study_section", "attitude_note"]
+__all__ = ["study_section", "attitude_note", "observability_blocks"]
 
 TITLE = "Unknown satellite: scores and figures (Ivanov et al. Figs 5-7, 13-14)"
 GROUPS = {"g": "Gauge-free scores (independent of the principal axes)",
@@ -115,6 +115,61 @@ def _flag_table(rows: list[dict]) -> list[dict]:
             {"kind": "table", "html": html_table(flags, [("flag", "flag"), ("label", "meaning"), ("rate", "rate (%)"),
                                                           ("flagged", "runs flagged (count)")],
                                                  left=("flag", "label"))}]
+
+
+#: σ under which a ratio counts as observable in the figure (a 10 % relative error at ratios ≈ 0.6–0.8)
+OBSERVABLE_SIGMA = 0.1
+OBS_COLUMNS = [("label", "arc"), ("arc_s", "arc (s)"), ("rotation_deg", "tumble (deg)"), ("range_end_m", "range at end (m)"),
+           ("database_points", "points (count)"), ("sigma_ratio_12", "σ(I1/I3) (—)"), ("sigma_ratio_23", "σ(I2/I3) (—)"),
+           ("sigma_w0_lvlh_deg_s", "σ(ω0, LVLH) (deg/s)")]
+
+
+def _figure(rows: list[dict], stem: Path) -> list[str]:
+    plt = style.plt()
+    from matplotlib.ticker import FuncFormatter
+
+    fig, ax = plt.subplots(1, 2, figsize=(10.5, 4.0), constrained_layout=True)
+    groups = [(False, style.OKABE_ITO[0], "default separation"), (True, style.OKABE_ITO[1], "slow separation")]
+    for k, (col, name) in enumerate((("sigma_ratio_12", "I1/I3"), ("sigma_ratio_23", "I2/I3"))):
+        for slow, color, lab in groups:
+            sel = sorted((r for r in rows if r["tracks"] == "segments" and r["frames"] == 100
+                          and ("slow" in r["label"]) == slow and np.isfinite(r[col])), key=lambda r: r["arc_s"])
+            if sel:
+                ax[k].plot([r["arc_s"] for r in sel], [r[col] for r in sel], "o-", color=color,
+                           label=f"100 frames, {lab}")
+        dense = [r for r in rows if r["tracks"] == "segments" and r["frames"] > 100 and np.isfinite(r[col])]
+        if dense:
+            ax[k].plot([r["arc_s"] for r in dense], [r[col] for r in dense], "s", color=style.OKABE_ITO[2],
+                       mfc="none", label="200 or 400 frames, default separation")
+        ax[k].axhline(OBSERVABLE_SIGMA, color="k", ls="--", lw=0.8, label=f"σ = {OBSERVABLE_SIGMA:g}")
+        ax[k].set_xscale("log")
+        ax[k].set_yscale("log")
+        for a in (ax[k].xaxis, ax[k].yaxis):
+            a.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+        ax[k].set(xlabel="arc length (s)", ylabel=f"CRLB σ of {name} (dimensionless)", title=f"({'ab'[k]}) {name}")
+        ax[k].legend(fontsize=8)
+        ax[k].grid(alpha=0.3, which="both")
+    fig.suptitle("Are the inertia ratios observable? Cramér–Rao σ (eq. 7) against arc length, σ_px = 0.3")
+    return style.save(fig, stem)
+
+
+def observability_blocks(table, out_dir: Path) -> list[dict]:
+    """h3, text, figure and table blocks of the ``inertia_observability`` table (one track model: ``segments``,
+    every contiguous visible run of a knob its own point, as the tracker does)."""
+    rows = table.to_pylist()
+    write_csv(Path(out_dir) / "unknown_satellite_inertia_observability.csv", rows)
+    seg = [r for r in rows if r["tracks"] == "segments"]
+    if not seg:
+        return [{"kind": "text", "html": "The inertia-observability table has no “segments” rows: left out."}]
+    png, svg = _figure(rows, Path(out_dir) / "unknown_satellite_inertia_sigma_vs_arc")
+    return [{"kind": "h3", "text": "Inertia ratios: Fisher information against arc length"},
+            {"kind": "text", "html": "Stage-1 Jacobian at the truth of the scenario, σ = 0.3 px, range prior 5 cm, a "
+                                     "synthetic database of the knobs that are in the image, unoccluded and lit; "
+                                     "systematic centroid errors are not in F, so these σ are lower bounds."},
+            {"kind": "figure", "png": png, "svg": svg, "alt": "inertia_sigma_vs_arc",
+             "caption": "Cramér–Rao σ of the inertia ratios against arc length (log axes)."},
+            {"kind": "table", "html": html_table(seg, OBS_COLUMNS, left=("label",))},
+            {"kind": "links", "files": ["unknown_satellite_inertia_observability.csv"]}]
 
 
 def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
