@@ -25,6 +25,7 @@ import numpy as np
 from renderlab.contracts.result_folder import figures_wanted, save_figure
 from renderlab.crosscheck.agreement import TARGETS, FrameAgreement, radiometric_agreement
 from renderlab.errors import UserError
+from renderlab.files.parquet_compact import write_compact
 
 __all__ = ["figure", "markdown_table", "write_images", "read_images", "is_crosscheck_folder", "write_report"]
 
@@ -215,16 +216,15 @@ def markdown_table(rows, title: str, targets: dict) -> str:
 
 
 def write_images(rows, images: list[dict], out_dir: Path, max_frames: int = 6) -> Path:
-    """``crosscheck_images.parquet``: the images of the frames :func:`figure` draws (zstd-compressed float32)."""
+    """``crosscheck_images.parquet``: the images of the frames :func:`figure` draws (float32, the lab's compact
+    writer); the frames' times are in the agreement table."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     pick = _pick(len(rows), max_frames)
-    cols: dict[str, list] = {"frame": [], "time_s": [], "height": [], "width": [], **{c: [] for c in IMAGE_COLUMNS.values()}}
+    cols: dict[str, list] = {"frame": [], "height": [], "width": [], **{c: [] for c in IMAGE_COLUMNS.values()}}
     for k in pick:
         H, W = images[k]["Lm"].shape
         cols["frame"].append(int(rows[k].frame))
-        cols["time_s"].append(float(rows[k].time_s))
         cols["height"].append(H)
         cols["width"].append(W)
         for name, col in IMAGE_COLUMNS.items():
@@ -232,7 +232,7 @@ def write_images(rows, images: list[dict], out_dir: Path, max_frames: int = 6) -
     table = pa.table({k: (pa.array(v, pa.list_(pa.float32())) if k in IMAGE_COLUMNS.values() else v)
                       for k, v in cols.items()})
     path = Path(out_dir) / IMAGES
-    pq.write_table(table, str(path), compression="zstd", compression_level=9)
+    write_compact(table, path)
     return path
 
 
