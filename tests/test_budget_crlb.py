@@ -1,4 +1,5 @@
-"""The registration CRLB from noisy renders (cross-product Fisher) and the error budget's CRLB probe."""
+"""The registration CRLB from noisy renders (cross-product Fisher) and the error budget's CRLB probe (its report rows;
+the probe itself is ``investigations/error_budget/crlb_probe.py``)."""
 
 from __future__ import annotations
 
@@ -168,10 +169,18 @@ def test_report_rows_give_the_noise_over_each_bound():
     assert len({tuple(r) for r in rows}) == 1  # one CSV header
 
 
-def test_cli_refuses_a_folder_that_is_no_budget(tmp_path, capsys):
-    assert BC.main([str(tmp_path)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("renderlab: error:") and "budget_measurements" in err[0]
+def test_crlb_probe_refuses_a_folder_that_is_no_budget(tmp_path):
+    """The probe that makes the table (``investigations/error_budget/crlb_probe.py``, run, not imported): a folder
+    without the budget's tables is one line, exit 2, nothing written."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    r = subprocess.run([sys.executable, "investigations/error_budget/crlb_probe.py", str(tmp_path)], cwd=repo,
+                       capture_output=True, text=True, timeout=300)
+    err = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(err) == 1 and err[0].startswith("renderlab: error:") and "budget_measurements" in err[0]
     assert not (tmp_path / "tables").exists()
 
 

@@ -1,11 +1,10 @@
 """The error budget (renderlab/studies/retina_vs_spc/budget*.py): configurations from scenario keys,
 its statistics against direct numpy computations on synthetic tables with known bias/noise, the quadrature check
-on additive vs interacting sources, and the published folder results/error_budget regenerating from its tables."""
+on additive vs interacting sources, and the parts of the published report (its regeneration: test_result_folders)."""
 
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -111,7 +110,7 @@ def test_statistics_match_direct_numpy_computations():
 def test_quadrature_check_passes_additive_sources_and_flags_an_interaction(interact, verdict, tmp_path):
     t, configs = _synthetic(np.random.default_rng(11), interact)
     B.BUDGET_TABLES.write(tmp_path / "b", configs, t, pa.table({"config": ["all_off"], "run": [0]}), {"command": "test"})
-    write_report(tmp_path / "b")
+    assert main(["report", str(tmp_path / "b")]) == 0   # the budget's command line, from the tables alone
     terms = (tmp_path / "b" / "report" / "budget_terms.csv").read_text().splitlines()
     head = terms[0].split(",")
     rows = [dict(zip(head, line.split(","))) for line in terms[1:]]
@@ -132,17 +131,15 @@ def test_report_refuses_a_folder_without_tables(tmp_path):
     assert not (tmp_path / "report").exists()
 
 
+@pytest.mark.published
 @pytest.mark.skipif(not PUBLISHED.is_dir(), reason="results/error_budget not published yet")
-def test_published_budget_regenerates_from_its_tables(tmp_path):
-    copy = tmp_path / "error_budget"
-    shutil.copytree(PUBLISHED, copy, ignore=lambda d, names: ["report"] if Path(d) == PUBLISHED else [])
-    assert main(["report", str(copy)]) == 0
-    committed = sorted(p.name for p in (PUBLISHED / "report").glob("*.csv")) + ["budget_table.md"]
-    for name in committed:
-        assert (copy / "report" / name).read_text() == (PUBLISHED / "report" / name).read_text(), name
-    assert {p.name for p in (copy / "report").glob("*.png")} == {"error_budget.png", "budget_navigation.png"}
+def test_published_budget_report_has_every_part():
+    """The committed report (its regeneration from the tables: tests/test_result_folders.py, published tier): PNG
+    figures only, the navigation and shadow sections, the command that made the tables."""
+    committed = {p.name for p in (PUBLISHED / "report").iterdir()}
+    assert {"error_budget.png", "budget_navigation.png", "budget_navigation.csv",
+            "budget_navigation_validation.csv", "budget_table.md"} <= committed
     assert not list((PUBLISHED / "report").glob("*.svg")), "PNG only; SVG with renderlab report --svg"
-    assert {"budget_navigation.csv", "budget_navigation_validation.csv"} <= set(committed)   # compared above
     md = (PUBLISHED / "report" / "budget_table.md").read_text()
     assert "| shadow_approximation |" in md and "### navigation: geometric all-on vs the rendered" in md
     manifest = json.loads((PUBLISHED / "budget.json").read_text())

@@ -175,6 +175,27 @@ def test_report_has_every_method_with_cluster_intervals_and_the_declared_subset(
     assert all(m in html for m in ("retina", "spc", "ncc_baseline")) and "Well-measured subset" in html
 
 
+def test_published_tables_hold_what_the_report_reads_and_give_the_same_report(campaign, tmp_path):
+    """Publishing applies the study's ``publish_tables``: ``measurements`` keeps the columns the report reads, the full
+    table is recorded in ``raw_tables.json``, and the report of the reduced tables equals the campaign's (every CSV)."""
+    import json
+
+    from renderlab.campaign.publish import publish_campaign
+    from renderlab.studies.retina_vs_spc.report import PUBLISHED_COLUMNS
+
+    d, meas, _ = campaign
+    out = publish_campaign(d / "camp", tmp_path / "pub")
+    t = pq.read_table(out / "tables" / "measurements.parquet")
+    assert set(t.column_names) == set(PUBLISHED_COLUMNS) and t.num_rows == sum(len(m["run"]) for m in meas)
+    raw = json.loads((out / "tables" / "raw_tables.json").read_text())["tables"]
+    assert set(raw) == {"measurements"} and {"meas_s", "score", "t_ms"} <= set(raw["measurements"]["columns"])
+    assert main(["report", str(out), "--out", str(tmp_path / "rep"), "--tables-only"]) == 0
+    names = sorted(p.name for p in (d / "report").glob("*.csv"))
+    assert "summary.csv" in names and "measurements_breakdown.csv" in names
+    for name in names:
+        assert (tmp_path / "rep" / name).read_text() == (d / "report" / name).read_text(), name
+
+
 class ShiftedNcc:
     """A user's own method typed on the command line (not installed, no entry point): the NCC baseline under
     another name."""

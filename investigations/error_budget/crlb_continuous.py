@@ -30,12 +30,14 @@ import argparse
 import copy
 import csv
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
+sys.path.insert(0, str(HERE))  # crlb_probe.py beside this script
 K, SPP, SEEDS = 4, 32, (11, 12)
 
 
@@ -59,18 +61,20 @@ def fine_sets(truth: dict, base_dir: Path, workdir: Path):
 
 def bounds_table(ts, fine, sensor) -> list[dict]:
     """Per landmark-frame of the budget's windows: the footprint and the continuous bounds (module docstring)."""
+    from crlb_probe import windows  # the budget's CRLB windows (this folder's probe)
+
     from renderlab.campaign.reexpose import frame_sensor_options
     from renderlab.campaign.scoring import dn_variance, registration_crlb
+    from renderlab.measurement.runner import MeasureOptions, onboard_photometry
     from renderlab.sensor.model import expected_dn
-    from renderlab.studies.retina_vs_spc.budget import crlb as BC
     from renderlab.studies.retina_vs_spc.crlb_truth import footprint_bound, maplet_footprint, sigma_or_nan
     from renderlab.worlds.ev5.catalog import read_catalog
 
     catalog = read_catalog(ts.path)
     maplets = {int(m.landmark_id): m for m in catalog}
-    L_table = BC.onboard_L_table(ts)
+    L_table = onboard_photometry(ts, MeasureOptions())[0]  # the onboard McEwen L(α) the methods use
     rows, per_frame = [], {}
-    for (f, lid), (k, win, g) in sorted(BC.windows(ts, catalog).items()):
+    for (f, lid), (k, win, g) in sorted(windows(ts, catalog).items()):
         if k not in per_frame:
             o = frame_sensor_options(ts, k, sensor)
             rad = np.asarray(ts.load(k).radiance, np.float64)

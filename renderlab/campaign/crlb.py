@@ -40,10 +40,13 @@ doi:10.1109/TIP.2004.832923.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from renderlab.campaign.scoring import registration_crlb
 
 NUISANCES = ("gain", "offset")
 
@@ -192,3 +195,71 @@ def continuous_crlb(fine: np.ndarray, k: int, variance, mask=None, *, sample: st
                                                                    psf_sigma_px=psf_sigma_px)
     J, n = shift_fisher(P, ds, dl, variance, mask, nuisances=tuple(nuisances), independent=other)
     return ContinuousCrlb(sigma_from_fisher(J), J, ("ds", "dl", *nuisances), n)
+
+
+# ------------------------------------------------------------------- the bound of a landmark on a rendered truth
+def fine_truth_dict(truth: dict, k: int, spp: int | None = None) -> dict:
+    """A truth scenario's dict rendered at k × k sub-pixels per pixel (the ``fine`` image of eq. 3): width/height and
+    fx/fy × k, the principal point on the same spot ((c + ½)·k − ½), a site's tile levels unchanged (``lod_pixels``
+    × k), ``spp`` samples per sub-pixel (None: the scenario's). Needs an undistorted pinhole camera."""
+    d = copy.deepcopy(truth)
+    if spp is not None:
+        d["render"]["spp"] = int(spp)
+    cam = d["camera"]
+    if cam.get("distortion") or cam.get("model", "pinhole") != "pinhole" or cam.get("skew") or cam.get("skew_yx"):
+        raise ValueError("fine_truth_dict needs an undistorted pinhole camera")
+    for a in ("width", "height"):
+        cam[a] = int(cam[a]) * int(k)
+    for a in ("fx", "fy"):
+        cam[a] = float(cam[a]) * k
+    for a in ("cx", "cy"):
+        cam[a] = (float(cam[a]) + 0.5) * k - 0.5
+    site = d.get("world", {}).get("site")
+    if isinstance(site, dict):
+        site["lod_pixels"] = float(site.get("lod_pixels", 1.0)) * k
+    return d
+
+
+def footprint_bound(fine_dn: np.ndarray, k: int, variance: np.ndarray, footprint, *, margin: int = 6,
+                    nuisances: tuple[str, ...] = (), independent: np.ndarray | None = None) -> ContinuousCrlb | None:
+    """:func:`continuous_crlb` of a frame's fine expected DN (k·H × k·W) over a footprint ``(l0, s0, valid (h, w))``
+    of the pixels an estimator reads (None: no bound), on a crop of ``margin`` pixels around it (clipped to the
+    image); None where fewer than 8 pixels are left."""
+    if footprint is None:
+        return None
+    l0, s0, valid = footprint
+    H, W = variance.shape
+    h, w = valid.shape
+    r0, r1 = max(l0 - margin, 0), min(l0 + h + margin, H)
+    c0, c1 = max(s0 - margin, 0), min(s0 + w + margin, W)
+    mask = np.zeros((r1 - r0, c1 - c0), bool)
+    mask[l0 - r0:l0 - r0 + h, s0 - c0:s0 - c0 + w] = valid
+    if mask.sum() < 8:
+        return None
+    fsl = (slice(r0 * k, r1 * k), slice(c0 * k, c1 * k))
+    return continuous_crlb(fine_dn[fsl], k, variance[r0:r1, c0:c1], mask, nuisances=nuisances,
+                           independent=None if independent is None else independent[fsl])
+
+
+def sigma_or_nan(res: ContinuousCrlb | None) -> tuple[float, float]:
+    """(σ_s, σ_l) of a bound, NaN where there is none."""
+    return (math.nan, math.nan) if res is None else res.sigma
+
+
+def crlb_window(s: float, l: float, gsd_ratio, size: int, shape: tuple[int, int]):
+    """The square window of the finite-difference bound around the landmark at (s, l) that spans a maplet of ``size``
+    posts at GSD ratio ``gsd_ratio`` (half-size ½·(size − 1)/GSD ratio, ≥ 3 px, clipped to ``shape``) → (row slice,
+    column slice), or None where undefined or under 7 px either way."""
+    if not (np.isfinite(s) and np.isfinite(l) and gsd_ratio is not None and np.isfinite(gsd_ratio) and gsd_ratio > 0):
+        return None
+    half = int(max(3, math.ceil(0.5 * (size - 1) / gsd_ratio)))
+    c0, r0 = int(round(s)), int(round(l))
+    win = (slice(max(r0 - half, 0), min(r0 + half + 1, shape[0])), slice(max(c0 - half, 0), min(c0 + half + 1, shape[1])))
+    return win if min(win[0].stop - win[0].start, win[1].stop - win[1].start) >= 7 else None
+
+
+def window_crlb(expected: np.ndarray, variance: np.ndarray, s: float, l: float, gsd_ratio, size: int) -> tuple:
+    """The finite-difference bound (:func:`~renderlab.campaign.scoring.registration_crlb`) of the truth pixels
+    ``expected`` over :func:`crlb_window`; NaN where there is no window."""
+    win = crlb_window(s, l, gsd_ratio, size, expected.shape)
+    return (math.nan, math.nan) if win is None else registration_crlb(expected[win], variance[win])

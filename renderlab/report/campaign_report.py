@@ -17,6 +17,7 @@ from renderlab import plugins
 from renderlab.campaign import scoring, store
 from renderlab.campaign.publish import is_published
 from renderlab.contracts.observable import ReportContext
+from renderlab.contracts.schemas import kind_of_table_name
 from renderlab.report.csvio import write_csv  # noqa: F401  (re-exported for studies)
 from renderlab.report.html_table import table as html_table
 
@@ -99,7 +100,7 @@ def _write_all(tables, stage: Path, manifest: dict, confidence) -> tuple[list[di
     for name, t in sorted(tables.items()):
         if name in getattr(found, "own_tables", ()):
             continue
-        kind = scoring.table_kind(t)
+        kind = kind_of_table_name(name) or scoring.table_kind(t)  # by name: a published table may be reduced
         report_section = None if kind == "other" else plugins.observable(kind).part("report_section")
         if report_section is None:
             continue

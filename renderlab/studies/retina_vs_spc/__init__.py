@@ -8,4 +8,5 @@ STUDY = Study(name="retina_vs_spc", run=lazy("renderlab.studies.retina_vs_spc.ru
               demo=lazy("renderlab.studies.retina_vs_spc.demo:run_demo_campaign"),
               check=lazy("renderlab.studies.retina_vs_spc.run:check"),
               subsets=lazy("renderlab.studies.retina_vs_spc.report:subsets"),
-              gross_error_px=lazy("renderlab.studies.retina_vs_spc.report:gross_error_px"))
+              gross_error_px=lazy("renderlab.studies.retina_vs_spc.report:gross_error_px"),
+              publish_tables=lazy("renderlab.studies.retina_vs_spc.report:publish_tables"))

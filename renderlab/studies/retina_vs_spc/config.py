@@ -1,13 +1,7 @@
 """Scenario section ``[retina_vs_spc]`` of the landmark-method comparison (Wright et al., Fig. 12). Light: pydantic.
-
-``methods`` are registered landmark-method names (:data:`renderlab.plugins.landmark_methods`: the lab's
-``retina``, ``retina_refined`` (Retina with the refined peak step) and ``spc``, the example plug-in
-``ncc_baseline``, or any installed package's entry point); a scenario never names a Python module. Every method sees the same image, a-priori draw and beliefs.
-
-``well_measured`` is the pre-declared subset the findings are stated for (declared before looking at the
-errors): GSD ratio (image GSD / maplet spacing) in ``[gsd_ratio_min, gsd_ratio_max]``, truth shadow fraction
-≤ ``shadow_fraction_max``, landmark visible and unoccluded in the truth.
-"""
+``methods`` are registered landmark-method names (:data:`renderlab.plugins.landmark_methods`), never a Python module;
+``well_measured`` is the subset the findings are stated for, declared before looking at the errors: GSD ratio in
+``[gsd_ratio_min, gsd_ratio_max]``, truth shadow fraction ≤ ``shadow_fraction_max``, landmark visible in the truth."""
 
 from __future__ import annotations
 

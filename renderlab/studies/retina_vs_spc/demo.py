@@ -1,15 +1,11 @@
-"""The demo campaign: Retina vs SPC on a tiny EV5 descent, end to end, in a few minutes on a laptop.
-
-One Mitsuba render of a small procedural EV5 landing site (128², 3 frames at 65, 45 and 30 m, 4 spp; the
-truth cache serves every run), then :data:`DEMO_RUNS` Monte Carlo runs of study ``retina_vs_spc``
-(:mod:`renderlab.studies.retina_vs_spc.run`: a-priori pose, camera, distortion, maplet spacing and Sun
-knowledge errors, fresh sensor noise per run) in this process, then the campaign report (scatter with
-bias/noise ellipses, error vs fractional shift, failure rates, ratio to the CRLB, summary table, HTML).
-Running it again into the same folder resumes: finished runs are kept.
+"""The demo campaign: Retina vs SPC on a tiny EV5 descent, end to end, in a few minutes on a laptop: one Mitsuba
+render of a small EV5 landing site (128², 3 frames, 4 spp; the truth cache serves every run), :data:`DEMO_RUNS` runs
+of study ``retina_vs_spc`` in this process, then the campaign report. Running it again into the same folder resumes.
 """
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
 from renderlab import plugins
@@ -117,8 +113,6 @@ def run_demo_campaign(out_dir, progress: bool = True, runs: int = DEMO_RUNS) -> 
 def headline_table(summary_csv: Path) -> list[str]:
     """Markdown table of the report's headline: per method, on the well-measured subset (else all rows), bias and
     robust σ per axis and the no-result rate, with 95 % cluster-bootstrap intervals over landmark-frames."""
-    import csv
-
     if not Path(summary_csv).is_file():
         return ["(no summary.csv: the campaign report was not written)"]
     rows = list(csv.DictReader(Path(summary_csv).open(encoding="utf-8")))

@@ -1,11 +1,17 @@
 """Report hooks of ``retina_vs_spc``: the pre-declared well-measured subset (``[retina_vs_spc].well_measured``) and
-the gross-error threshold, read from the campaign's own scenario."""
+the gross-error threshold, read from the campaign's own scenario; the tables a published folder ships."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
+
+#: the measurement columns the campaign report reads (:mod:`renderlab.report.landmark_section`: errors, truth, result,
+#: reason, clusters and pairs, CRLB, the breakdown covariates; :func:`subsets`: GSD ratio, shadow, truth_visible)
+PUBLISHED_COLUMNS = ("run", "frame", "item", "method", "truth_s", "truth_l", "err_s", "err_l", "has_result", "reason",
+                     "truth_visible", "gsd_ratio", "phase_deg", "shadow_fraction", "range_m", "albedo_contrast",
+                     "crlb_s", "crlb_l", "crlb_bound")
 
 
 def _config(scenario_dict: dict):
@@ -34,3 +40,13 @@ def subsets(table, scenario_dict: dict) -> list:
 
 def gross_error_px(scenario_dict: dict) -> float:
     return float(_config(scenario_dict).gross_error_px)
+
+
+def publish_tables(tables: dict) -> dict:
+    """The published tables (:attr:`renderlab.contracts.study.Study.publish_tables`): ``measurements`` with the
+    columns the report reads (:data:`PUBLISHED_COLUMNS`, ``crlb_bound`` where the table has it), the others whole."""
+    from renderlab.campaign.compact import keep_columns
+
+    t = tables.get("measurements")
+    keep = [c for c in PUBLISHED_COLUMNS if t is None or c != "crlb_bound" or c in t.column_names]
+    return keep_columns(tables, {"measurements": keep})

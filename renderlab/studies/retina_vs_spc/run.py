@@ -1,55 +1,30 @@
 """Study ``retina_vs_spc``: Retina and the SPC-style method on the same EV5 frames (Wright et al., Fig. 12).
 
-Without truth perturbations the truth render depends only on the nominal scenario, so it is rendered once
-and served by the truth cache (:mod:`renderlab.campaign.cache`, keyed by the scenario without its
-``perturbations`` and ``campaign`` sections). With them (``position_sigma_m``, ``position_cov_m2``,
-``velocity_sigma_mps``, ``attitude_sigma_deg``) each run renders its own truth at its perturbed true poses,
-cached by the content of those poses, the world loaded once per worker process
-(:mod:`renderlab.campaign.run_truth`). What else differs between runs is what the onboard system
-*believes* and the sensor noise:
-
-* a-priori pose per frame: position δt ~ N(0, diag σ_t²) (``apriori_position_sigma_m``, or the position
-  block of ``apriori_cov``) and attitude δθ ~ N(0, σ_θ²) per camera axis (``apriori_attitude_sigma_deg``),
-  drawn by :func:`renderlab.measurement.runner.draw_apriori`; the search distance is 3σ of its projection;
-* camera knowledge (the pixel map, eq. 4): ``fx, fy ← (1+δf)·(fx, fy)``, ``(cx, cy) += δc`` and
-  distortion ``k += δk`` — the estimator projects (eqs. 1–4) with the believed camera, the image was
-  taken with the true one;
-* Sun-direction knowledge: the estimator shades its templates (eq. 9 / SPC's shading) with a rotated Sun;
-* landmark resolution: the maplets are rebuilt from the site DEM at ``spacing·(1+δs)`` (same centres and
-  frames, fresh mapping error), so the GSD ratio of the run is ``gsd_ratio/(1+δs)``;
-* sensor noise: the DN image is re-exposed from the cached radiance with the run's own Poisson + read noise
-  (:func:`renderlab.sensor.model.expose`), so noise statistics are over independent realisations;
-  ``[retina_vs_spc] sensor_noise = false`` measures the noise-free expected DN instead (rounded to integers,
-  :func:`renderlab.sensor.model.expected_dn`; the switch of an error budget).
-
-The a-priori pose is drawn around the run's (perturbed) true pose. All methods see the same image, the same
-a-priori draw and the same believed camera/Sun/maplets. Truth (s, l) is ``landmark_truth.parquet`` of the
-run's truth set (the true centre projected with the true camera and the run's true pose; occlusion-aware),
-independent of the beliefs.
-
-Breakdown columns: ``phase_deg``, ``gsd_ratio`` (image GSD / maplet spacing), ``shadow_fraction`` (truth
-table), ``range_m`` (camera to landmark centre), ``albedo_contrast`` (Michelson contrast (p95−p5)/(p95+p5)
-of the maplet's albedo) and the registration Cramér–Rao bound ``crlb_s``/``crlb_l`` (px) of the continuous truth over
-the pixels the methods read (:mod:`renderlab.studies.retina_vs_spc.crlb_truth`: the truth rendered again at
-:data:`~renderlab.studies.retina_vs_spc.crlb_truth.FINE_K` × FINE_K sub-pixels, cached like the truth, Retina's
-template footprint at the true pose), with ``crlb_bound = "continuous"``; tables without that column (every
-published one made before it) carry the finite-difference bound of the truth pixels over a square window
-(:func:`renderlab.campaign.scoring.registration_crlb`).
+One run (:func:`run`): the truth rendered once through the truth cache (with truth perturbations, each run its own,
+:mod:`renderlab.campaign.run_truth`); what differs between runs is what the onboard system believes — the a-priori
+pose, camera, Sun-direction and maplet-spacing knowledge (:func:`believed_record`, respaced maplets) — and the sensor
+noise (:class:`BelievedTruthSet`). Every method sees the same image, a-priori draw and beliefs; truth (s, l) is the
+truth set's ``landmark_truth``. Breakdown columns and the registration CRLB (``crlb_s``/``crlb_l``: the continuous
+truth's over the template's pixels, :mod:`.crlb_truth`, or the finite-difference window bound of every table
+published before it): ``docs/retina_vs_spc.md``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
 
 from renderlab import plugins
+from renderlab.campaign.crlb import window_crlb
 from renderlab.campaign.maplets import respaced_maplets
 from renderlab.campaign.perturb import draw_perturbation, perturb_camera, perturb_sun
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.campaign.run_truth import run_truthset
-from renderlab.campaign.scoring import dn_variance, registration_crlb
+from renderlab.campaign.scoring import dn_variance
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, measure_truthset, onboard_photometry
@@ -58,11 +33,6 @@ from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.studies.retina_vs_spc import crlb_truth as CT
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
 from renderlab.worlds.ev5.catalog import read_catalog
-
-
-def truth_scenario_dict(sc_dict: dict) -> dict:
-    """The nominal scenario (what is rendered): the campaign-only sections removed."""
-    return truth_dict(sc_dict)
 
 
 def apriori_sigmas(p) -> tuple[tuple, tuple]:
@@ -81,11 +51,8 @@ def believed_record(rec: dict, draw) -> dict:
 
 
 class BelievedTruthSet(ReexposedTruthSet):
-    """A truth set as the onboard system sees it: believed camera and Sun in the frame records
-    (:func:`believed_record`), and the DN images re-exposed with this run's noise (one seed per frame,
-    :class:`renderlab.campaign.reexpose.ReexposedTruthSet`, each frame's DN kept). What
-    :func:`renderlab.measurement.runner.measure_truthset` reads (``path``, ``frames``, ``len``, ``load``,
-    ``read_table``)."""
+    """A truth set as the onboard system sees it (what :func:`renderlab.measurement.runner.measure_truthset`
+    reads): believed camera and Sun in the frame records, the DN re-exposed with this run's noise (a seed per frame)."""
 
     no_radiance = "truth set {path}: retina_vs_spc needs a mono (radiance) truth set"
 
@@ -98,9 +65,6 @@ class BelievedTruthSet(ReexposedTruthSet):
         """Frame ``i`` re-exposed with the run's noise, or (``noise`` false) its expected DN, rounded."""
         if self.noise:
             return super().load(i)
-        import dataclasses
-
-
         fr = self._ts.load(i)
         if fr.radiance is None:
             raise UserError(self.no_radiance.format(path=self.path, i=i))
@@ -109,10 +73,8 @@ class BelievedTruthSet(ReexposedTruthSet):
 
 
 def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict, fine) -> dict:
-    """{(frame, landmark_id): (range_m, albedo_contrast, crlb_s, crlb_l)} from the truth images; the bound from
-    ``fine``, the truth rendered at FINE_K × FINE_K sub-pixels (:mod:`.crlb_truth`), over the exact maplet's footprint,
-    or, with ``fine=None``, the finite-difference bound of the truth pixels over a square window
-    (:func:`window_crlb`, the bound of every table published before the continuous one)."""
+    """{(frame, landmark_id): (range_m, albedo_contrast, crlb_s, crlb_l)}; the bound of ``fine`` (:mod:`.crlb_truth`)
+    over the exact maplet's footprint, or (None) the finite-difference window bound of the truth pixels."""
     by_id = {int(m.landmark_id): m for m in maplets}
     exact = {int(m.landmark_id): m for m in read_catalog(ts.path)}
     L_table = onboard_photometry(ts, MeasureOptions())[0]
@@ -143,20 +105,6 @@ def landmark_extras(ts, believed: BelievedTruthSet, maplets, truth: dict, fine) 
     return out
 
 
-def window_crlb(edn, var, s, l, g, maplet_size: int) -> tuple[float, float]:
-    """Finite-difference registration bound of the truth pixels ``edn`` over a square window around (s, l) that spans
-    the maplet at GSD ratio ``g`` (:func:`renderlab.campaign.scoring.registration_crlb`); NaN where undefined."""
-    if not (np.isfinite(s) and np.isfinite(l) and g is not None and np.isfinite(g) and g > 0):
-        return (math.nan, math.nan)
-    half = int(max(3, math.ceil(0.5 * (maplet_size - 1) / g)))
-    c0, r0 = int(round(s)), int(round(l))
-    win = (slice(max(r0 - half, 0), min(r0 + half + 1, edn.shape[0])),
-           slice(max(c0 - half, 0), min(c0 + half + 1, edn.shape[1])))
-    if min(edn[win].shape) < 7:
-        return (math.nan, math.nan)
-    return registration_crlb(edn[win], var[win])
-
-
 def section(scenario):
     """The scenario's ``[retina_vs_spc]`` section (defaults when absent)."""
     return getattr(scenario, "retina_vs_spc", None) or RetinaVsSpcConfig()
@@ -174,15 +122,12 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir, methods=None
     """One run of ``retina_vs_spc`` → ``{"measurements": table, "perturbations": table}``. ``methods``: landmark
     methods (names, objects or factories, :func:`renderlab.measurement.runner.make_method`) instead of the
     section's names (the error budget's shadow-free onboard variants, :mod:`.budget.shadows`)."""
-    import pyarrow as pa
-
-
     check(scenario)
     p = scenario.perturbations
     ss_pert, ss_apriori, ss_noise, ss_map = seed_sequence.spawn(4)
     draw = draw_perturbation(p, ss_pert)
     # the a-priori pose is drawn per frame inside measure_truthset around the (perturbed) true pose
-    truth_sc = scenario_from_dict(truth_scenario_dict(scenario.to_dict()), "retina_vs_spc truth scenario")
+    truth_sc = scenario_from_dict(truth_dict(scenario.to_dict()), "retina_vs_spc truth scenario")
     path, _ = run_truthset(truth_sc, base_dir, Path(workdir) / "truth_cache", p, draw)
     ts = TruthSet.open(path)
     fine = None

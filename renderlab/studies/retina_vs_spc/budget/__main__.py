@@ -1,4 +1,4 @@
-"""``python -m renderlab.studies.retina_vs_spc.budget run|probe|report`` (:mod:`.runner`)."""
+"""``python -m renderlab.studies.retina_vs_spc.budget run|report`` (:mod:`.runner`)."""
 
 import sys
 

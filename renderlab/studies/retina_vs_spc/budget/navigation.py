@@ -1,53 +1,14 @@
-r"""The error budget's contribution to navigation error: each source's landmark error model, to fly through the descent EKF.
+"""The error budget's contribution to navigation error: each configuration's landmark errors as an error model
+(:class:`ErrorModel`, eq. N1 of ``docs/retina_vs_spc.md``: mean μ, per-landmark bias spread σ_b and noise σ_n per
+image axis at knots of depth) that the descent study flies through its filter
+(:mod:`renderlab.studies.descent_navigation.error_flights`), under three :data:`MAPPINGS` of the budget's three
+frames onto the descent's altitudes (``altitude``: log-depth interpolation; ``ground``: constant in metres;
+``pixel``: constant in pixels). Configuration ``no_landmark_error`` (:data:`NONE_CONFIG`) injects nothing: the floor.
 
-Description
------------
-A GN&C error budget of the onboard descent filter: each budget configuration's measured landmark errors
-(``tables/budget_measurements.parquet``) become an error model (:class:`ErrorModel`, :func:`error_models`; a
-:class:`renderlab.contracts.error_model.LandmarkErrorModel`) that the descent study flies with geometric
-measurements along its truth (:mod:`renderlab.studies.descent_navigation.error_flights`, eq. N1 there):
-
-.. math::
-
-    \mathbf z_{ik} = \pi(\mathbf T_k, \mathbf c_i) + \boldsymbol\mu(R_{ik}) + \boldsymbol\sigma_b(R_{ik})
-    \odot \boldsymbol\beta_i + \boldsymbol\sigma_n(R_{ik}) \odot \boldsymbol\epsilon_{ik}     \quad (N1)
-
-with β_i, ε_ik ~ N(0, I₂) (β_i constant for landmark i over the descent: its per-landmark bias; ε white),
-per image axis (s, l): μ the configuration's mean error (common to every landmark), σ_b = √(b_rms² − μ²) the
-landmark-to-landmark spread of the per-landmark bias (so the per-landmark bias has the budget's rms b_rms), σ_n
-the budget's per-landmark noise sd (pooled within landmark-frames over runs). R_ik is the landmark's depth in
-the camera. The budget measures these at three frames (217, 105, 50 m); three **mappings** onto the descent's
-altitudes bracket how they scale:
-
-* ``altitude`` (primary): the per-frame pixel statistics, interpolated linearly in log R between the three
-  frames' median depths (held constant outside) — what the budget measured at each altitude;
-* ``ground``: pooled over the frames in metres on the ground (error × GSD, GSD = R / f_x), then
-  σ_px = σ_m · f_x / R — errors constant on the ground (what the descent campaign measured:
-  ``results/descent_navigation/README.md``);
-* ``pixel``: pooled over the frames in pixels, constant at every altitude.
-
-Statistics on the budget rows the descent would attempt (GSD ratio in the descent's ``gsd_ratio_range``), with a
-truth pixel and |err| ≤ 1 px (the budget's per-landmark decomposition; gross errors are left to the filter's
-gate and not injected). The flights pair run i with run i of the rendered descent campaign and draw β, ε from the
-navigation seed, the same for every configuration and method (common random numbers: contributions are paired
-differences); not modelled: the search window, no-result rates, gross errors, and the correlation across
-landmarks of a run of the per-run knowledge errors (camera, Sun, spacing, a-priori pose: injected as white noise).
-
-Configuration ``no_landmark_error`` (method ``none``, :data:`NONE_CONFIG`) injects nothing: the floor set by the
-initial estimate, the star tracker, the accelerometer and the gravity model the filter lacks.
-
-Tuning
-------
-``runs`` (200: the touchdown rms to ± 10 % at 95 %), ``seed`` of the landmark draws, ``mappings``.
-
-Use
----
-``renderlab navigation-budget results/error_budget --runs 200`` (:mod:`renderlab.commands.navigation_budget`, the
-command above both studies that joins them; ``--only CONFIG ...``: just those configurations, replacing their
-rows) writes ``tables/budget_navigation.parquet`` (:data:`TABLE`: one row per mapping, configuration, method and
-run: touchdown-proxy error at the last image, east / north / up in the site frame, the filter's 1σ, NEES, track
-loss, the injected model) and ``tables/budget_navigation_rendered.parquet`` (:data:`RENDERED`: the rendered
-campaign's touchdown rows, for the validation), then the report (:mod:`.navigation_report`).
+``renderlab navigation-budget results/error_budget --runs 200`` (:mod:`renderlab.commands.navigation_budget`) writes
+``tables/budget_navigation.parquet`` (:data:`TABLE`: one row per mapping, configuration, method and run: touchdown-proxy
+error east / north / up, the filter's 1σ, NEES, track loss, the injected model) and
+``tables/budget_navigation_rendered.parquet`` (:data:`RENDERED`), then the report (:mod:`.navigation_report`).
 """
 
 from __future__ import annotations
@@ -68,7 +29,6 @@ TABLE, RENDERED = "budget_navigation", "budget_navigation_rendered"
 @dataclass(frozen=True)
 class NavBudgetOptions:
     """Options of the navigation budget (module docstring)."""
-
     runs: int = 200
     seed: int = 2027
     mappings: tuple = MAPPINGS
@@ -77,10 +37,8 @@ class NavBudgetOptions:
 
 @dataclass(frozen=True)
 class ErrorModel:
-    """One configuration × method × mapping: eq. N1's μ, σ_b, σ_n per axis (s, l) at knots of depth R.
-
-    ``unit`` is ``"px"`` (values in px at each knot of ``knots_m``; ``altitude`` has three knots, ``pixel`` one)
-    or ``"m"`` (metres on the ground, one knot; σ_px = σ_m f_x / R)."""
+    """One configuration × method × mapping: eq. N1's μ, σ_b, σ_n per axis (s, l) at knots of depth R; ``unit`` ``"px"``
+    (at each knot of ``knots_m``) or ``"m"`` (on the ground, one knot; σ_px = σ_m f_x / R)."""
 
     config: str
     method: str

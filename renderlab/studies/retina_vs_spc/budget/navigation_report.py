@@ -1,19 +1,10 @@
-"""The navigation budget's statistics, tables and figure (:mod:`.navigation`), from its tables alone.
-
-Statistics of the touchdown-proxy position error δr (last image, 50 m; site east, north, up; m) over the runs
-of one mapping × method: ``rms_3d`` = √(mean |δr|²) and ``rms_e``/``rms_n``/``rms_u`` per axis. A source's
-contribution is ``sign(d)·√|d|``, d = v²(source alone) − v²(all off) — the same rule as the per-landmark budget
-(:mod:`renderlab.stats.oat_budget`) — the quadrature sum √(v²(all off) + Σ d) is checked against v(all on) (PASS within 20 %);
-``peak_step`` (``retina`` only) is the 3×3 step against ``retina_refined`` at all off, ``shadow_approximation`` all off against ``no_shadows``
-(:mod:`.shadows`; neither enters the sum: both are inside all off), and ``floor`` the
-descent without landmark error (inside every other value, not a term of the sum). Runs that diverged in any
-configuration of the mapping × method are left out of it (counted in ``runs_lost``). **Intervals**: 95 %
-percentile bootstrap over **runs** (runs are independent; every configuration and method of a run shares its
-initial estimate, sensor and landmark-error draws, so one resample of run indices is applied to all of them:
-paired). ``validation`` compares the geometric all-on runs with the rendered closed-loop campaign's runs
-(``budget_navigation_rendered``) on the runs that kept track there, same statistics plus the median and 95th
-percentile of |δr|; the rendered campaign's landmark errors are one terrain's (common to its runs), the
-geometric ones a new draw per run.
+"""The navigation budget's statistics, tables and figure (:mod:`.navigation`), from its tables alone: per mapping,
+method and statistic (touchdown-proxy rms 3-D, east, north, up) each source's contribution ``sign(d)·√|d|``, d =
+v²(source alone) − v²(all off), the quadrature sum against all on (PASS within 20 %), the floor, ``peak_step`` and
+``shadow_approximation``; runs that diverged in any configuration left out; 95 % bootstrap over runs, paired
+(``docs/retina_vs_spc.md``). ``validation``: geometric all-on against the rendered closed-loop campaign. The figure
+(:func:`navigation_figure`): per method the terms' touchdown rms 3-D (mapping ``altitude``, the others as markers),
+PASS/FAIL over the sum bar; below, the validation.
 """
 
 from __future__ import annotations
@@ -23,8 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.campaign.oat_tables import TABLES
+from renderlab.report import style
+from renderlab.report.csvio import write_csv
 from renderlab.studies.retina_vs_spc.budget.navigation import NONE_CONFIG, NONE_METHOD, RENDERED, TABLE, term_order
-from renderlab.studies.retina_vs_spc.budget.navigation_figure import navigation_figure
+from renderlab.studies.retina_vs_spc.budget.plan import method_order
 
 N_BOOT, SEED, TOL = 1000, 21, 0.2
 SHADOW_CONFIG = "no_shadows"  # .shadows.CONFIG: its term is at all off, like the peak step
@@ -64,7 +57,7 @@ def terms(table, sources: list[str]) -> list[dict]:
     floor_rows = _by(cols, "", NONE_CONFIG, NONE_METHOD)
     out = []
     for mp in [m for m in dict.fromkeys(cols["mapping"]) if m]:
-        for meth in _method_order(cols["method"][cols["mapping"] == mp]):
+        for meth in method_order(cols["method"][cols["mapping"] == mp]):
             have = [s for s in sources if (_by(cols, mp, s, meth)["run"]).size]
             names = ["all_off", *have, "all_on"]
             rows = {c: _by(cols, mp, c, meth) for c in names}
@@ -94,10 +87,6 @@ def terms(table, sources: list[str]) -> list[dict]:
     return out
 
 
-def _method_order(names) -> list:
-    return sorted(set(names), key=lambda m: (m != "retina", m != "retina_refined", m))
-
-
 def _term_values(sq: dict, have: list, mean) -> dict:
     v2 = {c: mean(x) for c, x in sq.items()}
     d = {s: v2[s] - v2["all_off"] for s in have}
@@ -122,7 +111,7 @@ def validation(table, rendered) -> list[dict]:
     for a in "enu":
         rc[f"err_{a}_m"] = np.asarray(rendered.column(f"err_{a}_m").to_numpy(zero_copy_only=False), float)
     out = []
-    for meth in _method_order(rc["method"]):
+    for meth in method_order(rc["method"]):
         r_m = rc["method"] == meth
         good = {int(r) for r, lost in zip(rc["run"][r_m], rc["track_lost"][r_m]) if not lost}
         sources = [("rendered", "", {k: v[r_m] for k, v in rc.items()})]
@@ -191,11 +180,91 @@ def _fmt(r) -> str:
     return f"{r['value']:.4f} [{r['lo']:.4f}, {r['hi']:.4f}]"
 
 
-def write(folder: Path, stage: Path, sources: list[str], csv_writer) -> str:
+# ------------------------------------------------------------------- the figure
+PRIMARY = "altitude"
+MARKERS = {"ground": "v", "pixel": "^"}
+
+
+def _bars(ax, rows, methods, labels, colors):
+    width = 0.8 / max(len(methods), 1)
+    x = np.arange(len(labels))
+    for j, m in enumerate(methods):
+        xs = x - 0.4 + (j + 0.5) * width
+        vals, lo, hi = (np.full(len(labels), np.nan) for _ in range(3))
+        for i, t in enumerate(labels):
+            r = next((r for r in rows if r["mapping"] == PRIMARY and r["method"] == m and r["term"] == t), None)
+            if r is not None:
+                vals[i], lo[i], hi[i] = r["value"], r["lo"], r["hi"]
+        err = np.where(np.isfinite(np.vstack([vals - lo, hi - vals])), np.vstack([vals - lo, hi - vals]), 0.0)
+        ax.bar(xs, np.nan_to_num(vals), width, color=colors[m], label=f"{m} ({PRIMARY})",
+               yerr=np.clip(err, 0, None), capsize=2, error_kw={"elinewidth": 0.8})
+        for mp, mk in MARKERS.items():
+            v = [next((r["value"] for r in rows if r["mapping"] == mp and r["method"] == m and r["term"] == t),
+                      np.nan) for t in labels]
+            ax.plot(xs, v, mk, color="black", ms=3, ls="none", label=f"{mp} mapping" if j == 0 else None)
+        chk = next((r for r in rows if r["mapping"] == PRIMARY and r["method"] == m
+                    and r["term"] == "sum_over_all_on"), None)
+        if chk is not None and "quadrature_sum" in labels:
+            i = labels.index("quadrature_sum")
+            top = max([np.nan_to_num(hi[i])] + [r["value"] for r in rows if r["method"] == m
+                                                 and r["term"] == "quadrature_sum"])
+            ax.text(xs[i], top * 1.04, f"{chk['check']} {chk['value']:.2f}", rotation=90,
+                    ha="center", va="bottom", fontsize=7)
+    ax.axhline(0, color="grey", lw=0.5)
+    lo_y, hi_y = ax.get_ylim()
+    ax.set_ylim(lo_y, hi_y + 0.3 * (hi_y - lo_y))
+    ax.set_xticks(x, [t.replace("_", " ") for t in labels], rotation=30, ha="right")
+    ax.set_xlabel("budget term (contribution = signed √(v²(source alone) − v²(all off)))")
+    ax.set_ylabel("touchdown rms 3-D position error (m)")
+    ax.set_title("navigation budget at the 50 m touchdown proxy (PASS: quadrature sum within 20 % of all on)")
+    ax.legend(ncol=3, loc="upper left", fontsize=7)
+
+
+def _validation(ax, val, methods, colors):
+    kinds = list(dict.fromkeys((r["kind"], r["mapping"]) for r in val))
+    width = 0.8 / max(len(kinds), 1)
+    x = np.arange(len(methods))
+    hatch = {"rendered": "", "altitude": "//", "ground": "..", "pixel": "xx"}
+    for j, (kind, mp) in enumerate(kinds):
+        xs = x - 0.4 + (j + 0.5) * width
+        rs = [next((r for r in val if r["method"] == m and r["kind"] == kind and r["mapping"] == mp), None)
+              for m in methods]
+        v = np.array([r["rms_3d"] if r else np.nan for r in rs])
+        err = np.array([[r["rms_3d"] - r["rms_3d_lo"], r["rms_3d_hi"] - r["rms_3d"]] if r else [0, 0] for r in rs]).T
+        ax.bar(xs, np.nan_to_num(v), width, color=[colors[m] for m in methods], edgecolor="black", lw=0.5,
+               hatch=hatch.get(mp or kind, ""), yerr=np.clip(np.nan_to_num(err), 0, None), capsize=2)
+        ax.bar([np.nan], [np.nan], color="white", edgecolor="black", lw=0.5, hatch=hatch.get(mp or kind, ""),
+               label="rendered campaign" if kind == "rendered" else f"geometric, {mp} mapping")  # legend swatch
+        med = [r["median_norm"] if r else np.nan for r in rs]
+        ax.plot(xs, med, "o", color="black", ms=3, ls="none", label="median |δr|" if j == 0 else None)
+    ax.set_xticks(x, methods)
+    ax.set_xlabel("landmark method (all sources on; colour = method, hatch = source of the error)")
+    ax.set_ylabel("touchdown rms 3-D position error (m)")
+    ax.set_title("validation: rendered closed-loop campaign vs the geometric model, runs that kept track")
+    ax.legend(ncol=3, loc="upper left", fontsize=7)
+    lo_y, hi_y = ax.get_ylim()
+    ax.set_ylim(lo_y, hi_y + 0.3 * (hi_y - lo_y))
+
+
+def navigation_figure(terms: list[dict], val: list[dict], stem: Path) -> list[str]:
+    """Draw the figure into ``stem``.png (statistic rms_3d); returns the file names."""
+    rows = [r for r in terms if r["statistic"] == "rms_3d"]
+    methods = list(dict.fromkeys(r["method"] for r in rows))
+    labels = [t for t in term_order(rows) if t != "sum_over_all_on"]
+    colors = style.method_colors(methods)
+    plt = style.plt()
+    fig, axes = plt.subplots(2 if val else 1, 1, figsize=(11, 9 if val else 5), squeeze=False)
+    _bars(axes[0, 0], rows, methods, labels, colors)
+    if val:
+        _validation(axes[1, 0], val, [m for m in methods if any(r["method"] == m for r in val)], colors)
+    fig.tight_layout()
+    return style.save(fig, stem)
+
+
+def write(folder: Path, stage: Path, sources: list[str]) -> str:
     """Write ``budget_navigation.csv``, ``budget_navigation_validation.csv`` and the figure into ``stage`` from
     ``folder/tables``; returns the markdown section ("" when the folder has no navigation table)."""
     import pyarrow.parquet as pq
-
 
     p, q = Path(folder) / TABLES / f"{TABLE}.parquet", Path(folder) / TABLES / f"{RENDERED}.parquet"
     if not p.is_file():
@@ -203,8 +272,8 @@ def write(folder: Path, stage: Path, sources: list[str], csv_writer) -> str:
     nav = pq.read_table(p)
     t = terms(nav, sources)
     v = validation(nav, pq.read_table(q)) if q.is_file() else []
-    csv_writer(stage / "budget_navigation.csv", t)
+    write_csv(stage / "budget_navigation.csv", t)
     if v:
-        csv_writer(stage / "budget_navigation_validation.csv", v)
+        write_csv(stage / "budget_navigation_validation.csv", v)
     navigation_figure(t, v, stage / "budget_navigation")
     return markdown(t, v)

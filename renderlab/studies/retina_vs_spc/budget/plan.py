@@ -54,6 +54,27 @@ BUDGET_TABLES = OatTables(
             "range_m"),
     make="python -m renderlab.studies.retina_vs_spc.budget run")
 
+#: the columns a published budget folder ships (what its report, the navigation budget and a ``--methods`` merge
+#: read); the tables not named are kept whole
+PUBLISHED_COLUMNS = {
+    "budget_measurements": ("config", "run", "frame", "item", "method", "truth_s", "truth_l", "err_s", "err_l",
+                            "has_result", "reason", "truth_visible", "gsd_ratio", "phase_deg", "shadow_fraction",
+                            "crlb_s", "crlb_l", "range_m"),
+    "budget_navigation": ("mapping", "config", "method", "run", "err_e_m", "err_n_m", "err_u_m", "err_norm_m",
+                          "track_lost", "diverged")}
+
+
+def publish_tables(tables: dict) -> dict:
+    """The tables of a published budget folder: :data:`PUBLISHED_COLUMNS` of the two large ones, the rest whole."""
+    from renderlab.campaign.compact import keep_columns
+
+    return keep_columns(tables, {k: v for k, v in PUBLISHED_COLUMNS.items() if k in tables})
+
+
+def method_order(names) -> list:
+    """The distinct method names in the budget's order: ``retina``, ``retina_refined``, then the rest sorted."""
+    return sorted(set(names), key=lambda m: (m != "retina", m != "retina_refined", m))
+
 
 def with_section(base: dict) -> dict:
     """A copy of the scenario dict with its ``[retina_vs_spc]`` section filled in (defaults when absent)."""
@@ -64,10 +85,8 @@ def with_section(base: dict) -> dict:
 
 
 def budget_configs(base: dict, methods=METHODS) -> list[dict]:
-    """The configurations: ``all_off``, one per source (that source at the base value, the others off), ``all_on``
-    (the base scenario) and ``no_shadows`` (:mod:`.shadows`) → ``[{"config", "source", "description", "overrides",
-    "scenario"}]``. ``base`` is a validated scenario's dict (defaults filled in); every configuration names
-    ``methods``."""
+    """:func:`renderlab.campaign.oat_budget.oat_configs` of the budget (plus ``no_shadows``, :mod:`.shadows`) for a
+    validated scenario's dict ``base``; every configuration names ``methods``."""
     return oat_configs(with_section(base), SOURCES, OFF, fixed={"retina_vs_spc.methods": list(methods)},
                        extra=((SH.CONFIG, SH.DESCRIPTION, SH.OVERRIDES),),
                        all_off="every source off (peak step: see retina vs retina_refined)",

@@ -1,61 +1,35 @@
 """The error budget's report, from its tables alone (:mod:`renderlab.campaign.oat_tables`, statistics
-:mod:`renderlab.stats.oat_budget`).
-
-``python -m renderlab.studies.retina_vs_spc.budget report FOLDER`` writes ``FOLDER/report/``:
-
-* ``budget_summary.csv`` — per configuration, method, subset (``all``: every landmark with a truth pixel;
-  ``well_measured``: the study's pre-declared subset) and axis: rates, mean, robust σ, std, per-landmark bias
-  rms and noise sd with 95 % cluster-bootstrap intervals (landmark-frames), median CRLB, noise / CRLB;
-* ``budget_terms.csv`` — per method, subset, axis and statistic: all-off value, each source's contribution,
-  the quadrature sum, all-on and sum / all-on (joint cluster bootstrap), ``check`` PASS when sum / all-on is
-  within 20 %; for ``retina`` also ``peak_step`` (3×3 step vs ``retina_refined``, both all off); with the
-  ``no_shadows`` configuration, ``shadow_approximation`` (all off vs no cast shadows, :mod:`.shadows`);
-* ``budget_breakdown.csv`` — the all-off rows by GSD ratio band and by truth shadow (none vs some): where the
-  residual of the exact models comes from; and the sensor-noise-alone rms noise sd / CRLB in the same groups;
-* ``budget_table.md`` — the README's tables; ``error_budget.png`` — the figure (``.svg`` with ``--svg``);
-* with ``tables/budget_navigation.parquet`` (:mod:`.navigation`): ``budget_navigation.csv`` (each
-  source's contribution to the descent filter's touchdown-proxy error), ``budget_navigation_validation.csv``
-  (geometric all-on vs the rendered closed-loop campaign) and ``budget_navigation.png``
-  (:mod:`.navigation_report`);
-* with ``tables/budget_crlb.parquet`` (:mod:`.crlb`): ``budget_crlb.csv`` — the budget's CRLB (from its
-  8-spp truth render) against clean renders' bound, and the sensor-noise-alone noise / CRLB with each bound.
+:mod:`renderlab.stats.oat_budget`; what each file holds: ``docs/retina_vs_spc.md``): ``FOLDER/report/``
+``budget_summary.csv``, ``budget_terms.csv`` (PASS when sum / all-on is within 20 %), ``budget_breakdown.csv``,
+``budget_table.md``, ``error_budget.png``; with the probes' tables ``budget_supersample.csv`` and ``budget_crlb.csv``
+(made by ``investigations/error_budget/``; :mod:`.crlb`); with the navigation tables ``budget_navigation*.csv`` and ``.png``
+(:mod:`.navigation_report`).
 """
 
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
+import pyarrow.parquet as pq
 
 from renderlab.campaign import store
 from renderlab.campaign.oat_tables import TABLES
 from renderlab.errors import UserError
 from renderlab.report.budget_figure import budget_figure
+from renderlab.report.csvio import write_csv
 from renderlab.stats import oat_budget as S
+from renderlab.stats.bootstrap import cluster_bootstrap
 from renderlab.studies.retina_vs_spc.budget import crlb as BC
 from renderlab.studies.retina_vs_spc.budget import navigation_report as NR
-from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES, TERMS_ORDER
-from renderlab.studies.retina_vs_spc.budget.probe import PROBE, probe_rows
+from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES, TERMS_ORDER, method_order
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
 from renderlab.studies.retina_vs_spc.report import well_measured_mask
 
 N_BOOT_SUMMARY, N_BOOT_JOINT, SEED = 1000, 500, 20
+SUPERSAMPLE, PROBE = (1, 3, 6), "budget_supersample"  # the template-sampling probe's k and table
 SHADOW_CONFIG = "no_shadows"  # renderlab.studies.retina_vs_spc.budget.shadows.CONFIG
 BANDS = (("gsd<0.5", 0.0, 0.5), ("0.5<=gsd<=2", 0.5, 2.0), ("gsd>2", 2.0, np.inf))
-
-
-def _subsets(table, cols) -> dict:
-    return {"all": np.ones(table.num_rows, bool), "well_measured": well_measured_mask(table, RetinaVsSpcConfig())}
-
-
-def _write_csv(path: Path, rows: list[dict]) -> None:
-    keys = list(rows[0]) if rows else []
-    with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, fieldnames=keys, lineterminator="\n")
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
 
 
 def compute(meas, configs, gross_px: float = 1.0) -> tuple[list, list, list]:
@@ -63,10 +37,11 @@ def compute(meas, configs, gross_px: float = 1.0) -> tuple[list, list, list]:
     cols = S.columns(meas)
     runs = dict(zip(configs.column("config").to_pylist(), configs.column("runs").to_pylist()))
     sources = [s for s in configs.column("source").to_pylist() if s]
-    methods = sorted(set(cols["method"]), key=lambda m: (m != "retina", m != "retina_refined", m))
+    methods = method_order(cols["method"])
     weights = S.joint_weights(cols["n_clusters"], N_BOOT_JOINT, SEED)
     summary, terms = [], []
-    for sub, mask in _subsets(meas, cols).items():
+    subsets = {"all": np.ones(meas.num_rows, bool), "well_measured": well_measured_mask(meas, RetinaVsSpcConfig())}
+    for sub, mask in subsets.items():
         for axis in S.AXES:
             samp = {m: {c: S.sample(cols, c, m, mask, axis, runs[c]) for c in runs} for m in methods}
             for m in methods:
@@ -169,13 +144,21 @@ def markdown(summary: list[dict], terms: list[dict]) -> str:
     return "\n".join(out) + "\n"
 
 
-def _probe(folder: Path) -> list[dict]:
-    """The template-sampling probe's rows (:mod:`.probe`), or [] when the folder has no probe table."""
-    import pyarrow.parquet as pq
-
-
-    p = Path(folder) / TABLES / f"{PROBE}.parquet"
-    return probe_rows(pq.read_table(p)) if p.is_file() else []
+def probe_rows(table, n_boot: int = 1000, seed: int = 20) -> list[dict]:
+    """The template-sampling probe's table (``investigations/error_budget/supersample_probe.py``): per method and k, per-landmark bias rms (both axes; all-off rows are deterministic, so the
+    error of each landmark-frame is its bias) with a 95 % cluster-bootstrap interval over landmark-frames."""
+    d = {c: np.asarray(table.column(c).to_pylist()) for c in table.column_names}
+    out = []
+    for m in dict.fromkeys(d["method"]):
+        for k in SUPERSAMPLE:
+            sel = (d["method"] == m) & (d["supersample"] == k) & d["truth_visible"].astype(bool)
+            e = np.concatenate([d["err_s"][sel], d["err_l"][sel]]).astype(float)
+            clu = np.concatenate([d["frame"][sel] * 1_000_000 + d["item"][sel]] * 2)
+            ok = np.isfinite(e) & (np.abs(e) <= 1.0)
+            iv = cluster_bootstrap(e[ok], clu[ok], "rms", n_boot=n_boot, rng=seed, cluster_name="landmark-frames")
+            out.append({"method": m, "supersample": int(k), "results": int(ok.sum()), "bias_rms": iv.estimate,
+                        "bias_rms_lo": iv.lo, "bias_rms_hi": iv.hi})
+    return out
 
 
 def _probe_markdown(rows: list[dict]) -> str:
@@ -194,25 +177,25 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
         raise UserError(f"{folder}: no such folder")
     meas, configs = BUDGET_TABLES.read(folder)
     summary, terms, breakdown = compute(meas, configs)
-    probe = _probe(folder)
+    p = folder / TABLES / f"{PROBE}.parquet"
+    probe = probe_rows(pq.read_table(p)) if p.is_file() else []
     out_dir = Path(out_dir) if out_dir is not None else folder / "report"
     with store.staged_folder(out_dir, "the error-budget report") as stage:
-        _write_csv(stage / "budget_summary.csv", summary)
-        _write_csv(stage / "budget_terms.csv", terms)
-        _write_csv(stage / "budget_breakdown.csv", breakdown)
+        write_csv(stage / "budget_summary.csv", summary)
+        write_csv(stage / "budget_terms.csv", terms)
+        write_csv(stage / "budget_breakdown.csv", breakdown)
         md = markdown(summary, terms)
         if probe:
-            _write_csv(stage / "budget_supersample.csv", probe)
+            write_csv(stage / "budget_supersample.csv", probe)
             md += _probe_markdown(probe)
-
         crlb_probe = BC.read_probe(folder)
         if crlb_probe is not None:
             crlb_rows = BC.report_rows(meas, configs, crlb_probe)
-            _write_csv(stage / "budget_crlb.csv", crlb_rows)
+            write_csv(stage / "budget_crlb.csv", crlb_rows)
             md += "\n" + BC.markdown(crlb_rows)
 
         sources = [s for s in configs.column("source").to_pylist() if s]
-        nav = NR.write(folder, stage, sources, _write_csv)
+        nav = NR.write(folder, stage, sources)
         md += ("\n" + nav) if nav else ""
         (stage / "budget_table.md").write_text(md, encoding="utf-8")
         budget_figure(summary, terms, stage / "error_budget", TERMS_ORDER)

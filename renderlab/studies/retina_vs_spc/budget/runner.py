@@ -1,4 +1,4 @@
-"""The error budget's commands (``python -m renderlab.studies.retina_vs_spc.budget run|probe|report``): each
+"""The error budget's commands (``python -m renderlab.studies.retina_vs_spc.budget run|report``): each
 configuration of :mod:`.plan` run through the study's own ``run`` by the generic one-at-a-time core
 (:func:`renderlab.campaign.oat_budget.run_configs`), the tables written or merged (:mod:`renderlab.campaign.oat_tables`),
 then the report (:mod:`.report`). The package docstring says what the budget measures."""
@@ -10,31 +10,28 @@ import sys
 import time
 from pathlib import Path
 
+import pyarrow as pa
+import pyarrow.parquet as pq
+
 from renderlab import plugins
 from renderlab.campaign.oat_budget import done_paths, run_configs
-from renderlab.campaign.oat_tables import TABLES as TABLES_DIR
 from renderlab.campaign.plan import run_seed_sequence
 from renderlab.errors import UserError
 from renderlab.scenario import load_scenario, scenario_from_dict
 from renderlab.studies.retina_vs_spc.budget import shadows as SH
 from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES, METHODS, budget_configs, stochastic
-from renderlab.studies.retina_vs_spc.budget.probe import PROBE, probe_table
 from renderlab.studies.retina_vs_spc.budget.report import write_report
 from renderlab.studies.retina_vs_spc.run import run, section
 
 
 def _one_run(task):
     """Worker: one run of one configuration → (config, run, measurements, perturbations, seconds)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     name, sc_dict, base_dir, index, seed, workdir = task
     t0 = time.perf_counter()
     done = done_paths(task)
     if all(p.is_file() for p in done):  # finished by an earlier, interrupted call (same scenario, seed, run)
         return name, index, pq.read_table(done[0]), pq.read_table(done[1]), 0.0
     scenario = scenario_from_dict(sc_dict, f"error budget configuration {name}")
-
     methods = SH.factories(section(scenario).methods) if name == SH.CONFIG else None
     out = run(scenario, Path(base_dir), index, run_seed_sequence(seed, index), Path(workdir), methods=methods)
     tabs = []
@@ -50,10 +47,8 @@ def _one_run(task):
 
 def run_budget(scenario_path: Path, out: Path, runs: int, workers: int, workdir: Path, command: str,
                only: list[str] | None = None, methods: list[str] | None = None) -> None:
-    """Run every configuration (progress on stderr), write the tables and ``budget.json``, then the report.
-    ``only``: run just these configurations and merge them into ``out``'s existing tables; ``methods``: run just
-    these methods (same seeds and run indices) and merge their rows, the other methods' rows kept
-    (:func:`renderlab.campaign.oat_tables.merge_tables`, which refuses rows whose truth or draws differ)."""
+    """Run every configuration, write the tables and ``budget.json``, then the report; ``only`` / ``methods``: just
+    these configurations / methods, merged into ``out``'s tables (:func:`renderlab.campaign.oat_tables.merge_tables`)."""
     if runs < 2:
         raise UserError(f"--runs must be >= 2 (noise needs repeated runs), got {runs}")
     scenario, base_dir = load_scenario(scenario_path)
@@ -107,27 +102,7 @@ def _parser() -> argparse.ArgumentParser:
                         "existing tables, the other methods' rows kept (their truth and draws must agree)")
     g = sub.add_parser("report", help="make the table and figure again from FOLDER/tables alone")
     g.add_argument("folder", type=Path)
-    q = sub.add_parser("probe", help="Retina's template supersampling on the all-off truth (.probe) into "
-                                     "FOLDER/tables, then the report")
-    q.add_argument("folder", type=Path)
-    q.add_argument("--scenario", type=Path, default=Path("results/retina_vs_spc/scenario.toml"))
-    q.add_argument("--workdir", type=Path, default=Path("/tmp/renderlab_error_budget"))
     return p
-
-
-def run_probe(folder: Path, scenario_path: Path, workdir: Path) -> None:
-    """Measure the probe's rows (:func:`.probe.probe_table`) into ``folder/tables``, then the report."""
-    import pyarrow.parquet as pq
-
-    BUDGET_TABLES.read(folder)  # a budget folder first
-    scenario, base_dir = load_scenario(scenario_path)
-    all_off = next(c for c in budget_configs(scenario.to_dict()) if c["config"] == "all_off")
-    table = probe_table(all_off["scenario"], base_dir, workdir)
-    out = Path(folder) / TABLES_DIR / f"{PROBE}.parquet"
-    tmp = out.with_name(f".{out.name}.tmp")
-    pq.write_table(table, tmp)
-    tmp.replace(out)
-    write_report(folder)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -142,8 +117,6 @@ def main(argv: list[str] | None = None) -> int:
             cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
             run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only,
                        args.methods)
-        elif args.command == "probe":
-            run_probe(args.folder, args.scenario, args.workdir)
         else:
 
             out = write_report(args.folder)
