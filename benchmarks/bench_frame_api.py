@@ -11,7 +11,9 @@ Three measurements, one run, the load average printed before and after:
   into the scene that holds the asteroid, so Mitsuba rebuilds the whole structure) on the same frames.
   Then the frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: the API frame + the
   EXR (``render.exr_compression``) and PNG files, written in the loop or, the default, by the writer's background
-  thread while the next frame renders; ``--repeats`` interleaved passes of each) against ``mi.render``
+  thread while the next frame renders; ``--repeats`` interleaved passes of each; ``--file-settings new,old``: the
+  writers' zlib settings as they are and as they were before, ZIP level 4 and PNG level 3 with the default strategy,
+  as further interleaved passes) against ``mi.render``
   (``direct``) of a 1.31 M-triangle sphere (trimesh icosphere, 8 subdivisions) filling the frame, timed between
   the passes. ``--skip-api`` renders every frame once (warm-up) and measures only this.
 * **descent-navigation world** (``results/descent_navigation/scenario.toml`` at 256², 16 spp): every frame of its
@@ -21,7 +23,8 @@ Three measurements, one run, the load average printed before and after:
 Usage::
 
     .venv/bin/python benchmarks/bench_frame_api.py [--frames 4] [--size 1024] [--spp 16] [--skip-full] [--skip-descent]
-        [--skip-api] [--repeats 2] [--bar-frames 2,3] [--compressions zip,none]
+        [--skip-api] [--repeats 2] [--bar-frames 2,3] [--compressions zip,none] [--file-settings new,old]
+        [--writers loop,background]
 
 The world cache is ``$RENDERLAB_CACHE`` (default ``~/.cache/renderlab``): the first run builds and stores the worlds.
 """
@@ -29,6 +32,7 @@ The world cache is ``$RENDERLAB_CACHE`` (default ``~/.cache/renderlab``): the fi
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import tempfile
@@ -105,26 +109,50 @@ def bar_vs_sphere(args, r, mi) -> None:
     files in the loop or in the background thread, per EXR compression of ``--compressions``) vs mi.render of a
     1.31 M-triangle sphere; the passes interleaved, the sphere timed between them."""
     floors = [sphere_floor(mi, args.size, args.spp)]
-    modes = [(c, bg) for c in args.compressions.split(",") for bg in (False, True)]
+    writers = [{"loop": False, "background": True}[w] for w in args.writers.split(",")]
+    modes = [(c, bg, fs) for fs in args.file_settings.split(",") for c in args.compressions.split(",")
+             for bg in writers]
     runs: dict = {m: [] for m in modes}
     for _rep in range(args.repeats):
-        for comp, background in modes:
+        for comp, background, settings in modes:
             render = r.scenario.render.model_copy(update={"exr_compression": comp})
             r.scenario = r.scenario.model_copy(update={"render": render})
-            runs[(comp, background)].append(_truthset_frames(r, background, args.bar_frames))
+            with _file_settings(settings):
+                runs[(comp, background, settings)].append(_truthset_frames(r, background, args.bar_frames))
             floors.append(sphere_floor(mi, args.size, args.spp))
     floor = float(np.median(floors))
     print(f"  mi.render direct of a 1.31 M-triangle sphere (f = {args.size / 2 / np.tan(np.radians(8.0)):.0f} px): "
           f"median {floor:.2f} s ({np.round(floors, 2).tolist()}), load average {os.getloadavg()[0]:.1f}")
-    for comp, background in modes:
-        label = f"EXR {comp}, " + ("files by the background thread" if background else "files written in the loop")
-        t = np.median(np.array(runs[(comp, background)]), axis=0)  # per frame, median over the repeats
+    for mode in modes:
+        comp, background, settings = mode
+        label = (f"EXR {comp}, {settings} zlib settings, "
+                 + ("files by the background thread" if background else "files written in the loop"))
+        t = np.median(np.array(runs[mode]), axis=0)  # per frame, median over the repeats
         rat = (t[1:] if len(t) > 1 and not args.bar_frames else t) / floor
         print(f"  renderlab-render frame ({label}) / sphere: median {np.median(rat):.2f}x "
               f"({'frames ' + str(args.bar_frames) if args.bar_frames else 'frames 1..'}), per frame "
               f"{np.round(t / floor, 2).tolist()}, mean "
               f"{t.mean() / floor:.2f}x over all frames; frames {np.round(t, 2).tolist()} s "
-              f"(each run: {[np.round(x, 2).tolist() for x in runs[(comp, background)]]})", flush=True)
+              f"(each run: {[np.round(x, 2).tolist() for x in runs[mode]]})", flush=True)
+
+
+@contextlib.contextmanager
+def _file_settings(name: str):
+    """The frame files' zlib settings: ``new`` as :mod:`renderlab.files.imageio` has them, ``old`` as they were before
+    (EXR ZIP at OpenEXR's default level 4, PNG level 3 with zlib's default strategy)."""
+    import cv2
+
+    from renderlab.files import imageio
+
+    saved = imageio.EXR_ZIP_LEVEL, imageio.PNG_PARAMS
+    if name == "old":
+        imageio.EXR_ZIP_LEVEL, imageio.PNG_PARAMS = 4, (cv2.IMWRITE_PNG_COMPRESSION, 3)
+    elif name != "new":
+        raise SystemExit(f"--file-settings: 'new' or 'old', got {name!r}")
+    try:
+        yield
+    finally:
+        imageio.EXR_ZIP_LEVEL, imageio.PNG_PARAMS = saved
 
 
 def _truthset_frames(r, background: bool, frames=None) -> list[float]:
@@ -246,6 +274,9 @@ def main() -> None:
     ap.add_argument("--skip-api", action="store_true", help="full EV5: only the renderlab-render bar")
     ap.add_argument("--repeats", type=int, default=2, help="renderlab-render passes per file mode (interleaved)")
     ap.add_argument("--compressions", default="zip", help="renderlab-render bar: EXR compressions, e.g. zip,none")
+    ap.add_argument("--file-settings", default="new",
+                    help="renderlab-render bar: the files' zlib settings, new and/or old (before: ZIP level 4, PNG 3)")
+    ap.add_argument("--writers", default="loop,background", help="renderlab-render bar: loop and/or background")
     ap.add_argument("--bar-frames", type=lambda v: [int(k) for k in v.split(",")], default=None,
                     help="renderlab-render bar: only these frame indices (comma-separated), e.g. 2,3")
     ap.add_argument("--set", action="append", default=[], help="KEY=VALUE override of the world(s) measured")
