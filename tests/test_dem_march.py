@@ -176,3 +176,44 @@ def test_rays_along_the_triangle_edges_do_not_slip_through(case):
     ref = np.isfinite(t_ref)
     assert ref.sum() > 100 and np.array_equal(valid, ref)
     assert np.abs(t[ref] - t_ref[ref]).max() <= 1e-4
+
+
+def test_far_rays_through_edges_of_a_fine_grid_do_not_slip_through():
+    """The EV5 regime: 2 cm cells, the grid 30 m from the frame origin, rays from 170 m (float32 coordinates of
+    ~1e4 cells), each aimed at a point *on* an edge of the surface (a vertex, a cell side or a diagonal): every ray
+    must hit (the surface or something before it), no farther than its target, at the oracle's t where the float64
+    oracle finds the hit (before the march re-based each ray at its entry into the box, 47 of these 2000 slipped
+    through)."""
+    from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
+    from renderlab.render.variant import init_mitsuba
+    from renderlab.worlds.ev5.terrain import grid_interp
+
+    mi = init_mitsuba("llvm_ad_rgb")
+    J = jit_module(mi.variant())
+    rng = np.random.default_rng(11)
+    cell, x0 = 0.02, 30.0
+    h = np.cumsum(np.cumsum(rng.normal(0.0, 0.004, (N, N)), 0), 1).astype(np.float32).astype(np.float64)
+    march = DemMarch(build_pyramid(h, x0, cell), jit=J)
+    k = 2000
+    ij = rng.integers(1, N - 2, (k, 2)).astype(float)
+    f = rng.uniform(0, 1, k)
+    kind = rng.integers(0, 4, k)  # vertex, side along x, side along y, diagonal
+    fx = np.select([kind == 0, kind == 1, kind == 2], [0 * f, f, 0 * f], f)
+    fy = np.select([kind == 0, kind == 1, kind == 2], [0 * f, 0 * f, f], f)
+    xy = x0 + (ij + np.c_[fx, fy]) * cell
+    target = np.c_[xy, grid_interp(h, x0, cell, xy[:, 0], xy[:, 1])]
+    o = np.c_[xy + rng.uniform(-20.0, 20.0, (k, 2)), np.full(k, 170.0)]
+    d = target - o
+    dist = np.linalg.norm(d, axis=1)
+    d /= dist[:, None]
+    o, d = o.astype(np.float32).astype(np.float64), d.astype(np.float32).astype(np.float64)
+    hit = march.intersect(J.Array3f(np.ascontiguousarray(o.T, np.float32)),
+                          J.Array3f(np.ascontiguousarray(d.T, np.float32)))
+    valid, t = np.array(hit.valid), np.array(hit.t, np.float64)
+    X = x0 + np.arange(N) * cell
+    T = np.stack(np.meshgrid(X, X) + [h], -1).reshape(-1, 3)[grid_faces(N)]
+    t_ref = np.concatenate([_moller_trumbore(o[a:a + 32], d[a:a + 32], T, 0.0)[0].min(1) for a in range(0, k, 32)])
+    ref = np.isfinite(t_ref)
+    assert np.all(valid) and np.all(t <= dist + 1e-3)
+    assert ref.sum() > 0.9 * k and np.abs(t[ref] - t_ref[ref]).max() <= 1e-4
+    assert np.array(hit.iterations).max() < 64  # no ray walked on under the surface

@@ -32,7 +32,7 @@ b2 = fy; triangle 1 b1 = fx, b2 = fy − fx. Both sides of a triangle are hit (a
 Tuning
 ------
 ``slack_m`` (default 1e-4 m): added to each node maximum so that float32 rounding of z(t) cannot skip a node (costs
-a few extra descents). ``edge_eps`` (default 1e-6 cells): the triangle overlap above. ``max_iterations``: a
+a few extra descents). ``edge_eps`` (default 1e-5 cells): the triangle overlap above. ``max_iterations``: a
 safety cap on the loop (a ray that reaches it is reported as a miss and counted in ``iterations``).
 
 Use
@@ -152,7 +152,7 @@ class DemMarch:
         Default 8·(nx + ny) + 16·levels.
     """
 
-    def __init__(self, pyramid: HeightPyramid, jit=None, slack_m: float = 1e-4, edge_eps: float = 1e-6,
+    def __init__(self, pyramid: HeightPyramid, jit=None, slack_m: float = 1e-4, edge_eps: float = 1e-5,
                  max_iterations: int | None = None):
         import drjit as dr
 
@@ -167,9 +167,7 @@ class DemMarch:
         self.heights = J.Float(pyramid.heights.ravel())
         self.maxima = J.Float(pyramid.maxima)
         self.offsets = J.Int32(pyramid.offsets.astype(np.int32))
-        self.cols = J.Int32(pyramid.cols.astype(np.int32))
-        self.rows = J.Int32(pyramid.rows.astype(np.int32))
-        dr.eval(self.heights, self.maxima, self.offsets, self.cols, self.rows)
+        dr.eval(self.heights, self.maxima, self.offsets)
 
     # ------------------------------------------------------------------ public
     def intersect(self, o, d, t_max=None, t_min: float = 0.0) -> MarchHit:
@@ -197,22 +195,41 @@ class DemMarch:
             t0 = dr.select(dirn == 0, t0, dr.maximum(t0, dr.minimum(ta, tb)))
             t1 = dr.select(dirn == 0, dr.select(inside, t1, -dr.inf), dr.minimum(t1, dr.maximum(ta, tb)))
         ok = (t0 <= t1) & dr.isfinite(t0) & dr.isfinite(du) & dr.isfinite(dv) & dr.isfinite(dz)
-        return (ou, ov, oz, du, dv, dz), t0, t1, ok
+        return (ou, ov, oz, du, dv, dz, dr.rcp(du), dr.rcp(dv)), t0, t1, ok
+
+    def _start(self, ray, t0, t1, t_min):
+        """Start node (I, J, level) of each ray: the level whose nodes span the ray's horizontal extent inside the
+        DEM's box (level 0 for a ray that starts inside it, e.g. a shadow ray), the node holding the ray at t0."""
+        dr, J = self.dr, self.jit
+        ou, ov, oz, du, dv, dz = ray[:6]
+        ext = dr.maximum(dr.abs(du), dr.abs(dv)) * dr.minimum(t1 - t0, 1e30)
+        L = J.Int32(dr.clip(dr.ceil(dr.log2(dr.maximum(ext, 1.0))), 0, self.top))
+        p0 = (ou + t0 * du, ov + t0 * dv, oz + t0 * dz)
+        inside = (p0[2] < self.pyr.h_max) & (p0[0] > 0) & (p0[0] < self.nx - 1) & (p0[1] > 0) & (p0[1] < self.ny - 1)
+        L = dr.select(inside & (t0 == t_min), 0, L)
+        I = dr.clip(J.Int32(dr.floor(p0[0])), 0, self.nx - 2) >> L
+        J_ = dr.clip(J.Int32(dr.floor(p0[1])), 0, self.ny - 2) >> L
+        return I, J_, L
+
+    @staticmethod
+    def _count(n_vertices: int, L):
+        """Nodes per row (or column) at level L of a grid of ``n_vertices`` vertices: ceil((n − 1) / 2^L)."""
+        return ((L * 0 + (n_vertices - 2)) >> L) + 1
 
     def _node_exit(self, ray, I, J_, L, t_end):
         """Exit t of node (I, J_) at level L and whether it leaves across the u face (else the v face)."""
         dr, J = self.dr, self.jit
-        ou, ov, _, du, dv, _ = ray
-        lo_u, hi_u = J.Float(I << L), J.Float((I + 1) << L)
-        lo_v, hi_v = J.Float(J_ << L), J.Float((J_ + 1) << L)
-        tu = dr.select(du > 0, (hi_u - ou) / du, dr.select(du < 0, (lo_u - ou) / du, dr.inf))
-        tv = dr.select(dv > 0, (hi_v - ov) / dv, dr.select(dv < 0, (lo_v - ov) / dv, dr.inf))
+        ou, ov, _, du, dv, _, iu, iv = ray
+        bu = J.Float(dr.select(du > 0, I + 1, I) << L)  # the face the ray leaves across
+        bv = J.Float(dr.select(dv > 0, J_ + 1, J_) << L)
+        tu = dr.select(du == 0, dr.inf, (bu - ou) * iu)
+        tv = dr.select(dv == 0, dr.inf, (bv - ov) * iv)
         return dr.minimum(dr.minimum(tu, tv), t_end), tu <= tv, dr.minimum(tu, tv) >= t_end
 
     def _cell_hit(self, ray, I, J_, t_lo, t_hi, active):
         """Nearer hit of the two triangles of cell (I, J_) with t in [t_lo, t_hi]: (hit, t, tri, fx, fy)."""
         dr, J = self.dr, self.jit
-        ou, ov, oz, du, dv, dz = ray
+        ou, ov, oz, du, dv, dz = ray[:6]
         k = J_ * self.nx + I
         h00 = dr.gather(J.Float, self.heights, k, active)
         h01 = dr.gather(J.Float, self.heights, k + 1, active)
@@ -236,12 +253,20 @@ class DemMarch:
     def _march(self, o, d, t_max, t_min, nearest: bool) -> MarchHit:
         dr, J = self.dr, self.jit
         ray, t0, t1, ok = self._setup(o, d, t_max, t_min)
-        ou, ov, oz, du, dv, dz = ray
-        t_lo = J.Float(t_min)
-        t_hi = J.Float(dr.inf) if t_max is None else J.Float(t_max)
+        I0, J0, L0 = self._start(ray, t0, t1, t_min)
+        # rebase: the ray starts at its entry into the DEM's box (t0 = 0 there): the heights, the cell-relative
+        # positions and t stay small numbers, so float32 rounding stays far below edge_eps (a ray at 170 m would
+        # otherwise carry 1e-4 cells of error and slip through edges)
+        t0 = dr.select(ok, t0, 0.0)
+        ou, ov, oz, du, dv, dz = ray[:6]
+        ou, ov, oz = ou + t0 * du, ov + t0 * dv, oz + t0 * dz
+        ray = (ou, ov, oz, du, dv, dz) + tuple(ray[6:])
+        t_lo = J.Float(t_min) - t0
+        t_hi = (J.Float(dr.inf) if t_max is None else J.Float(t_max)) - t0
+        t1 = t1 - t0
         zero = dr.zeros(J.Int32, dr.width(ok))  # per-ray integers (the state has the rays' width)
-        state = (ok, J.Bool(False), J.Float(t0), zero, zero, zero + self.top, zero, J.Float(dr.inf), zero,
-                 J.Float(0.0), J.Float(0.0))
+        state = (ok, J.Bool(False), J.Float(0.0) + J.Float(zero), I0 + zero, J0 + zero, L0 + zero, zero,
+                 J.Float(dr.inf), zero, J.Float(0.0), J.Float(0.0))
 
         def cond(active, hit, t, I, J_, L, it, t_hit, tri, fx, fy):
             return active
@@ -249,8 +274,8 @@ class DemMarch:
         def body(active, hit, t, I, J_, L, it, t_hit, tri, fx, fy):
             t_exit, across_u, last = self._node_exit(ray, I, J_, L, t1)
             z_lo = dr.minimum(oz + t * dz, oz + t_exit * dz)
-            m = dr.gather(J.Float, self.maxima, dr.gather(J.Int32, self.offsets, L) + J_
-                          * dr.gather(J.Int32, self.cols, L) + I, active)
+            m = dr.gather(J.Float, self.maxima, dr.gather(J.Int32, self.offsets, L, active) + J_
+                          * self._count(self.nx, L) + I, active)
             can = active & (z_lo <= m + self.slack)
             leaf = can & (L == 0)
             found, th, trh, fxh, fyh = self._cell_hit(ray, I, J_, t_lo, t_hi, leaf)
@@ -263,8 +288,8 @@ class DemMarch:
             c = L - 1
             cu = J.Int32(dr.floor(ou + t * du)) >> c
             cv = J.Int32(dr.floor(ov + t * dv)) >> c
-            cu = dr.clip(cu, 2 * I, dr.minimum(2 * I + 1, dr.gather(J.Int32, self.cols, c, down) - 1))
-            cv = dr.clip(cv, 2 * J_, dr.minimum(2 * J_ + 1, dr.gather(J.Int32, self.rows, c, down) - 1))
+            cu = dr.clip(cu, 2 * I, dr.minimum(2 * I + 1, self._count(self.nx, c) - 1))
+            cv = dr.clip(cv, 2 * J_, dr.minimum(2 * J_ + 1, self._count(self.ny, c) - 1))
             step = active & ~found & ~down
             su = dr.select(du > 0, J.Int32(1), J.Int32(-1))
             sv = dr.select(dv > 0, J.Int32(1), J.Int32(-1))
@@ -275,8 +300,8 @@ class DemMarch:
             Ln = dr.select(up, L + 1, L)
             In, Jn, Ln = dr.select(down, cu, In), dr.select(down, cv, Jn), dr.select(down, c, Ln)
             t = dr.select(step, dr.maximum(t, t_exit), t)
-            outside = (In < 0) | (Jn < 0) | (In >= dr.gather(J.Int32, self.cols, Ln, step)) \
-                | (Jn >= dr.gather(J.Int32, self.rows, Ln, step))
+            outside = (In < 0) | (Jn < 0) | (In >= self._count(self.nx, Ln)) \
+                | (Jn >= self._count(self.ny, Ln))
             it = it + J.Int32(active)
             active = active & ~found & ~(step & (last | outside)) & (it < self.max_iterations)
             return active, hit, t, In, Jn, Ln, it, t_hit, tri, fx, fy
@@ -284,12 +309,14 @@ class DemMarch:
         labels = ("active", "hit", "t", "I", "J", "L", "it", "t_hit", "tri", "fx", "fy")
         _, hit, _, I, J_, _, it, t_hit, tri, fx, fy = dr.while_loop(state, cond, body, labels=labels,
                                                                  label="dem_march")
+        t_rel = t_hit
+        t_hit = dr.select(hit, t0 + t_rel, dr.inf)
         if not nearest:
             return MarchHit(hit, t_hit, I, J_, tri, None, None, None, it)
         b1 = dr.select(tri == 0, fx - fy, fx)
         b2 = dr.select(tri == 0, fy, fy - fx)
         p = self.pyr
         pos = (p.x0_m + (J.Float(I) + fx) * p.cell_m, p.y0_m + (J.Float(J_) + fy) * p.cell_m,
-               oz + t_hit * dz)
+               oz + t_rel * dz)
         return MarchHit(hit, t_hit, dr.select(hit, I, -1), dr.select(hit, J_, -1), dr.select(hit, tri, -1),
                         b1, b2, pos, it)
