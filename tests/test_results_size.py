@@ -28,9 +28,6 @@ NEW_FOLDER_BUDGET = 3 * MB    # a published folder added from now on (and each r
 FIGURE_CAP = 1 * MB           # a report's figure (report/*.png, crosscheck.png), as for a new folder's files
 TEXT_CAP = 1 * MB             # a CSV, Markdown, HTML, JSON or TOML file under results/
 RESULTS_CAP = 120 * MB        # results/ all told while the Parquet budget is open (114.7 MB measured)
-#: byte-identical files that stay for now: none (runs.json names its campaign by the digest of its plan, so two
-#: campaigns whose runs all ended alike no longer write the same file)
-RUN_STATUS_TWINS: list[list[str]] = []
 
 
 def _tracked(under: str = "") -> dict[str, int]:
@@ -91,16 +88,11 @@ def _duplicates() -> list[list[str]]:
     return sorted(sorted(v) for v in by_hash.values() if len(v) > 1)
 
 
-def test_no_new_byte_identical_duplicates_under_results():
-    """Tables and figures are written once (a report's summary rows in one summary.csv, no copy under another
-    name); only the run-status twins remain."""
-    new = [group for group in _duplicates() if group not in RUN_STATUS_TWINS]
-    assert new == [], f"{len(new)} groups of byte-identical files: {new}"
-
-
-@pytest.mark.xfail(strict=True, reason="measured 2026-12-07: 2 groups left, the run-status twins (RUN_STATUS_TWINS)")
 def test_no_byte_identical_duplicates_under_results():
-    assert _duplicates() == []
+    """Tables and figures are written once (a report's summary rows in one summary.csv, no copy under another
+    name; each campaign's runs.json names its plan, so two campaigns' statuses differ)."""
+    groups = _duplicates()
+    assert groups == [], f"{len(groups)} groups of byte-identical files: {groups}"
 
 
 @pytest.mark.xfail(strict=True, reason="measured 2026-12-07 after the figure regeneration: 16 Parquet tables of "
