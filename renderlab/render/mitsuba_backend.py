@@ -43,6 +43,7 @@ import numpy as np
 from renderlab.errors import UserError
 from renderlab.render.mesh_io import mesh_body
 from renderlab.render.mitsuba_bsdf import bsdf_dict, register_bsdfs
+from renderlab.render.mitsuba_dem import DemScene
 from renderlab.render.mitsuba_direct import integrator_dict, register_direct_sun
 from renderlab.render.mitsuba_numpy_path import NumpyRayPath, subpixel_offsets  # noqa: F401  (re-exported)
 from renderlab.render.mitsuba_rays import MAX_SAMPLES_PER_PASS, CameraRays, FramePose, aligned_f32, pass_sizes
@@ -90,7 +91,8 @@ class MitsubaBackend(NumpyRayPath):
     #: tiled surfaces: ``"auto"``, in a second scene where the design applies (LLVM variants with the direct-sun
     #: integrator; renderlab.render.mitsuba_two_scene); ``"two"``, a second scene on CUDA variants too (not yet
     #: checked on a GPU: benchmarks/gpu_check.sh does); ``"merged"``, in the one scene (the design before; kept for the
-    #: benchmarks and the side-by-side tests); ``$RENDERLAB_MITSUBA_TILE_DESIGN`` sets the default
+    #: benchmarks and the side-by-side tests); ``"dem"``, the full DEMs traced by the pyramid march beside the static
+    #: scene (renderlab.render.mitsuba_dem: opt-in); ``$RENDERLAB_MITSUBA_TILE_DESIGN`` sets the default
     tile_design = os.environ.get("RENDERLAB_MITSUBA_TILE_DESIGN") or "auto"
     #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
     samples_per_pass = MAX_SAMPLES_PER_PASS
@@ -125,7 +127,9 @@ class MitsubaBackend(NumpyRayPath):
         self._tiles = self._two = None
         if scene.tiled:  # the frame's tiles, chosen before each frame (_set_sun)
 
-            if two_scene_capable(self):  # a second scene: the static bodies' structure is never rebuilt
+            if two_scene_capable(self) and self.tile_design == "dem":  # marched DEMs: nothing built per frame
+                self._tiles = self._two = DemScene(self, scene.tiled, settings.shadows)
+            elif two_scene_capable(self):  # a second scene: the static bodies' structure is never rebuilt
                 self._tiles = self._two = TileScene(self, scene.tiled, settings.shadows)
             else:  # merged into the one scene (scalar variants, Mitsuba's path integrator)
                 self._tiles = TileScenes(self, desc, keys, scene.tiled)

@@ -116,8 +116,8 @@ def two_scene_capable(backend) -> bool:
     with ``tile_design = "two"``: OptiX traces one scene per kernel launch in Mitsuba's CUDA back end unless shown
     otherwise on a device), and ``tile_design`` not ``"merged"``."""
     design = getattr(backend, "tile_design", "auto")
-    if design not in ("auto", "two", "merged"):
-        raise UserError(f"Mitsuba tile design ($RENDERLAB_MITSUBA_TILE_DESIGN) must be auto, two or merged, "
+    if design not in ("auto", "two", "merged", "dem"):
+        raise UserError(f"Mitsuba tile design ($RENDERLAB_MITSUBA_TILE_DESIGN) must be auto, two, merged or dem, "
                         f"got {str(design)[:40]!r}")
     if design == "merged" or backend.scalar:
         return False
