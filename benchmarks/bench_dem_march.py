@@ -17,6 +17,8 @@ facets) at ``--size``², ``--spp`` spp:
   (``ray_test``) in the tile scene, timed like the march;
 * **floor**: a warm ``mi.render`` (Mitsuba's C++ ``direct``) of the same geometry (static bodies + this frame's tiles
   in one scene), as ``bench_frame_breakdown.py`` times it;
+* **frames**: ``Renderer.frame`` of the frame right after another frame (the tile set changes), today's design and
+  ``tile_design = "dem"`` (:mod:`renderlab.render.mitsuba_dem`), ``--repeats`` interleaved calls each;
 * agreement of the march with the tile scene on the same primary rays (level-0 tiles are the DEM itself); rays hit
   by one of them only are checked against the float64 ray oracle on the DEM's cells around the hit.
 
@@ -223,7 +225,8 @@ def main() -> None:
     t, pi = tile_times(backend, spec, other, ray, sun_render, args.repeats)
     print("tiles, today's two-scene path (s): " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()), flush=True)
     print("  " + agreement(hit, pi, site, o_s, d_s), flush=True)
-    del pi, hit
+    del pi, hit, ray, o_s, d_s, march
+    frames = frame_times(r, args, spec, other)
     backend._two.update(other)  # free the 9.6 M-facet tile structure before the floor's scene is built
     merged = _merged_backend(r)
     merged._set_sun(spec)
@@ -239,7 +242,39 @@ def main() -> None:
           f"floor {f:.2f} s")
     print(f"ratios to the floor: march {(mp + ms) / f:.2f}x, tiles {(tb + tp + ts) / f:.2f}x (build alone {tb / f:.2f}x);"
           f" march / tiles {(mp + ms) / (tb + tp + ts):.2f}; march / tile traversal alone {(mp + ms) / (tp + ts):.2f}")
+    for name, v in frames.items():
+        print(f"Renderer.frame, {name}: {', '.join(f'{x:.2f}' for x in v)} s = {min(v) / f:.2f}x the floor (best)")
     print(_uptime())
+
+
+def frame_times(r, args, spec, other) -> dict:
+    """``Renderer.frame`` of the frame, each call right after ``other`` (the tile set changes), with today's design
+    (``r``) and with ``tile_design = "dem"`` (a second Renderer of the same scenario; its first frame, untimed, builds
+    the pyramid and the site's mesh)."""
+    from bench_frame_api import _sets
+
+    from renderlab.pipeline.frame_api import Renderer
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+
+    out = {"two scenes (today)": [], "dem": []}
+    r.frame(other.index)
+    MitsubaBackend.tile_design = "dem"
+    try:
+        rd = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
+        t0 = time.perf_counter()
+        rd.frame(other.index)
+        print(f"dem design: first frame (pyramid, site mesh, kernels) {time.perf_counter() - t0:.2f} s", flush=True)
+    finally:
+        MitsubaBackend.tile_design = "auto"
+    for _ in range(args.repeats):
+        for name, rr in (("two scenes (today)", r), ("dem", rd)):
+            rr.frame(other.index)
+            t0 = time.perf_counter()
+            rr.frame(spec.index)
+            out[name].append(time.perf_counter() - t0)
+            print(f"Renderer.frame {name}: {out[name][-1]:.2f} s", flush=True)
+    rd.close()
+    return out
 
 
 if __name__ == "__main__":
