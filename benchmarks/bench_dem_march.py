@@ -180,6 +180,44 @@ def agreement(hit, pi, site, o_s, d_s, n_check: int = 200) -> str:
     return out
 
 
+def kernels(r, args, spec, other, floor) -> None:
+    """The pyramid, the march and today's tile path on the frame's rays, against ``floor()`` timed right after."""
+    from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
+
+    backend, _ = r.backend_for(spec)
+    mi, dr = backend.mi, backend.dr
+    site = r.plan.static_scene.tiled[0].site
+    t0 = time.perf_counter()
+    pyr = build_pyramid(site.heights_m, site.x0_m, site.cell_m)
+    t1 = time.perf_counter()
+    march = DemMarch(pyr, jit=jit_module(mi.variant()))
+    print(f"pyramid (once per site): build {t1 - t0:.2f} s ({pyr.levels} levels, {pyr.maxima.nbytes / 1e6:.0f} MB), "
+          f"upload {time.perf_counter() - t1:.2f} s", flush=True)
+    ray = camera_rays(backend, spec, args.spp)
+    o_s, d_s = to_site(mi, dr, site, backend.origin, ray)
+    sun_render = np.asarray(spec.sun.direction_render, float)
+    m, hit = march_times(march, o_s, d_s, ray.maxt, site.R_body_from_site.T @ sun_render, args.repeats)
+    print("march (s): " + ", ".join(f"{k} {v:.2f}" for k, v in m.items()), flush=True)
+    it = np.array(hit.iterations)
+    print(f"  nodes visited per primary ray: mean {it.mean():.1f}, p99 {np.percentile(it, 99):.0f}, max {it.max()}; "
+          f"hits {int(np.array(hit.valid).sum())}", flush=True)
+    t, pi = tile_times(backend, spec, other, ray, sun_render, args.repeats)
+    print("tiles, today's two-scene path (s): " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()), flush=True)
+    print("  " + agreement(hit, pi, site, o_s, d_s), flush=True)
+    del pi, hit, ray, o_s, d_s, march
+    backend._two.update(other)  # the 9.6 M-facet tile structure freed
+    f = floor()
+    best = lambda d, k: min(v for n, v in d.items() if n.startswith(k) and "first" not in n)  # noqa: E731
+    mp, ms, tp, ts, tb = best(m, "primary"), best(m, "shadow"), best(t, "primary"), best(t, "shadow"), \
+        t["update (meshes + build)"]
+    print(f"site intersection per frame (best of {args.repeats}): march primary {mp:.2f} + shadow {ms:.2f} = "
+          f"{mp + ms:.2f} s; tiles build {tb:.2f} + primary {tp:.2f} + shadow {ts:.2f} = {tb + tp + ts:.2f} s; "
+          f"floor right after {f:.2f} s")
+    print(f"  ratios to the floor: march {(mp + ms) / f:.2f}x, tiles {(tb + tp + ts) / f:.2f}x (build alone "
+          f"{tb / f:.2f}x); march / tiles {(mp + ms) / (tb + tp + ts):.2f}; march / tile traversal alone "
+          f"{(mp + ms) / (tp + ts):.2f}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frame", type=int, default=1, help="descent frame (of 4) to trace; 1 is the 171 m frame")
@@ -191,73 +229,42 @@ def main() -> None:
     from bench_frame_api import _floor, _merged_backend, _sets
 
     from renderlab.pipeline.frame_api import Renderer
-    from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
 
     r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
     spec, other = r.spec(args.frame), r.spec(3 if args.frame != 3 else 0)
-    backend, _ = r.backend_for(spec)
-    mi, dr = backend.mi, backend.dr
     tiled = r.plan.static_scene.tiled[0]
     site = tiled.site
-    alt = float(site.to_site(spec.pose.position_m)[2])
     facets = tiled.lod_summary(tiled.select(spec.camera, spec.pose))["n_faces"]
     print(f"site DEM {site.heights_m.shape[1]} x {site.heights_m.shape[0]} at {site.cell_m} m "
-          f"({2 * (site.n - 1) ** 2 / 1e6:.1f} M facets); frame {args.frame}: camera {alt:.0f} m above the site plane, "
-          f"{facets / 1e6:.2f} M tile facets; {args.size}², {args.spp} spp = {args.size ** 2 * args.spp / 1e6:.1f} M rays;"
-          f" variant {mi.variant()}", flush=True)
-    t0 = time.perf_counter()
-    pyr = build_pyramid(site.heights_m, site.x0_m, site.cell_m)
-    t1 = time.perf_counter()
-    march = DemMarch(pyr, jit=jit_module(mi.variant()))
-    t2 = time.perf_counter()
-    print(f"pyramid (once per site): build {t1 - t0:.2f} s ({pyr.levels} levels, {pyr.maxima.nbytes / 1e6:.0f} MB), "
-          f"upload {t2 - t1:.2f} s", flush=True)
-
-    ray = camera_rays(backend, spec, args.spp)
-    o_s, d_s = to_site(mi, dr, site, backend.origin, ray)
-    R = site.R_body_from_site
-    sun_render = np.asarray(spec.sun.direction_render, float)
-    m, hit = march_times(march, o_s, d_s, ray.maxt, R.T @ sun_render, args.repeats)
-    print("march (s): " + ", ".join(f"{k} {v:.2f}" for k, v in m.items()), flush=True)
-    it = np.array(hit.iterations)
-    print(f"  nodes visited per primary ray: mean {it.mean():.1f}, p99 {np.percentile(it, 99):.0f}, max {it.max()}; "
-          f"hits {int(np.array(hit.valid).sum())}", flush=True)
-    t, pi = tile_times(backend, spec, other, ray, sun_render, args.repeats)
-    print("tiles, today's two-scene path (s): " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()), flush=True)
-    print("  " + agreement(hit, pi, site, o_s, d_s), flush=True)
-    del pi, hit, ray, o_s, d_s, march
-    frames = frame_times(r, args, spec, other)
-    backend._two.update(other)  # free the 9.6 M-facet tile structure before the floor's scene is built
-    merged = _merged_backend(r)
+          f"({2 * (site.n - 1) ** 2 / 1e6:.1f} M facets); frame {args.frame}: camera "
+          f"{float(site.to_site(spec.pose.position_m)[2]):.0f} m above the site plane, {facets / 1e6:.2f} M tile "
+          f"facets; {args.size}², {args.spp} spp = {args.size ** 2 * args.spp / 1e6:.1f} M rays", flush=True)
+    merged = _merged_backend(r)  # the floor's scene: static bodies + this frame's tiles, built once
     merged._set_sun(spec)
-    floor = [_floor(mi, merged, spec, args.spp) for _ in range(args.repeats)]
-    print("floor: mi.render direct, same geometry (s): " + ", ".join(f"{v:.2f}" for v in floor), flush=True)
 
-    best = lambda d, k: min(v for n, v in d.items() if n.startswith(k) and "first" not in n)  # noqa: E731
-    f = float(np.median(floor))
-    mp, ms, tp, ts, tb = best(m, "primary"), best(m, "shadow"), best(t, "primary"), best(t, "shadow"), \
-        t["update (meshes + build)"]
-    print(f"site intersection per frame (best of {args.repeats}): march primary {mp:.2f} + shadow {ms:.2f} = "
-          f"{mp + ms:.2f} s; tiles build {tb:.2f} + primary {tp:.2f} + shadow {ts:.2f} = {tb + tp + ts:.2f} s; "
-          f"floor {f:.2f} s")
-    print(f"ratios to the floor: march {(mp + ms) / f:.2f}x, tiles {(tb + tp + ts) / f:.2f}x (build alone {tb / f:.2f}x);"
-          f" march / tiles {(mp + ms) / (tb + tp + ts):.2f}; march / tile traversal alone {(mp + ms) / (tp + ts):.2f}")
+    def floor() -> float:
+        return _floor(merged.mi, merged, spec, args.spp)
+
+    kernels(r, args, spec, other, floor)
+    frames = frame_times(r, args, spec, other, floor)
     for name, v in frames.items():
-        print(f"Renderer.frame, {name}: {', '.join(f'{x:.2f}' for x in v)} s = {min(v) / f:.2f}x the floor (best)")
+        if name != "floor":
+            ratio = np.array(v) / np.array(frames["floor"])
+            print(f"Renderer.frame, {name}: {', '.join(f'{x:.2f}' for x in v)} s; / the floor timed next to it: "
+                  f"{', '.join(f'{x:.2f}' for x in ratio)}x (median {np.median(ratio):.2f}x)")
     print(_uptime())
 
 
-def frame_times(r, args, spec, other) -> dict:
+def frame_times(r, args, spec, other, floor) -> dict:
     """``Renderer.frame`` of the frame, each call right after ``other`` (the tile set changes), with today's design
     (``r``) and with ``tile_design = "dem"`` (a second Renderer of the same scenario; its first frame, untimed, builds
-    the pyramid and the site's mesh)."""
+    the pyramid and the site's mesh), and ``floor()``, interleaved ``--repeats`` times."""
     from bench_frame_api import _sets
 
     from renderlab.pipeline.frame_api import Renderer
     from renderlab.render.mitsuba_backend import MitsubaBackend
 
-    out = {"two scenes (today)": [], "dem": []}
-    r.frame(other.index)
+    out = {"two scenes (today)": [], "dem": [], "floor": []}
     MitsubaBackend.tile_design = "dem"
     try:
         rd = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
@@ -272,7 +279,8 @@ def frame_times(r, args, spec, other) -> dict:
             t0 = time.perf_counter()
             rr.frame(spec.index)
             out[name].append(time.perf_counter() - t0)
-            print(f"Renderer.frame {name}: {out[name][-1]:.2f} s", flush=True)
+        out["floor"].append(floor())
+        print("  " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in out.items()), flush=True)
     rd.close()
     return out
 
