@@ -107,12 +107,15 @@ def full_ev5(args) -> None:
 def bar_vs_sphere(args, r, mi) -> None:
     """Frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: API frame + files, the
     files in the loop or in the background thread, per EXR compression of ``--compressions``) vs mi.render of a
-    1.31 M-triangle sphere; the passes interleaved, the sphere timed between them."""
+    1.31 M-triangle sphere; the passes interleaved, the sphere timed between them. Two ratios: to the median sphere of
+    the run, and paired (each pass to the mean of the spheres timed just before and after it, so a load that changes
+    during the run moves both sides alike)."""
     floors = [sphere_floor(mi, args.size, args.spp)]
     writers = [{"loop": False, "background": True}[w] for w in args.writers.split(",")]
     modes = [(c, bg, fs) for fs in args.file_settings.split(",") for c in args.compressions.split(",")
              for bg in writers]
     runs: dict = {m: [] for m in modes}
+    paired: dict = {m: [] for m in modes}  # each pass over the mean of the sphere timed just before and after it
     for _rep in range(args.repeats):
         for comp, background, settings in modes:
             render = r.scenario.render.model_copy(update={"exr_compression": comp})
@@ -120,6 +123,8 @@ def bar_vs_sphere(args, r, mi) -> None:
             with _file_settings(settings):
                 runs[(comp, background, settings)].append(_truthset_frames(r, background, args.bar_frames))
             floors.append(sphere_floor(mi, args.size, args.spp))
+            paired[(comp, background, settings)].append(np.array(runs[(comp, background, settings)][-1])
+                                                        / np.mean(floors[-2:]))
     floor = float(np.median(floors))
     print(f"  mi.render direct of a 1.31 M-triangle sphere (f = {args.size / 2 / np.tan(np.radians(8.0)):.0f} px): "
           f"median {floor:.2f} s ({np.round(floors, 2).tolist()}), load average {os.getloadavg()[0]:.1f}")
@@ -134,6 +139,10 @@ def bar_vs_sphere(args, r, mi) -> None:
               f"{np.round(t / floor, 2).tolist()}, mean "
               f"{t.mean() / floor:.2f}x over all frames; frames {np.round(t, 2).tolist()} s "
               f"(each run: {[np.round(x, 2).tolist() for x in runs[mode]]})", flush=True)
+        pr = np.array(paired[mode])
+        pr = pr[:, 1:] if pr.shape[1] > 1 and not args.bar_frames else pr
+        print(f"    paired with the spheres timed around each pass: median {np.median(pr):.2f}x, per pass "
+              f"{np.round(pr.mean(axis=1), 2).tolist()} (mean over its frames)", flush=True)
 
 
 @contextlib.contextmanager
