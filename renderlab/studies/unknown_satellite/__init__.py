@@ -7,7 +7,7 @@ from renderlab.contracts.study import Study, lazy
 
 STUDY = Study(name="unknown_satellite", run=lazy("renderlab.studies.unknown_satellite.run:run"), worlds=("microsat",),
               description="pose and inertia of an unknown tumbling microsatellite (Ivanov et al.)",
-              report_sections=lazy("renderlab.studies.unknown_satellite.run:report_sections"),
+              report_sections=lazy("renderlab.studies.unknown_satellite.report_section:study_section"),
               own_tables=("stage2", "inertia_observability"),
               publish_tables=lazy("renderlab.studies.unknown_satellite.figures:publish_tables"),
               demo=lazy("renderlab.studies.unknown_satellite.demo:run_demo_unknown_satellite"))

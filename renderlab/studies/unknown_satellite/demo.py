@@ -30,7 +30,6 @@ def run_demo_unknown_satellite(out: Path, progress: bool = True, runs: int = DEM
     smallest FIM rank of eq. 7 and the ``flag_names`` raised."""
     import numpy as np
 
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     camp = out / "campaign"

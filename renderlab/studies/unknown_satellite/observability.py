@@ -100,7 +100,6 @@ def arc_information(scenario, case: ArcCase, *, sigma_px: float = 0.3, range_pri
     """Cramér–Rao σ of the inertia ratios (and ω0, r0, points) for one arc of ``scenario``."""
     from scipy.spatial.transform import Rotation
 
-
     data = apply_overrides(scenario.to_dict(), [f"trajectory.frames={case.frames}",
                                                  f"trajectory.dt_s={case.dt_s}", *case.sets])
     sc = scenario_from_dict(data, f"arc {case.label or case.frames}")
@@ -115,9 +114,8 @@ def arc_information(scenario, case: ArcCase, *, sigma_px: float = 0.3, range_pri
            "range_end_m": float(np.linalg.norm(truth.rv_lvlh[-1, :3] - truth.camera_offset_lvlh)),
            "visible_fraction": float(vis.mean()), "database_points": int(db.n_points),
            "measurements": int(len(db.frame))}
-    nan = {"sigma_ratio_12": np.nan, "sigma_ratio_23": np.nan, "sigma_w0_deg_s": np.nan, "sigma_w0_lvlh_deg_s": np.nan,
-           "sigma_r0_m": np.nan,
-           "sigma_points_rms_m": np.nan, "rel_min_singular_value": np.nan}
+    nan = dict.fromkeys(("sigma_ratio_12", "sigma_ratio_23", "sigma_w0_deg_s", "sigma_w0_lvlh_deg_s", "sigma_r0_m",
+                         "sigma_points_rms_m", "rel_min_singular_value"), np.nan)
     if db.n_points < 4 or db.frame.min() != 0:
         return {**row, **nan, "note": "fewer than 4 points / none from the first frame"}
     R0 = Rotation.from_quat(truth.quat_lvlh_from_body[0]).as_matrix()

@@ -172,13 +172,12 @@ def observability_blocks(table, out_dir: Path) -> list[dict]:
             {"kind": "links", "files": ["unknown_satellite_inertia_observability.csv"]}]
 
 
-def study_section(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
-    """The section (title, HTML) of a campaign's tables; writes ``unknown_satellite_summary.csv`` (once: no copy as
-    ``summary.csv``) and the figures into ``out_dir``."""
+def study_section(tables: dict, out_dir) -> list[tuple[str, str]]:
+    """Report hook: the section (title, HTML) of a campaign's tables (it reports ``stage2`` itself); writes
+    ``unknown_satellite_summary.csv`` and the figures into ``out_dir``."""
     if "scores" not in tables:
         return []
-
-    scores = tables["scores"]
+    out_dir, scores = Path(out_dir), tables["scores"]
     rows = score_summary(scores)
     write_csv(out_dir / "unknown_satellite_summary.csv", rows)
     n = scores.num_rows

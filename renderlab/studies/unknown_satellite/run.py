@@ -16,7 +16,6 @@ from renderlab.files.truthset import TruthSet
 from renderlab.scenario import scenario_from_dict, truth_dict
 from renderlab.sensor.model import SensorOptions
 from renderlab.studies.unknown_satellite.config import RUN_FLAGS, UnknownSatelliteStudyConfig
-from renderlab.studies.unknown_satellite.report_section import study_section
 from renderlab.studies.unknown_satellite.sequence import PriorOptions, StudyOptions, analyse_truthset
 
 #: generic [perturbations] keys this study uses; any other non-zero one is refused
@@ -53,7 +52,6 @@ def truth_scenario_dict(scenario, draw: dict) -> dict:
     """What is rendered: the scenario without its campaign-only sections, with the truth draw applied
     (only where its σ is non-zero, so every run of a noise-only campaign has the same cache key)."""
     from scipy.spatial.transform import Rotation
-
 
     d = truth_dict(scenario.to_dict())
     cfg, p, tr = study_config(scenario), scenario.perturbations, d["trajectory"]
@@ -112,7 +110,6 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     """One run of ``unknown_satellite`` → ``{"scores", "stage2", "points", "stage1_history", "perturbations"}``."""
     import pyarrow as pa
 
-
     if scenario.world.kind != "microsat":
         raise UserError(f"study unknown_satellite needs world.kind 'microsat', got '{scenario.world.kind}'")
     p, cfg = scenario.perturbations, study_config(scenario)
@@ -139,9 +136,3 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
             **{f"dv0_{a}_mps": float(v) for a, v in zip("xyz", draw["dv0_mps"])}}
     return {"scores": pa.table({k: [v] for k, v in row.items()}),
             "perturbations": pa.table({k: [v] for k, v in pert.items()}), **res.tables}
-
-
-def report_sections(tables: dict, out_dir: Path) -> list[tuple[str, str]]:
-    """Report hook: the score tables, run flags and figures like Figs 5-7 and 13-14 over the campaign (one HTML
-    section, :mod:`renderlab.studies.unknown_satellite.report_section`; it reports ``stage2`` itself)."""
-    return study_section(tables, Path(out_dir))

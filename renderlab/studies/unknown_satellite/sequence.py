@@ -283,7 +283,6 @@ def analyse_truthset(ts_path, rng: np.random.Generator, opts: StudyOptions = Stu
     import pyarrow as pa
     from tqdm import tqdm
 
-
     ts = ts_path if hasattr(ts_path, "load") else TruthSet.open(ts_path)
     ts_path = getattr(ts, "path", ts_path)
     if "microsat" not in ts.frames[0]:
