@@ -112,14 +112,15 @@ def proportion_ci(k: int, n: int, confidence: float = 0.95) -> tuple[float, floa
 
 
 # ------------------------------------------------------------------------ measurement scoring
-def _col(table, name, dtype=float):
+def column_array(table, name, dtype=float) -> np.ndarray:
+    """Column ``name`` of a pyarrow table as a numpy array of ``dtype``."""
     return np.asarray(table.column(name).to_numpy(zero_copy_only=False), dtype)
 
 
 def no_result_mask(table) -> np.ndarray:
     """Rows where the method gave no measurement (``has_result`` false or a NaN measurement)."""
-    has = _col(table, "has_result", bool)
-    return ~has | ~np.isfinite(_col(table, "meas_s")) | ~np.isfinite(_col(table, "meas_l"))
+    has = column_array(table, "has_result", bool)
+    return ~has | ~np.isfinite(column_array(table, "meas_s")) | ~np.isfinite(column_array(table, "meas_l"))
 
 
 def _group_rows(table, mask, keys: dict, confidence: float) -> list[dict]:
@@ -127,25 +128,25 @@ def _group_rows(table, mask, keys: dict, confidence: float) -> list[dict]:
     failed = no_result_mask(table)[mask]
     rate, rate_lo, rate_hi = proportion_ci(int(failed.sum()), int(mask.sum()), confidence)
     for axis in ("s", "l"):
-        err = _col(table, f"err_{axis}")[mask][~failed]
+        err = column_array(table, f"err_{axis}")[mask][~failed]
         st = error_stats(err, confidence)
         row = {**keys, "axis": axis, "n_rows": int(mask.sum()), "n_result": st.n,
                "no_result_rate": rate, "no_result_lo": rate_lo, "no_result_hi": rate_hi,
                **{f"{k}": getattr(st, k) for k in Stats.__dataclass_fields__ if k != "n"}}
         if f"crlb_{axis}" in table.column_names:
-            c = _col(table, f"crlb_{axis}")[mask][~failed]
+            c = column_array(table, f"crlb_{axis}")[mask][~failed]
             c = c[np.isfinite(c)]
             row["crlb_rms"] = float(np.sqrt(np.mean(c * c))) if len(c) else math.nan
             row["std_over_crlb"] = st.std / row["crlb_rms"] if len(c) and row["crlb_rms"] > 0 else math.nan
         if "t_ms" in table.column_names:
-            row["t_ms_median"] = float(np.nanmedian(_col(table, "t_ms")[mask])) if mask.any() else math.nan
+            row["t_ms_median"] = float(np.nanmedian(column_array(table, "t_ms")[mask])) if mask.any() else math.nan
         rows.append(row)
     return rows
 
 
 def score_measurements(table, confidence: float = 0.95) -> list[dict]:
     """Summary rows per (method, axis): bias, noise, robust stats, intervals, no-result rate, CRLB ratio."""
-    methods = _col(table, "method", object)
+    methods = column_array(table, "method", object)
     rows = []
     for m in sorted(set(methods)):
         rows += _group_rows(table, methods == m, {"method": m}, confidence)
@@ -156,7 +157,7 @@ def breakdown(table, column: str, bins: int = 4, confidence: float = 0.95) -> li
     """Summary rows per (method, quantile bin of ``column``, axis); empty if the column is absent."""
     if column not in table.column_names:
         return []
-    v = _col(table, column)
+    v = column_array(table, column)
     fin = np.isfinite(v)
     if fin.sum() == 0:
         return []
@@ -164,7 +165,7 @@ def breakdown(table, column: str, bins: int = 4, confidence: float = 0.95) -> li
     if len(edges) < 2:
         edges = np.array([v[fin].min(), v[fin].max()])
     idx = np.clip(np.searchsorted(edges, v, side="right") - 1, 0, len(edges) - 2)
-    methods = _col(table, "method", object)
+    methods = column_array(table, "method", object)
     rows = []
     for m in sorted(set(methods)):
         for b in range(len(edges) - 1):
@@ -325,20 +326,20 @@ def score_filter(table, *, settle_s: float = 0.0, nees_dof: int = 6, nis_dof: in
     """Rows per error column (after ``t_s ≥ settle_s``), plus ANEES/ANIS with χ² bounds."""
     from scipy import stats
 
-    t = _col(table, "t_s")
+    t = column_array(table, "t_s")
     keep = t >= settle_s
-    runs = _col(table, "run", np.int64)[keep]
+    runs = column_array(table, "run", np.int64)[keep]
     n_runs = len(np.unique(runs))
     rows = []
     for name in table.column_names:
         if name.startswith("err_"):
-            st = error_stats(_col(table, name)[keep], confidence)
+            st = error_stats(column_array(table, name)[keep], confidence)
             rows.append({"quantity": name, "n": st.n, "mean": st.mean, "mean_lo": st.mean_lo, "mean_hi": st.mean_hi,
                          "std": st.std, "rms": st.rms, "median": st.median, "mad": st.mad})
     a = 1 - confidence
     for name, dof in (("nees", nees_dof), ("nis", nis_dof)):
         if name in table.column_names and n_runs:
-            v = _col(table, name)[keep]
+            v = column_array(table, name)[keep]
             ts = t[keep]
             # average over the runs that have a value at each time (NIS is missing where an image gave
             # no measurement), each time against the χ² band of its own count

@@ -12,12 +12,10 @@ import math
 import numpy as np
 
 from estimators.centre_limb.phase import lambert_offset
+from renderlab.campaign.scoring import column_array as _col
+from renderlab.report.html_table import plain_table
 
 LEAD_TITLE = "What this campaign measures"  # renderlab.report.campaign_report.LEAD_TITLE: opens the page
-
-
-def _col(t, name, dtype=float):
-    return np.asarray(t.column(name).to_numpy(zero_copy_only=False), dtype)
 
 
 def _rows(t) -> list[dict]:
@@ -54,12 +52,10 @@ def section_html(table) -> str:
     head = ("method", "results", "median |err| vs the geometric centre (px)", "median err s, l (px)",
             "median |measured − truth centre of light| (px)", "truth centre of light − centre (px)",
             "Lambert photocentre δ(α) (px)", "apparent radius (px)", "phase (deg)")
-    body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in (
-            r["method"], r["n"], f"{r['err']:.2f}", f"{r['err_s']:+.2f}, {r['err_l']:+.2f}", f"{r['vs_light']:.2f}",
-            f"{r['light']:.2f}", f"{r['pred']:.2f}", f"{r['radius']:.1f}", f"{r['phase_lo']:.0f}–{r['phase_hi']:.0f}"))
-        + "</tr>" for r in rows)
-    table_html = "<table><tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in head) + "</tr>" + body + "</table>"
+    table_html = plain_table(head, ([
+        r["method"], r["n"], f"{r['err']:.2f}", f"{r['err_s']:+.2f}, {r['err_l']:+.2f}", f"{r['vs_light']:.2f}",
+        f"{r['light']:.2f}", f"{r['pred']:.2f}", f"{r['radius']:.1f}", f"{r['phase_lo']:.0f}–{r['phase_hi']:.0f}"]
+        for r in rows))
     r0 = rows[0]
     ratio = r0["light"] / r0["pred"] if r0["pred"] > 0 else math.nan
     text = (

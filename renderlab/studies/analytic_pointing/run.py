@@ -24,7 +24,7 @@ from renderlab.contracts.schemas import LANDMARK_CORE, table_from_rows
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
-from renderlab.scenario import scenario_from_dict
+from renderlab.scenario import scenario_from_dict, truth_dict
 from renderlab.sensor.model import SensorOptions, expected_dn
 from renderlab.worlds.base import frame_specs
 
@@ -41,13 +41,11 @@ def _target(scenario):
 
 
 def _truth_scenario(sc_dict: dict, position, R, seed: int) -> dict:
-    d = dict(sc_dict)
+    d = truth_dict(sc_dict)
     d["trajectory"] = {"kind": "line", "frames": 1, "dt_s": 1.0, "start_m": [float(v) for v in position],
                        "target_m": [float(v) for v in position + R.as_matrix()[:, 2]],
                        "up": [float(v) for v in -R.as_matrix()[:, 1]]}
     d["render"] = {**d["render"], "seed": int(seed)}
-    d.pop("perturbations", None)
-    d.pop("campaign", None)
     return d
 
 
