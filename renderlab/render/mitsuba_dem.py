@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
 from renderlab.render.mitsuba_two_scene import register_ids
 
 
@@ -50,8 +51,6 @@ class DemScene:
     """
 
     def __init__(self, backend, tiled: list, shadows: bool = True):
-        from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
-
         self.backend, self.shadows = backend, bool(shadows)
         mi, dr = backend.mi, backend.dr
         self.surfaces = []
