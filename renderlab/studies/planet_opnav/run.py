@@ -14,6 +14,7 @@ method); the attitude and the body model are known. Each image goes through ever
 
 from __future__ import annotations
 
+import itertools
 from types import SimpleNamespace
 
 import numpy as np
@@ -41,13 +42,9 @@ def check(scenario) -> None:
 
 def cells(cfg) -> list[dict]:
     """The grid cells in order: law, then range, then phase."""
-    out = []
-    for law in cfg.laws:
-        for rng in cfg.ranges_m:
-            for ph in cfg.phases_deg:
-                out.append({"cell": len(out), "law": law, "range_nominal_m": float(rng),
-                            "phase_nominal_deg": float(ph)})
-    return out
+    grid = itertools.product(cfg.laws, cfg.ranges_m, cfg.phases_deg)
+    return [{"cell": k, "law": law, "range_nominal_m": float(rng), "phase_nominal_deg": float(ph)}
+            for k, (law, rng, ph) in enumerate(grid)]
 
 
 def cell_pose(scenario, cfg, cell: dict, centre_m):
