@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from renderlab.campaign.scoring import column_array as column
 from renderlab.report import style
 from renderlab.report.axes import integer_ticks, plain_log
 from renderlab.studies.unknown_satellite.config import RUN_FLAGS
@@ -74,11 +75,6 @@ def publish_tables(tables: dict) -> dict:
 
     kept = {k: v for k, v in tables.items() if k not in ("points", "perturbations")}
     return keep_columns(kept, PUBLISHED_COLUMNS)
-
-
-def column(t, name, dtype=float) -> np.ndarray:
-    """Column ``name`` of a pyarrow table as a numpy array of ``dtype``."""
-    return np.asarray(t.column(name).to_numpy(zero_copy_only=False), dtype)
 
 
 def score_summary(scores) -> list[dict]:
