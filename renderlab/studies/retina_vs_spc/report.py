@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderlab.campaign.scoring import column_array
 from renderlab.studies.retina_vs_spc.config import RetinaVsSpcConfig
 
 #: the measurement columns the campaign report reads (:mod:`renderlab.report.landmark_section`: errors, truth, result,
@@ -20,12 +21,9 @@ def _config(scenario_dict: dict):
 
 def well_measured_mask(table, cfg) -> np.ndarray:
     """GSD ratio in [min, max], truth shadow fraction ≤ max, truth visible (NaN covariates fail)."""
-    def col(name):
-        return np.asarray(table.column(name).to_numpy(zero_copy_only=False), float)
-
     w = cfg.well_measured
-    g, sh = col("gsd_ratio"), col("shadow_fraction")
-    vis = np.asarray(table.column("truth_visible").to_numpy(zero_copy_only=False), bool)
+    g, sh = column_array(table, "gsd_ratio"), column_array(table, "shadow_fraction")
+    vis = column_array(table, "truth_visible", bool)
     return (g >= w.gsd_ratio_min) & (g <= w.gsd_ratio_max) & (sh <= w.shadow_fraction_max) & vis
 
 

@@ -16,7 +16,7 @@ import pyarrow.parquet as pq
 from renderlab import plugins
 from renderlab.campaign.oat_budget import done_paths, run_configs
 from renderlab.campaign.plan import run_seed_sequence
-from renderlab.errors import UserError
+from renderlab.errors import UserError, run_main
 from renderlab.scenario import load_scenario, scenario_from_dict
 from renderlab.studies.retina_vs_spc.budget import shadows as SH
 from renderlab.studies.retina_vs_spc.budget.plan import BUDGET_TABLES, METHODS, budget_configs, stochastic
@@ -105,27 +105,25 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
+def _main(argv: list[str] | None) -> int:
     args = _parser().parse_args(argv)
-    try:
-        if args.command == "run":
-            from renderlab.campaign.executors import check_workers
+    if args.command == "report":
+        print(f"renderlab: wrote {write_report(args.folder)} (budget_summary.csv, budget_terms.csv, budget_table.md, "
+              "error_budget.png)")
+        return 0
+    from renderlab.campaign.executors import check_workers
 
-            if args.workers < 1:
-                raise UserError(f"--workers must be at least 1, got {args.workers}")
-            check_workers(args.workers)  # each is a process: capped like campaign's
-            cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
-            run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only,
-                       args.methods)
-        else:
-
-            out = write_report(args.folder)
-            print(f"renderlab: wrote {out} (budget_summary.csv, budget_terms.csv, budget_table.md, "
-                  "error_budget.png)")
-    except UserError as err:
-        print(f"renderlab: error: {err}", file=sys.stderr)
-        return 2
+    if args.workers < 1:
+        raise UserError(f"--workers must be at least 1, got {args.workers}")
+    check_workers(args.workers)  # each is a process: capped like campaign's
+    cmd = "python -m renderlab.studies.retina_vs_spc.budget " + " ".join(sys.argv[1:] if argv is None else argv)
+    run_budget(args.scenario, args.out, args.runs, args.workers, args.workdir, cmd, args.only, args.methods)
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line (:func:`renderlab.errors.run_main`: a UserError is one line and exit code 2)."""
+    return run_main(_main, argv)
 
 
 if __name__ == "__main__":
