@@ -3,12 +3,19 @@
 from __future__ import annotations
 
 import copy
+import os
 import sys
 from pathlib import Path
 
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
+
+# One OpenBLAS thread per test process (set before numpy is imported; inherited by the xdist workers and the children
+# tests start). The tier runs 2 workers on 2 cores, and each worker's second BLAS thread waits on the other's: 400
+# 27x27 solves took 9.3 s with OpenBLAS's default 2 threads and 0.02 s with 1 (busy machine). Results change only by
+# rounding (the re-makes of published rows, compared to 1e-9, pass). A value the user set is kept.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 REPO = Path(__file__).resolve().parents[1]
 
