@@ -314,8 +314,11 @@ def run_family(family: str, lab: Path, root: Path) -> None:
     import time
 
     os.environ["RENDERLAB_CACHE"] = str(root / "cache")
+    import renderlab.cli as cli
     from renderlab.cli import main
 
+    parser = cli.build_parser()  # one parser for every case: build_parser() makes the same parser on every call and
+    cli.build_parser = lambda: parser  # parse_args leaves it as it was (the same results either way: every family)
     cases = families()[family](lab)
     _sentinels()
 
