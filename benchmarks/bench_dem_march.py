@@ -26,7 +26,8 @@ Usage::
 
     nice -n 5 .venv/bin/python benchmarks/bench_dem_march.py [--frame 1] [--size 1024] [--spp 16] [--repeats 2]
 
-Prints the times, the ratios and the load average (``uptime``) before and after.
+Prints the wall and CPU seconds (this process, all threads: less sensitive to other jobs), the ratios and the load
+average (``uptime``) before and after.
 """
 
 from __future__ import annotations
@@ -51,11 +52,47 @@ def _uptime() -> str:
     return subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
 
 
+class Sec(float):
+    """Wall seconds (the float's value) with the CPU seconds of this process over the same interval (``cpu``: all
+    its threads; less sensitive than the wall time to the other jobs on the machine)."""
+
+    cpu: float = 0.0
+
+
+def _clock() -> tuple[float, float]:
+    return time.perf_counter(), time.process_time()
+
+
+def _since(start: tuple[float, float]) -> Sec:
+    out = Sec(time.perf_counter() - start[0])
+    out.cpu = time.process_time() - start[1]
+    return out
+
+
 def _timed(fn, sync):
-    t0 = time.perf_counter()
+    start = _clock()
     out = fn()
     sync(out)
-    return out, time.perf_counter() - t0
+    return out, _since(start)
+
+
+def _fmt(d: dict) -> str:
+    return ", ".join(f"{k} {v:.2f} (cpu {v.cpu:.2f})" for k, v in d.items())
+
+
+def floor_sec(mi, backend, spec, spp: int) -> Sec:
+    """A warm ``mi.render`` (``direct``) of ``backend``'s scene from ``spec``'s camera (as ``bench_frame_api._floor``:
+    one untimed call, then one timed), wall and CPU seconds."""
+    import drjit as dr
+    from bench_ev5_descent import _sensor
+    from bench_frame_api import DIRECT
+
+    sensor, integ = _sensor(mi, backend, spec, spp), mi.load_dict(DIRECT)
+    for seed in range(2):
+        start = _clock()
+        dr.eval(mi.render(backend.scene, sensor=sensor, integrator=integ, spp=spp, seed=seed))
+        dr.sync_thread()
+    return _since(start)
 
 
 def camera_rays(backend, spec, spp: int):
@@ -197,25 +234,26 @@ def kernels(r, args, spec, other, floor) -> None:
     o_s, d_s = to_site(mi, dr, site, backend.origin, ray)
     sun_render = np.asarray(spec.sun.direction_render, float)
     m, hit = march_times(march, o_s, d_s, ray.maxt, site.R_body_from_site.T @ sun_render, args.repeats)
-    print("march (s): " + ", ".join(f"{k} {v:.2f}" for k, v in m.items()), flush=True)
+    print("march (s): " + _fmt(m), flush=True)
     it = np.array(hit.iterations)
     print(f"  nodes visited per primary ray: mean {it.mean():.1f}, p99 {np.percentile(it, 99):.0f}, max {it.max()}; "
           f"hits {int(np.array(hit.valid).sum())}", flush=True)
     t, pi = tile_times(backend, spec, other, ray, sun_render, args.repeats)
-    print("tiles, today's two-scene path (s): " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()), flush=True)
+    print("tiles, today's two-scene path (s): " + _fmt(t), flush=True)
     print("  " + agreement(hit, pi, site, o_s, d_s), flush=True)
     del pi, hit, ray, o_s, d_s, march
     backend._two.update(other)  # the 9.6 M-facet tile structure freed
     f = floor()
-    best = lambda d, k: min(v for n, v in d.items() if n.startswith(k) and "first" not in n)  # noqa: E731
-    mp, ms, tp, ts, tb = best(m, "primary"), best(m, "shadow"), best(t, "primary"), best(t, "shadow"), \
-        t["update (meshes + build)"]
-    print(f"site intersection per frame (best of {args.repeats}): march primary {mp:.2f} + shadow {ms:.2f} = "
-          f"{mp + ms:.2f} s; tiles build {tb:.2f} + primary {tp:.2f} + shadow {ts:.2f} = {tb + tp + ts:.2f} s; "
-          f"floor right after {f:.2f} s")
-    print(f"  ratios to the floor: march {(mp + ms) / f:.2f}x, tiles {(tb + tp + ts) / f:.2f}x (build alone "
-          f"{tb / f:.2f}x); march / tiles {(mp + ms) / (tb + tp + ts):.2f}; march / tile traversal alone "
-          f"{(mp + ms) / (tp + ts):.2f}", flush=True)
+    for unit, get in (("wall", float), ("cpu", lambda v: v.cpu)):
+        best = lambda d, k, get=get: min(get(v) for n, v in d.items() if n.startswith(k) and "first" not in n)  # noqa: E731
+        mp, ms, tp, ts = best(m, "primary"), best(m, "shadow"), best(t, "primary"), best(t, "shadow")
+        tb, ff = get(t["update (meshes + build)"]), get(f)
+        print(f"site intersection per frame, {unit} s (best of {args.repeats}): march primary {mp:.2f} + shadow "
+              f"{ms:.2f} = {mp + ms:.2f}; tiles build {tb:.2f} + primary {tp:.2f} + shadow {ts:.2f} = "
+              f"{tb + tp + ts:.2f}; floor right after {ff:.2f}")
+        print(f"  ratios to the floor: march {(mp + ms) / ff:.2f}x, tiles {(tb + tp + ts) / ff:.2f}x (build alone "
+              f"{tb / ff:.2f}x); march / tiles {(mp + ms) / (tb + tp + ts):.2f}; march / tile traversal alone "
+              f"{(mp + ms) / (tp + ts):.2f}", flush=True)
 
 
 def main() -> None:
@@ -226,7 +264,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=2)
     args = ap.parse_args()
     print(f"{os.cpu_count()} cores; {_uptime()}", flush=True)
-    from bench_frame_api import _floor, _merged_backend, _sets
+    from bench_frame_api import _merged_backend, _sets
 
     from renderlab.pipeline.frame_api import Renderer
 
@@ -242,16 +280,18 @@ def main() -> None:
     merged = _merged_backend(r)  # the floor's scene: static bodies + this frame's tiles, built once
     merged._set_sun(spec)
 
-    def floor() -> float:
-        return _floor(merged.mi, merged, spec, args.spp)
+    def floor() -> Sec:
+        return floor_sec(merged.mi, merged, spec, args.spp)
 
     kernels(r, args, spec, other, floor)
     frames = frame_times(r, args, spec, other, floor)
     for name, v in frames.items():
         if name != "floor":
             ratio = np.array(v) / np.array(frames["floor"])
-            print(f"Renderer.frame, {name}: {', '.join(f'{x:.2f}' for x in v)} s; / the floor timed next to it: "
-                  f"{', '.join(f'{x:.2f}' for x in ratio)}x (median {np.median(ratio):.2f}x)")
+            cpu = np.array([x.cpu for x in v]) / np.array([x.cpu for x in frames["floor"]])
+            print(f"Renderer.frame, {name}: {', '.join(f'{x:.2f} (cpu {x.cpu:.2f})' for x in v)} s; / the floor timed "
+                  f"next to it: wall {', '.join(f'{x:.2f}' for x in ratio)}x (median {np.median(ratio):.2f}x), cpu "
+                  f"{', '.join(f'{x:.2f}' for x in cpu)}x (median {np.median(cpu):.2f}x)")
     print(_uptime())
 
 
@@ -276,11 +316,11 @@ def frame_times(r, args, spec, other, floor) -> dict:
     for _ in range(args.repeats):
         for name, rr in (("two scenes (today)", r), ("dem", rd)):
             rr.frame(other.index)
-            t0 = time.perf_counter()
+            start = _clock()
             rr.frame(spec.index)
-            out[name].append(time.perf_counter() - t0)
+            out[name].append(_since(start))
         out["floor"].append(floor())
-        print("  " + ", ".join(f"{k} {v[-1]:.2f} s" for k, v in out.items()), flush=True)
+        print("  " + ", ".join(f"{k} {v[-1]:.2f} s (cpu {v[-1].cpu:.2f})" for k, v in out.items()), flush=True)
     rd.close()
     return out
 
