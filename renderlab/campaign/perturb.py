@@ -144,3 +144,14 @@ def perturb_scenario_dict(data: dict, draw: PerturbationDraw) -> dict:
         sun["direction"] = [float(v) for v in perturb_sun(sun["direction"], draw)]
     out["sun"] = sun
     return out
+
+
+def refuse_unused(p, used, message: str) -> None:
+    """UserError ``message.format(name=...)`` for the first non-zero key of the ``[perturbations]`` section ``p`` that
+    is not in ``used`` (a study refusing a dispersion it does not model)."""
+    from renderlab.errors import UserError
+
+    for name, value in p.model_dump().items():
+        if name not in used and value is not None and np.any(np.asarray(
+                list(value.values()) or [0.0] if isinstance(value, dict) else value, float) != 0):
+            raise UserError(message.format(name=name))

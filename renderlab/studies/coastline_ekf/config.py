@@ -48,12 +48,10 @@ SUPPORTED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_m
 
 def check_perturbations(p) -> None:
     """Refuse perturbations the coastline study does not model (one line naming the key)."""
-    for name, value in p.model_dump().items():
-        if name in SUPPORTED_PERTURBATIONS or value is None:
-            continue
-        if np.any(np.asarray(value if not isinstance(value, dict) else list(value.values()) or [0.0], float) != 0):
-            raise UserError(f"study coastline_ekf does not model perturbations.{name}; the initial dispersion is "
-                            "perturbations.apriori_position_sigma_m / apriori_velocity_sigma_mps (ECI, per axis)")
+    from renderlab.campaign.perturb import refuse_unused
+
+    refuse_unused(p, SUPPORTED_PERTURBATIONS, "study coastline_ekf does not model perturbations.{name}; the initial "
+                  "dispersion is perturbations.apriori_position_sigma_m / apriori_velocity_sigma_mps (ECI, per axis)")
     pos, vel = np.asarray(p.apriori_position_sigma_m, float), np.asarray(p.apriori_velocity_sigma_mps, float)
     if np.any(pos <= 0) or np.any(vel <= 0):
         raise UserError("study coastline_ekf needs perturbations.apriori_position_sigma_m and "

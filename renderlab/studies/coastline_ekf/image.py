@@ -24,7 +24,7 @@ from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
 from renderlab.geometry.camera import CameraModel
-from renderlab.scenario import scenario_from_dict
+from renderlab.scenario import scenario_from_dict, truth_dict
 from renderlab.sensor.model import SensorOptions
 from renderlab.studies.coastline_ekf.config import check_perturbations
 from renderlab.studies.coastline_ekf.geometric import filter_table
@@ -36,9 +36,7 @@ __all__ = ["render_scenario_dict", "run_image_study"]
 
 def render_scenario_dict(scenario) -> dict:
     """What is rendered: the scenario without its campaign-only sections, frames one cadence after the prior."""
-    d = json.loads(json.dumps(scenario.to_dict()))
-    for key in ("perturbations", "campaign", "coastline"):
-        d.pop(key, None)
+    d = truth_dict(scenario.to_dict())
     d["trajectory"]["start_s"] = float(d["trajectory"]["start_s"]) + float(d["trajectory"]["dt_s"])
     return d
 

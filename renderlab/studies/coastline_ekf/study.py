@@ -7,6 +7,7 @@ mode also ``coastline_frames``. The scenario keys → study options table: docs/
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from renderlab.builtin import scene_path
 from renderlab.campaign.runner import run_campaign_file
@@ -69,10 +70,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
 def report_sections(tables: dict, stage) -> list[tuple[str, str]]:
     """``renderlab report`` hook: the coastline section (Figs. 5-9, ANEES/ANIS with 2m-dof bands) per filter table
     (the image mode's ``coastline_frames`` table, when present, explains its consistency); a published geometric
-    folder (:mod:`.published`) gets one section per orbit, a published image folder with a ``geometric_filter``
+    folder (:mod:`.publish`) gets one section per orbit, a published image folder with a ``geometric_filter``
     table the comparison of its modes (:func:`.report_section.comparison_sections`)."""
-    from pathlib import Path
-
     if publish.is_geometric(tables):
         return publish.report_sections(tables, Path(stage))
     frames = tables.get("coastline_frames")
@@ -88,7 +87,6 @@ def run_demo_coastline(out, progress: bool = True, runs: int = 16) -> dict:
     of it loading GSHHG. Returns the campaign and report paths, the steady-state numbers and ``summary``, one
     line for the demo's output."""
     import csv
-    from pathlib import Path
 
     out = Path(out)
     scene = scene_path("coastline_ekf.toml")
