@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from renderlab.campaign.cache import cached_truthset
+from renderlab.campaign.perturb import refuse_unused
 from renderlab.campaign.reexpose import ReexposedTruthSet
 from renderlab.errors import UserError
 from renderlab.files.truthset import TruthSet
@@ -26,16 +27,6 @@ USED_PERTURBATIONS = ("apriori_position_sigma_m", "apriori_velocity_sigma_mps", 
 def study_config(scenario):
     """The ``[unknown_satellite]`` section (defaults when absent)."""
     return getattr(scenario, "unknown_satellite", None) or UnknownSatelliteStudyConfig()
-
-
-def check_perturbations(p) -> None:
-    """Refuse the generic perturbations that have no meaning for this study (one line naming the key)."""
-    for name, value in p:
-        if name in USED_PERTURBATIONS or value is None:
-            continue
-        if np.any(np.asarray(value if not isinstance(value, dict) else list(value.values()) or [0.0], float) != 0):
-            raise UserError(f"study unknown_satellite does not use perturbations.{name}; supported: "
-                            f"{', '.join(USED_PERTURBATIONS)} and the [unknown_satellite] section")
 
 
 def draw_truth(scenario, seed_sequence: np.random.SeedSequence) -> dict:
@@ -113,7 +104,8 @@ def run(scenario, base_dir, run_index: int, seed_sequence, workdir) -> dict:
     if scenario.world.kind != "microsat":
         raise UserError(f"study unknown_satellite needs world.kind 'microsat', got '{scenario.world.kind}'")
     p, cfg = scenario.perturbations, study_config(scenario)
-    check_perturbations(p)
+    refuse_unused(p, USED_PERTURBATIONS, "study unknown_satellite does not use perturbations.{name}; supported: "
+                  f"{', '.join(USED_PERTURBATIONS)} and the [unknown_satellite] section")
     ss_truth, ss_prior, ss_noise = seed_sequence.spawn(3)
     draw = draw_truth(scenario, ss_truth)
     truth_sc = scenario_from_dict(truth_scenario_dict(scenario, draw), "unknown_satellite truth scenario")
