@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from renderlab.stats.bootstrap import cluster_bootstrap
-from renderlab.stats.consistency import chi2_band_sum
+from renderlab.stats.consistency import chi2_band_sum, columns
 from renderlab.studies.descent_gnc.tables import MISSES
 
 #: columns read by the report, the published-tier test (t_end_s), the README (widen, search_px), bench_descent_gnc (t_*_ms)
@@ -34,12 +34,8 @@ def publish_tables(tables: dict) -> dict:
 
 
 def cols(table) -> dict:
-    """Every column of a pyarrow table as a numpy array (dictionary columns as strings)."""
-    def one(c):
-        return np.asarray(c.to_pylist() if "dictionary" in str(c.type) or c.type == "string" else
-                          c.to_numpy(zero_copy_only=False))
-
-    return {n: one(table.column(n)) for n in table.column_names}
+    """Every column of a pyarrow table as a numpy array (text columns as object arrays)."""
+    return columns(table, table.column_names)
 
 
 def sigma3_max(cov: np.ndarray) -> float:
