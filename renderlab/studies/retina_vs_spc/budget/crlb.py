@@ -43,8 +43,7 @@ def _bounds(table) -> dict:
 
 
 def _with_bound(cols: dict, bound: dict) -> dict:
-    """``cols`` (:func:`renderlab.stats.oat_budget.columns`) with ``crlb_s``/``crlb_l`` replaced by ``bound`` per landmark-frame
-    (NaN where the probe has none)."""
+    """``cols`` with ``crlb_s``/``crlb_l`` replaced by ``bound`` per landmark-frame (NaN where it has none)."""
     out = dict(cols)
     keys = list(zip(cols["frame"].tolist(), cols["item"].tolist()))
     vals = np.array([bound.get(k, (np.nan, np.nan)) for k in keys], float).reshape(-1, 2)

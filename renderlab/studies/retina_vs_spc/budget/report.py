@@ -203,8 +203,7 @@ def write_report(folder: Path, out_dir: Path | None = None) -> Path:
 
 
 class _BudgetFolder:
-    """An error-budget folder (``budget.json`` + ``tables/``) as a result-folder kind
-    (:mod:`renderlab.contracts.result_folder`): ``renderlab report FOLDER`` regenerates its report."""
+    """An error-budget folder (``budget.json`` + ``tables/``) as a result-folder kind of ``renderlab report``."""
 
     name = "error_budget"
 
