@@ -201,8 +201,7 @@ def _make_filter(o: CoastlineGeometricOptions, x0_hat: np.ndarray, P0: np.ndarra
 
 
 def _filter_images(geo: Geometry, ekf, nees_of, z_los, z_att, sig_los: float, sig_att: float, progress: bool):
-    """Propagate and update the N filters through every time of ``geo`` → x̂ (N, K, 6), P (N, K, 6, 6), NIS and
-    NEES (N, K); NIS is NaN at times without a matched point."""
+    """The N filters through every time of ``geo`` → x̂, P, NIS (NaN without a matched point), NEES per run and time."""
     N, K = len(ekf.x), len(geo.t_s)
     xs, Ps = np.empty((N, K, 6)), np.empty((N, K, 6, 6))
     nis, nees_v = np.full((N, K), np.nan), np.empty((N, K))
