@@ -33,7 +33,7 @@ def test_published_with_raw_tables_and_at_least_100_runs_per_method(folder):
         runs.setdefault(m, set()).add(r)
     assert {"retina", "spc", "ncc_baseline"} <= set(runs)
     assert all(len(v) >= 100 for v in runs.values()), {m: len(v) for m, v in runs.items()}
-    assert (folder / "tables" / "descent_landmarks.parquet").is_file()
+    assert (folder / "tables" / "descent_landmark_runs.parquet").is_file()
 
 
 @pytest.mark.parametrize("folder", FOLDERS, ids=lambda p: p.name)
@@ -56,7 +56,7 @@ def test_map_state_campaign_declares_the_calibration_fit_made_on_other_seeds():
     dn = sc["descent_navigation"]
     assert dn["map_realisation"] == cal["descent_navigation"]["map_realisation"] == "per_run"
     assert dn["map_states"] == "estimate" and cal["descent_navigation"]["map_states"] == "off"
-    res = fit(pq.read_table(CALIBRATION / "tables" / "descent_landmarks.parquet"))
+    res = fit(pq.read_table(CALIBRATION / "tables" / "descent_landmark_fit.parquet"))
     declared = dn["landmark_error_by_method"]
     assert set(declared) == set(res)
     for m, rows in declared.items():

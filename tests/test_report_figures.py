@@ -62,11 +62,13 @@ def captured(monkeypatch):
 def test_descent_panels_not_scaled_by_one_sample(captured, tmp_path):
     import pyarrow.parquet as pq
 
+    from renderlab.studies.descent_navigation.publish import image_index, publish_tables
     from renderlab.studies.descent_navigation.report import error_figure
 
-    t = pq.read_table(MAP_STATES)
-    error_figure(t, "position", tmp_path)
-    error_figure(t, "velocity", tmp_path)
+    tables = publish_tables({p.stem: pq.read_table(p) for p in MAP_STATES.parent.glob("*.parquet")})
+    t, images = tables["descent_filter"], image_index(tables)
+    error_figure(t, images, "position", tmp_path)
+    error_figure(t, images, "velocity", tmp_path)
     pos, vel = captured
     lims_pos = [abs(a.get_ylim()[0]) for a in pos.axes]
     assert max(lims_pos) < 0.6, lims_pos  # one spc run's first N sample is at -4 m: it is counted, not the scale

@@ -75,6 +75,22 @@ def read_raw_tables(tables_dir: Path) -> dict:
     return doc["tables"]
 
 
+def recover_raw_table(tables_dir: Path, name: str):
+    """The full table ``name`` recorded in ``tables_dir/raw_tables.json``, read back by its ``git show`` and
+    checked against its SHA-256 (a pyarrow Table); None where this checkout cannot recover it (no git history)."""
+    import io
+
+    import pyarrow.parquet as pq
+
+    rec = read_raw_tables(tables_dir).get(name)
+    if not rec or not rec.get("recover"):
+        return None
+    got = subprocess.run(rec["recover"].split(), cwd=Path(tables_dir), capture_output=True)
+    if got.returncode or hashlib.sha256(got.stdout).hexdigest() != rec["sha256"]:
+        return None
+    return pq.read_table(io.BytesIO(got.stdout))
+
+
 def raw_tables_json(records: Mapping[str, dict]) -> str:
     return json.dumps({"format": RAW_FORMAT, "tables": dict(sorted(records.items()))}, indent=1) + "\n"
 

@@ -129,10 +129,7 @@ def cluster_bootstrap(values, clusters, stat: Stat = "mean", *, confidence: floa
     est = float(fn(x))
     if k < 2:
         return Interval(est, np.nan, np.nan, len(x), k, method)
-    g = _rng(rng)
-    # (n_boot, k) multinomial cluster counts: k clusters drawn uniformly with replacement per resample
-    pick = g.integers(0, k, size=(n_boot, k)) + (k * np.arange(n_boot))[:, None]
-    draws = np.bincount(pick.ravel(), minlength=n_boot * k).reshape(n_boot, k)
+    draws = _cluster_draws(_rng(rng), k, n_boot)
     if not callable(stat) and stat in _CLOSED:
         n = np.bincount(inv, minlength=k).astype(float)
         s1 = np.bincount(inv, x, minlength=k)
@@ -150,12 +147,42 @@ def cluster_bootstrap(values, clusters, stat: Stat = "mean", *, confidence: floa
     else:
         rows = np.arange(len(x))
         boots = np.array([fn(x[np.repeat(rows, d[inv])]) for d in draws], dtype=float)
+    return _percentile_interval(est, boots, confidence, len(x), k, method)
+
+
+def _cluster_draws(g: np.random.Generator, k: int, n_boot: int) -> np.ndarray:
+    """(n_boot, k) multinomial cluster counts: k clusters drawn uniformly with replacement per resample."""
+    pick = g.integers(0, k, size=(n_boot, k)) + (k * np.arange(n_boot))[:, None]
+    return np.bincount(pick.ravel(), minlength=n_boot * k).reshape(n_boot, k)
+
+
+def _percentile_interval(est: float, boots: np.ndarray, confidence: float, n: int, k: int, method: str) -> Interval:
     boots = boots[np.isfinite(boots)]
     if len(boots) == 0:
-        return Interval(est, np.nan, np.nan, len(x), k, method)
+        return Interval(est, np.nan, np.nan, n, k, method)
     a = 100.0 * (1.0 - confidence) / 2.0
     lo, hi = np.percentile(boots, [a, 100.0 - a])
-    return Interval(est, float(lo), float(hi), len(x), k, method)
+    return Interval(est, float(lo), float(hi), n, k, method)
+
+
+def cluster_mean_bootstrap(counts, sums, *, confidence: float = 0.95, n_boot: int = 2000, rng=None,
+                           cluster_name: str = "clusters") -> Interval:
+    """:func:`cluster_bootstrap` of the mean from per-cluster row counts and sums (clusters in sorted label order,
+    NaN rows already left out): the same resamples and, for sums made as ``np.bincount`` of the rows, the same
+    limits; the estimate is Σ sums / Σ counts. Clusters with no rows are dropped."""
+    n = np.asarray(counts, float).ravel()
+    s1 = np.asarray(sums, float).ravel()
+    keep = n > 0
+    n, s1 = n[keep], s1[keep]
+    method = f"cluster bootstrap (percentile, {n_boot} resamples, clusters = {cluster_name})"
+    k, rows = len(n), int(n.sum())
+    if k == 0:
+        return Interval(np.nan, np.nan, np.nan, 0, 0, method)
+    est = float(s1.sum() / n.sum())
+    if k < 2:
+        return Interval(est, np.nan, np.nan, rows, k, method)
+    draws = _cluster_draws(_rng(rng), k, n_boot)
+    return _percentile_interval(est, (draws @ s1) / (draws @ n), confidence, rows, k, method)
 
 
 def cluster_bootstrap_rate(flags, clusters, *, confidence: float = 0.95, n_boot: int = 2000, rng=None,

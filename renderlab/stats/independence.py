@@ -95,25 +95,25 @@ def tracked_landmarks(ftab, ltab):
     return ltab.filter(pa.array([k in ok for k in keys]))
 
 
-def independence_rows(ftab, ltab, ts_rows: list[dict]) -> list[dict]:
+def independence_rows(ftab, images: dict, ts_rows: list[dict]) -> list[dict]:
     """One row per method and image: ρ (eq. I1), ρ_ν (I2), the landmark shares, N_eff (I3) and the effective bands
-    beside the plain ones of ``ts_rows`` (:func:`renderlab.studies.descent_navigation.scoring.timeseries`)."""
-    c = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof", *WHITE))
-    lt = tracked_landmarks(ftab, ltab) if ltab is not None else None
-    names = ("method", "frame", "item", "kept", "err_s", "err_l", "meas_s", "meas_l", "pred_s", "pred_l")
-    lc = columns(lt, names) if lt is not None else None
+    beside the plain ones of ``ts_rows`` (:func:`renderlab.studies.descent_navigation.scoring.timeseries`).
+    ``images``: ``{(method, frame): row}`` with ``rho_state`` (:func:`state_common_share` of the image's whitened
+    errors) and, where the landmarks were measured, the shares of :func:`landmark_shares`, over the runs that kept
+    track."""
+    c = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof"))
     out = []
     for r in ts_rows:
         m, k = r["method"], r["frame"]
         if k < 0:
             continue
         s = (c["method"] == m) & (c["frame"] == k) & np.isfinite(c["nees"])
-        rho = state_common_share(np.stack([c[w][s] for w in WHITE], 1))
+        img = images[(m, k)]
+        rho = img["rho_state"]
         n = int(s.sum())
         neff = n_effective(n, rho)
         lo, hi = chi2_band_sum(6.0 * neff)
-        shares = landmark_shares(lc, m, k) if lc is not None else {}
-        rho_nu = shares.get("common_share_innov", math.nan)
+        rho_nu = _value(img.get("common_share_innov"))
         has = (c["method"] == m) & (c["frame"] == k) & np.isfinite(c["nis"]) & (c["dof"] > 0)
         dof_total = float(c["dof"][has].sum())
         dof_eff = dof_total / (1.0 + (n - 1) * rho_nu**2) if math.isfinite(rho_nu) else dof_total
@@ -128,9 +128,13 @@ def independence_rows(ftab, ltab, ts_rows: list[dict]) -> list[dict]:
                     "anis_inside": r["anis_inside"], "rho_innov": rho_nu, "nis_dof_eff": dof_eff,
                     "anis_lo_eff": nlo, "anis_hi_eff": nhi,
                     "anis_inside_eff": bool(nlo <= b <= nhi) if math.isfinite(nlo) and math.isfinite(b) else None,
-                    "common_share_err_s": shares.get("common_share_err_s", math.nan),
-                    "common_share_err_l": shares.get("common_share_err_l", math.nan)})
+                    "common_share_err_s": _value(img.get("common_share_err_s")),
+                    "common_share_err_l": _value(img.get("common_share_err_l"))})
     return out
+
+
+def _value(v) -> float:
+    return math.nan if v is None else float(v)
 
 
 def band_summary(rows: list[dict]) -> list[dict]:
@@ -157,26 +161,20 @@ def band_summary(rows: list[dict]) -> list[dict]:
     return out
 
 
-def pattern_rows(ftab, ltab) -> list[dict]:
-    """Per method and image: the similarity transform common to all kept landmarks of the runs that kept track,
-    fitted by least squares to their errors, e = a·(x, y) + b·(−y, x) + (t_s, t_l) with (x, y) the true pixel minus
-    the landmarks' centroid: ``scale`` a (a range error of −a·range to first order for a nadir view),
-    ``rotation`` b (rad) and the shift (px). An error of this form shared by every landmark of an image cannot
-    average out over landmarks or runs."""
-    c = columns(tracked_landmarks(ftab, ltab), ("method", "frame", "kept", "err_s", "err_l", "truth_s", "truth_l"))
-    out = []
-    for m in sorted(set(c["method"].tolist())):
-        for f in sorted(set(c["frame"][c["method"] == m].tolist())):
-            k = (c["method"] == m) & (c["frame"] == f) & c["kept"] & np.isfinite(c["err_s"]) & np.isfinite(c["err_l"])
-            n = int(k.sum())
-            if n < 3:
-                continue
-            x, y = c["truth_s"][k] - np.mean(c["truth_s"][k]), c["truth_l"][k] - np.mean(c["truth_l"][k])
-            A = np.zeros((2 * n, 4))
-            A[:n, 0], A[n:, 0], A[:n, 1], A[n:, 1] = x, y, -y, x
-            A[:n, 2], A[n:, 3] = 1.0, 1.0
-            sol, *_ = np.linalg.lstsq(A, np.r_[c["err_s"][k], c["err_l"][k]], rcond=None)
-            out.append({"method": m, "frame": int(f), "n_landmarks": n, "scale": float(sol[0]),
-                        "rotation_rad": float(sol[1]), "shift_s_px": float(sol[2]), "shift_l_px": float(sol[3]),
-                        "radius_max_px": float(np.max(np.hypot(x, y)))})
-    return out
+def similarity_pattern(truth_s, truth_l, err_s, err_l) -> dict | None:
+    """The similarity transform common to the landmark errors of one image (kept landmarks of the runs that kept
+    track), fitted by least squares, e = a·(x, y) + b·(−y, x) + (t_s, t_l) with (x, y) the true pixel minus the
+    landmarks' centroid: ``scale`` a (a range error of −a·range to first order for a nadir view), ``rotation`` b
+    (rad) and the shift (px); None below 3 landmarks. An error of this form shared by every landmark of an image
+    cannot average out over landmarks or runs."""
+    k = np.isfinite(err_s) & np.isfinite(err_l)
+    n = int(k.sum())
+    if n < 3:
+        return None
+    x, y = truth_s[k] - np.mean(truth_s[k]), truth_l[k] - np.mean(truth_l[k])
+    A = np.zeros((2 * n, 4))
+    A[:n, 0], A[n:, 0], A[:n, 1], A[n:, 1] = x, y, -y, x
+    A[:n, 2], A[n:, 3] = 1.0, 1.0
+    sol, *_ = np.linalg.lstsq(A, np.r_[err_s[k], err_l[k]], rcond=None)
+    return {"n_landmarks": n, "scale": float(sol[0]), "rotation_rad": float(sol[1]), "shift_s_px": float(sol[2]),
+            "shift_l_px": float(sol[3]), "radius_max_px": float(np.max(np.hypot(x, y)))}

@@ -10,5 +10,6 @@ STUDY = Study(name="descent_navigation", run=lazy("renderlab.studies.descent_nav
               description="closed-loop descent navigation: landmark methods driving one EKF down the ARRM descent",
               check=lazy("renderlab.studies.descent_navigation.run:check"),
               report_sections=lazy("renderlab.studies.descent_navigation.report:report_sections"),
-              own_tables=("descent_filter", "descent_landmarks"), clusters=("run",),
-              publish_tables=lazy("renderlab.studies.descent_navigation.scoring:publish_tables"))
+              own_tables=("descent_filter", "descent_landmarks", "descent_images", "descent_landmark_runs",
+                          "descent_landmark_tiers", "descent_landmark_fit"), clusters=("run",),
+              publish_tables=lazy("renderlab.studies.descent_navigation.publish:publish_tables"))

@@ -1,5 +1,5 @@
 """Report section of ``descent_navigation`` (the lab's report style, :mod:`renderlab.report.style`): from the
-``descent_filter`` and ``descent_landmarks`` tables alone, ``descent_summary.csv`` (one row per method),
+published tables alone (:func:`.publish.publish_tables`, applied first to raw campaign tables too), ``descent_summary.csv`` (one row per method),
 ``descent_timeseries.csv`` (per method and image), and three figures (PNG; SVG with ``--svg``): position and velocity error vs
 time with the filter's 3σ, and ANEES / ANIS vs time with their 95 % χ² bands and pass/fail marks
 (:mod:`.scoring` says how each number is made); the independence scores (:mod:`.report_independence`) and, for
@@ -17,20 +17,22 @@ from renderlab.report.axes import note_outside, typical_limit
 from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import plain_table
 from renderlab.report.style import badge, fmt, method_colors, plt, save
+from renderlab.studies.descent_navigation.publish import IMAGES, RUNS, image_index, publish_tables
 from renderlab.studies.descent_navigation.report_independence import independence_section
 from renderlab.studies.descent_navigation.report_sources import sources_section
 from renderlab.studies.descent_navigation.scoring import POS, VEL, columns, method_summary, timeseries, tracked
 
 
-def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
+def error_figure(ftab, images: dict, kind: str, out_dir: Path) -> list[str]:
     """Errors of every run that kept track (thin) and ±3σ RMS of the filter (dashed) per method (columns) and site
     axis (rows); the runs that lost track are counted in the title, not drawn (their errors reach 10–300 m). Each
     panel's range is robust (:func:`renderlab.report.axes.typical_limit`: what holds 98 % of the errors at 80 % of
-    the times, at least 1.1 × the median ±3σ) and the samples left outside are counted in the panel."""
+    the times, at least 1.1 × the median ±3σ) and the samples left outside are counted in the panel; ``images``:
+    ``{(method, frame): row}`` of ``descent_images`` (the mean squared 1σ per image, ``sig2_fig_*``)."""
     cols, unit = (POS, "m") if kind == "position" else (VEL, "m/s")
-    sig = [c.replace("err_", "sig_") for c in cols]
+    sig = [f"sig2_fig_{c[4:]}" for c in cols]
     every = columns(ftab, ("run", "method"))
-    c = columns(tracked(ftab), ("run", "method", "frame", "t_s", *cols, *sig))
+    c = columns(tracked(ftab), ("run", "method", "frame", "t_s", *cols))
     methods = sorted(set(c["method"].tolist()))
     colors = method_colors(methods)
     pyplot = plt()
@@ -42,8 +44,9 @@ def error_figure(ftab, kind: str, out_dir: Path) -> list[str]:
             for r in sorted(set(c["run"][sel].tolist())):
                 rr = sel & (c["run"] == r)
                 ax.plot(c["t_s"][rr], c[e][rr], color="0.55", lw=0.4, alpha=0.5)
-            ts = sorted(set(c["t_s"][sel].tolist()))
-            three = np.array([3 * np.sqrt(np.nanmean(c[s][sel & (c["t_s"] == t)] ** 2)) for t in ts])
+            at = sorted({float(c["t_s"][sel & (c["frame"] == k)][0]): k for k in set(c["frame"][sel].tolist())}.items())
+            ts = [t for t, _ in at]
+            three = np.array([3 * np.sqrt(images[(m, int(k))][s]) for _, k in at])
             ax.plot(ts, three, "--", color=colors[m], lw=1.5, label="±3σ (filter, RMS over runs)")
             ax.plot(ts, -three, "--", color=colors[m], lw=1.5)
             lim = typical_limit(c[e][sel], c["t_s"][sel], floor=1.1 * float(np.nanmedian(three)) if len(ts) else 0.0)
@@ -141,22 +144,24 @@ def conclusion_html(summary: list[dict]) -> str:
 
 def report_sections(tables: dict, out_dir) -> list[tuple[str, str]]:
     """The study's section: CSVs and figures into ``out_dir`` (module docstring)."""
+    tables = publish_tables(tables)                # raw or published: the report reads the published form only
     ftab = tables.get("descent_filter")
     if ftab is None or ftab.num_rows == 0:
         return []
     out_dir = Path(out_dir)
-    ts_rows = timeseries(ftab)
-    summary = method_summary(ftab, tables.get("descent_landmarks"), ts_rows)
+    images = image_index(tables)
+    ts_rows = timeseries(ftab, images)
+    summary = method_summary(ftab, tables.get(RUNS), ts_rows)
     write_csv(out_dir / "descent_summary.csv", summary)
     write_csv(out_dir / "descent_timeseries.csv", ts_rows)
-    figs = error_figure(ftab, "position", out_dir) + error_figure(ftab, "velocity", out_dir) \
+    figs = error_figure(ftab, images, "position", out_dir) + error_figure(ftab, images, "velocity", out_dir) \
         + consistency_figure(ts_rows, out_dir)
     extra = ""
-    if "white_0" in ftab.column_names:             # campaigns that wrote the whitened errors (map-state study)
-        extra, more = independence_section(ftab, tables.get("descent_landmarks"), ts_rows, out_dir)
+    if "rho_state" in tables[IMAGES].column_names:  # campaigns that wrote the whitened errors (map-state study)
+        extra, more = independence_section(ftab, tables, images, ts_rows, out_dir)
         figs += more
     if "src_kind" in ftab.column_names:            # campaigns with injected-error sources (.sources)
-        more_html, more = sources_section(ftab, summary, out_dir)
+        more_html, more = sources_section(ftab, images, summary, out_dir)
         extra += more_html
         figs += more
     imgs = "".join(f'<p><img src="{f}" style="max-width:100%"></p>' for f in figs if f and f.endswith(".png"))

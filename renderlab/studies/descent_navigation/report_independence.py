@@ -13,14 +13,9 @@ import numpy as np
 from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import plain_table
 from renderlab.report.style import fmt, method_colors, plt, save
-from renderlab.stats.bootstrap import cluster_bootstrap
-from renderlab.stats.independence import (
-    band_summary,
-    independence_rows,
-    pattern_rows,
-    tracked_landmarks,
-)
-from renderlab.studies.descent_navigation.scoring import columns
+from renderlab.stats.bootstrap import cluster_mean_bootstrap
+from renderlab.stats.independence import band_summary, independence_rows
+from renderlab.studies.descent_navigation.publish import TIERS
 
 
 def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
@@ -66,37 +61,50 @@ def independence_figure(rows: list[dict], out_dir: Path) -> list[str]:
     return save(fig, out_dir / "descent_independence")
 
 
-def bias_by_tier(ftab, ltab) -> list[dict]:
+def bias_by_tier(tiers) -> list[dict]:
     """Per method and maplet tier (spacing): bias of the kept landmarks per axis with a 95 % cluster-bootstrap
-    interval over runs, and their rms error, in px and on the ground (px × GSD); runs that kept track."""
-    c = columns(tracked_landmarks(ftab, ltab), ("run", "method", "kept", "err_s", "err_l", "gsd_m", "spacing_m"))
+    interval over runs, and their rms error, in px and on the ground (px × GSD); runs that kept track. ``tiers``:
+    the published ``descent_landmark_tiers`` table (per method, tier and run: counts and sums)."""
+    c = {n: np.asarray(v) for n, v in tiers.to_pydict().items()}
     out = []
     for m in sorted(set(c["method"].tolist())):
         for sp in sorted(set(c["spacing_m"].tolist()), reverse=True):
-            k = (c["method"] == m) & c["kept"] & (c["spacing_m"] == sp)
-            if k.sum() < 2:
+            k = (c["method"] == m) & (c["spacing_m"] == sp)
+            n = int(c["n_rows"][k].sum())
+            if n < 2:
                 continue
-            row = {"method": m, "spacing_m": float(sp), "n_landmarks": int(k.sum()),
-                   "gsd_m_mean": float(np.mean(c["gsd_m"][k]))}
+            row = {"method": m, "spacing_m": float(sp), "n_landmarks": n,
+                   "gsd_m_mean": float(c["sum_gsd_m"][k].sum() / n)}
             for ax in ("s", "l"):
-                e = c[f"err_{ax}"][k]
-                iv = cluster_bootstrap(e, c["run"][k], "mean", cluster_name="runs")
+                iv = cluster_mean_bootstrap(c[f"n_{ax}"][k], c[f"sum_{ax}"][k], cluster_name="runs")
                 row.update({f"bias_{ax}_px": iv.estimate, f"bias_{ax}_px_lo": iv.lo, f"bias_{ax}_px_hi": iv.hi,
-                            f"rms_{ax}_px": float(np.sqrt(np.mean(e**2))),
-                            f"rms_{ax}_m": float(np.sqrt(np.mean((e * c["gsd_m"][k]) ** 2)))})
+                            f"rms_{ax}_px": float(np.sqrt(c[f"sumsq_{ax}"][k].sum() / n)),
+                            f"rms_{ax}_m": float(np.sqrt(c[f"sumsq_{ax}_m"][k].sum() / n))})
             out.append(row)
     return out
 
 
-def independence_section(ftab, ltab, ts_rows: list[dict], out_dir: Path) -> tuple[str, list[str]]:
-    """(HTML table, figure files) of the independence piece; writes its two CSVs."""
-    rows = independence_rows(ftab, ltab, ts_rows)
+PATTERN = ("n_landmarks", "scale", "rotation_rad", "shift_s_px", "shift_l_px", "radius_max_px")
+
+
+def pattern_rows(images: dict) -> list[dict]:
+    """Per method and image with ≥ 3 kept landmarks: the similarity pattern of their errors
+    (:func:`renderlab.stats.independence.similarity_pattern`, ``pattern_*`` of ``descent_images``)."""
+    return [{"method": m, "frame": k, **{p: r[f"pattern_{p}"] for p in PATTERN}}
+            for (m, k), r in sorted(images.items()) if r.get("pattern_n_landmarks") is not None]
+
+
+def independence_section(ftab, tables: dict, images: dict, ts_rows: list[dict], out_dir: Path) \
+        -> tuple[str, list[str]]:
+    """(HTML table, figure files) of the independence piece; writes its CSVs (the tier and pattern ones where the
+    landmarks' maplet tiers are known)."""
+    rows = independence_rows(ftab, images, ts_rows)
     bands = band_summary(rows)
     write_csv(out_dir / "descent_independence.csv", rows)
     write_csv(out_dir / "descent_bands.csv", bands)
-    if ltab is not None and "spacing_m" in ltab.column_names:
-        write_csv(out_dir / "descent_bias_by_tier.csv", bias_by_tier(ftab, ltab))
-        write_csv(out_dir / "descent_pattern.csv", pattern_rows(ftab, ltab))
+    if TIERS in tables:
+        write_csv(out_dir / "descent_bias_by_tier.csv", bias_by_tier(tables[TIERS]))
+        write_csv(out_dir / "descent_pattern.csv", pattern_rows(images))
     head = ("method", "images in NEES band (plain / N_eff)", "images in NIS band (plain / N_eff)",
             "ρ state mean (max)", "N_eff min", "ρ_ν innovations mean", "landmark-error share s, l")
     out = []

@@ -1,5 +1,6 @@
 """Report section of the descent study's injected-error sources (:mod:`.sources`, eq. G1): consistency and
-touchdown error against the injected bias, from the ``descent_filter`` table alone (docs/descent_navigation.md)."""
+touchdown error against the injected bias, from the published ``descent_filter`` and ``descent_images`` tables
+(docs/descent_navigation.md)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,8 @@ import numpy as np
 from renderlab.report.csvio import write_csv
 from renderlab.report.html_table import plain_table
 from renderlab.report.style import OKABE_ITO, badge, fmt, plt, save
+from renderlab.studies.descent_navigation.publish import INJ
 from renderlab.studies.descent_navigation.scoring import POS, chi2_band_sum, columns, tracked
-
-INJ = ("inj_bias_s_px", "inj_bias_l_px", "inj_sigma_bias_px", "inj_scale", "inj_sigma_noise_px",
-       "inj_map_offset_h_m", "inj_map_offset_v_m")
 
 
 def _bias_only(r: dict) -> bool:
@@ -24,10 +23,11 @@ def _bias_only(r: dict) -> bool:
             and r["inj_bias_s_px"] == r["inj_bias_l_px"])
 
 
-def source_rows(ftab, summary: list[dict]) -> list[dict]:
-    """One row per injected-error source (module docstring); ``summary`` the rows of method_summary."""
+def source_rows(ftab, images: dict, summary: list[dict]) -> list[dict]:
+    """One row per injected-error source (module docstring); ``images``: ``{(method, frame): row}`` of
+    ``descent_images`` (mean squared 1σ of the last image), ``summary`` the rows of method_summary."""
     c = columns(ftab, ("method", "frame", "nees", "track_lost", *POS, "src_kind", *INJ))
-    kept = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof", "sig_e_m", "sig_n_m", "sig_u_m", *POS))
+    kept = columns(tracked(ftab), ("method", "frame", "nees", "nis", "dof", *POS))
     last_k = int(c["frame"].max())
     by = {r["method"]: r for r in summary}
     out = []
@@ -38,7 +38,7 @@ def source_rows(ftab, summary: list[dict]) -> list[dict]:
         n = int(last.sum())
         lo, hi = chi2_band_sum(6.0 * n)
         a_last = float(np.mean(kept["nees"][last]) / 6.0) if n else math.nan
-        sig = np.sqrt(sum(kept[a][last] ** 2 for a in ("sig_e_m", "sig_n_m", "sig_u_m")))
+        img = images.get((m, last_k), {})
         sm = by[m]
         out.append({"source": m, "kind": str(c["src_kind"][s][0]), **inj, "n_runs": sm["n_runs"],
                     "n_tracked_runs": sm["n_tracked_runs"], "anees_over_6": sm["anees_over_6"],
@@ -54,12 +54,11 @@ def source_rows(ftab, summary: list[dict]) -> list[dict]:
                     "touchdown_pos_err_median_m": sm["touchdown_pos_err_median_m"],
                     "touchdown_pos_err_rms_m": sm["touchdown_pos_err_rms_m"],
                     "touchdown_pos_err_p95_m": sm["touchdown_pos_err_p95_m"],
-                    "touchdown_pos_3sig_rms_m": float(3.0 * np.sqrt(np.mean(sig**2))) if n else math.nan,
+                    "touchdown_pos_3sig_rms_m": float(3.0 * np.sqrt(img["sig2_pos"])) if n else math.nan,
                     **{f"touchdown_mean_err_{a}_m": float(np.mean(kept[p][last])) if n else math.nan
                        for a, p in zip("enu", POS)},
-                    **{f"touchdown_sig_{a}_rms_m": float(np.sqrt(np.mean(kept[f"sig_{a}_m"][last] ** 2)))
-                       if n else math.nan for a in "enu"},
-                    "touchdown_rms_over_1sig": float(sm["touchdown_pos_err_rms_m"] / np.sqrt(np.mean(sig**2)))
+                    **{f"touchdown_sig_{a}_rms_m": float(np.sqrt(img[f"sig2_{a}"])) if n else math.nan for a in "enu"},
+                    "touchdown_rms_over_1sig": float(sm["touchdown_pos_err_rms_m"] / np.sqrt(img["sig2_pos"]))
                     if n else math.nan, "track_lost_runs": sm["track_lost_runs"]})
     return out
 
@@ -114,9 +113,9 @@ def sweep_figure(rows: list[dict], out_dir: Path) -> list[str]:
     return save(fig, out_dir / "descent_bias_sweep")
 
 
-def sources_section(ftab, summary: list[dict], out_dir: Path) -> tuple[str, list[str]]:
+def sources_section(ftab, images: dict, summary: list[dict], out_dir: Path) -> tuple[str, list[str]]:
     """(HTML, figure names) of the injected-error sources."""
-    rows = source_rows(ftab, summary)
+    rows = source_rows(ftab, images, summary)
     if not rows:
         return "", []
     write_csv(Path(out_dir) / "descent_sources.csv", rows)

@@ -7,42 +7,20 @@ import math
 
 import numpy as np
 
-from renderlab.stats.bootstrap import cluster_bootstrap
+from renderlab.stats.bootstrap import cluster_bootstrap, cluster_mean_bootstrap
 from renderlab.stats.consistency import chi2_band_sum, columns, tracked
 
 POS = ("err_e_m", "err_n_m", "err_u_m")
 VEL = ("err_ve_mps", "err_vn_mps", "err_vu_mps")
-#: the columns the report, calibrate.py, error_flights.rendered_touchdown and the published-tier tests read
-FILTER_READ = ("run", "method", "frame", "t_s", "nees", "nis", "dof", "n_results", "n_flagged", "n_gated", "n_kept",
-               "track_lost", *POS, *VEL, *(c.replace("err_", "sig_") for c in POS + VEL),
-               *(f"white_{k}" for k in range(6)), "src_kind", "inj_bias_s_px", "inj_bias_l_px", "inj_sigma_bias_px",
-               "inj_scale", "inj_sigma_noise_px", "inj_map_offset_h_m", "inj_map_offset_v_m")
-LANDMARK_READ = ("run", "method", "frame", "item", "kept", "pred_s", "pred_l", "meas_s", "meas_l", "truth_s",
-                 "truth_l", "err_s", "err_l", "gsd_m", "spacing_m")
 
 
-def publish_tables(tables: dict) -> dict:
-    """The tables a published folder ships (``Study.publish_tables``): the filter columns that are read
-    (``FILTER_READ``); of the landmarks only the rows the filter kept (no score reads another) and their read columns.
-    """
-    import pyarrow.compute as pc
-
-    out = dict(tables)
-    for name, read in (("descent_filter", FILTER_READ), ("descent_landmarks", LANDMARK_READ)):
-        t = out.get(name)
-        if t is not None and t.num_rows:
-            t = t.filter(pc.field("kept")) if name == "descent_landmarks" else t
-            out[name] = t.select([c for c in t.column_names if c in read])
-    return out
-
-
-def timeseries(ftab) -> list[dict]:
+def timeseries(ftab, images: dict) -> list[dict]:
     """One row per method and image (the prior excluded): consistency and error statistics over the runs that kept
-    track (module docstring); ``track_lost_runs`` counts the others."""
+    track (module docstring); ``track_lost_runs`` counts the others. ``images``: ``{(method, frame): row}`` of the
+    published ``descent_images`` table (the mean squared 1σ ``sig2_e/n/u``)."""
     all_lost = columns(ftab, ("method", "frame", "track_lost"))
     ftab = tracked(ftab)
-    c = columns(ftab, ("method", "frame", "t_s", "nees", "nis", "dof", "n_kept", "track_lost", *POS, *VEL,
-                       "sig_e_m", "sig_n_m", "sig_u_m"))
+    c = columns(ftab, ("method", "frame", "t_s", "nees", "nis", "dof", "n_kept", "track_lost", *POS, *VEL))
     out = []
     for m in sorted(set(c["method"].tolist())):
         for k in sorted(set(c["frame"][c["method"] == m].tolist())):
@@ -57,7 +35,7 @@ def timeseries(ftab) -> list[dict]:
             nlo, nhi = chi2_band_sum(dof)
             pos = np.stack([c[a][ok] for a in POS], 1)
             vel = np.stack([c[a][ok] for a in VEL], 1)
-            sig = np.stack([c[a][ok] for a in ("sig_e_m", "sig_n_m", "sig_u_m")], 1)
+            img = images[(m, int(k))]
             out.append({"method": m, "frame": int(k), "t_s": float(np.mean(c["t_s"][s])), "n_runs": n,
                         "anees": anees, "anees_lo": lo * 6, "anees_hi": hi * 6,
                         "anees_inside": bool(lo * 6 <= anees <= hi * 6) if n and k >= 0 else None,
@@ -65,8 +43,7 @@ def timeseries(ftab) -> list[dict]:
                         "anis_inside": bool(nlo <= anis <= nhi) if dof else None,
                         "pos_rms_m": float(np.sqrt(np.mean(np.sum(pos**2, 1)))) if n else math.nan,
                         "vel_rms_mps": float(np.sqrt(np.mean(np.sum(vel**2, 1)))) if n else math.nan,
-                        **{f"pos3sig_{a}_m": float(3 * np.sqrt(np.mean(sig[:, j] ** 2))) if n else math.nan
-                           for j, a in enumerate("enu")},
+                        **{f"pos3sig_{a}_m": float(3 * np.sqrt(img[f"sig2_{a}"])) if n else math.nan for a in "enu"},
                         "mean_kept": float(np.mean(c["n_kept"][s])),
                         "track_lost_runs": int(all_lost["track_lost"][(all_lost["method"] == m)
                                                                      & (all_lost["frame"] == k)].sum())})
@@ -93,17 +70,15 @@ def _consistency(c, m) -> tuple[np.ndarray, np.ndarray]:
     return nees_run, nis_run
 
 
-def method_summary(ftab, ltab, ts_rows) -> list[dict]:
+def method_summary(ftab, runs, ts_rows) -> list[dict]:
     """One row per method (module docstring): consistency and landmark statistics over the runs that kept track
-    (``*_all``: every run), errors at the last image over every run."""
+    (``*_all``: every run), errors at the last image over every run; ``runs``: the published
+    ``descent_landmark_runs`` table (per method and run, sums of the kept landmarks' errors) or None."""
     keep = columns(tracked(ftab), ("run", "method", "frame", "nees", "nis", "dof"))
     c = columns(ftab, ("run", "method", "frame", "nees", "nis", "dof", "track_lost", "n_gated", "n_flagged",
                        "n_results", "n_kept", *POS, *VEL))
-    lc = columns(ltab, ("run", "method", "err_s", "err_l", "kept")) if ltab is not None else None
-    if lc is not None:                      # landmark statistics over the runs that kept track, as the consistency
-        ok = {(m, r) for m, r in zip(keep["method"].tolist(), keep["run"].tolist())}
-        sel = np.array([(m, r) in ok for m, r in zip(lc["method"].tolist(), lc["run"].tolist())], bool)
-        lc = {k: v[sel] for k, v in lc.items()}
+    lc = columns(runs, ("method", "n_rows", "n_s", "sum_s", "sumsq_s", "n_l", "sum_l", "sumsq_l")) \
+        if runs is not None else None
     out = []
     for m in sorted(set(c["method"].tolist())):
         img = (c["method"] == m) & (c["frame"] >= 0)
@@ -131,12 +106,13 @@ def method_summary(ftab, ltab, ts_rows) -> list[dict]:
                "flagged_frac": float(c["n_flagged"][img].sum() / max(c["n_results"][img].sum(), 1)),
                "kept_per_image": float(np.mean(c["n_kept"][img]))}
         if lc is not None:
-            k = (lc["method"] == m) & lc["kept"]
+            k = lc["method"] == m
             for ax in ("s", "l"):
-                e = lc[f"err_{ax}"][k]
-                iv = cluster_bootstrap(e, lc["run"][k], "mean", cluster_name="runs")
+                iv = cluster_mean_bootstrap(lc[f"n_{ax}"][k], lc[f"sum_{ax}"][k], cluster_name="runs")
+                n, s1, s2 = lc["n_rows"][k].sum(), lc[f"sum_{ax}"][k].sum(), lc[f"sumsq_{ax}"][k].sum()
                 row.update({f"kept_bias_{ax}_px": iv.estimate, f"kept_bias_{ax}_px_lo": iv.lo,
                             f"kept_bias_{ax}_px_hi": iv.hi,
-                            f"kept_std_{ax}_px": float(np.std(e, ddof=1)) if e.size > 1 else math.nan})
+                            f"kept_std_{ax}_px": float(math.sqrt((s2 - s1 * s1 / n) / (n - 1))) if n > 1
+                            else math.nan})
         out.append(row)
     return out
