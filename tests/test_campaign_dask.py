@@ -27,10 +27,12 @@ def test_local_cluster_1_and_2_workers_identical(tmp_path):
             assert tables_equal(out[name][t], out["inproc"][t]), (name, t)
 
 
-def test_local_cluster_caps_every_thread_pool_per_worker():
+def test_local_cluster_caps_every_thread_pool_per_worker(monkeypatch):
     """Without the cap a worker's Dr.Jit pool has one thread per core and numba NUMBA_NUM_THREADS = cores."""
-    from renderlab.campaign.executors import thread_report
+    from renderlab.campaign.executors import THREAD_ENV, thread_report
 
+    for key in THREAD_ENV:  # not "1" here (tests/conftest.py sets OPENBLAS_NUM_THREADS=1): the workers' 1 is the cap's
+        monkeypatch.setenv(key, "2")
     with DaskExecutor(workers=1, threads_per_run=1) as ex:
         (rep,) = list(ex.map_unordered(thread_report, [0]))
     assert rep == {"limit": 1, "drjit": 1, "numba": 1, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
