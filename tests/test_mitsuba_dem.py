@@ -8,44 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from tiny_ev5 import TINY_EV5_WORLD
+from tiny_ev5 import render_with_tile_design, tiled_descent
 
-SCENARIO = 'name = "dem_design"\n' + TINY_EV5_WORLD.replace(
-    "[world.site]\n", "[world.site]\nlod = true\ntile_cells = 32\nlod_pixels = 0.01\n", 1) + """
-[trajectory]
-kind = "ev5_descent"
-altitudes_m = [120.0, 30.0, 15.0]
-[camera]
-width = 96
-height = 96
-fx = 460.0
-fy = 460.0
-cx = 47.5
-cy = 47.5
-[render]
-spp = 4
-seed = 3
-near_clip_m = 0.01
-"""
+SCENARIO = tiled_descent("dem_design", "lod = true\ntile_cells = 32\nlod_pixels = 0.01\n", [120.0, 30.0, 15.0])
 
 
 def _render(tmp_path, design: str):
-    from renderlab.pipeline import make_backend
-    from renderlab.render.mitsuba_backend import MitsubaBackend
-    from renderlab.scenario import load_scenario
-    from renderlab.worlds.base import make_plan
-
-    path = tmp_path / "dem_design.toml"
-    path.write_text(SCENARIO)
-    sc, base = load_scenario(path, [])
-    plan = make_plan(sc, base)
-    old = MitsubaBackend.tile_design
-    MitsubaBackend.tile_design = design
-    try:
-        backend = make_backend(sc, plan.static_scene, "mitsuba")
-        frames = [backend.render(spec, seed=11 + k) for k, spec in enumerate(plan.frames)]
-    finally:
-        MitsubaBackend.tile_design = old
+    backend, _, frames, plan = render_with_tile_design(tmp_path, SCENARIO, design)
     return backend, frames, plan.static_scene.tiled[0].site
 
 
