@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
-from renderlab.render.mitsuba_two_scene import register_ids
+from renderlab.render.mitsuba_two_scene import direct_sun_over, nearer_hit, register_ids
 
 
 class DemScene:
@@ -104,26 +104,8 @@ class DemScene:
 
     def first_hit(self, ray, coherent: bool = True, active=True):
         """The surface interaction of the nearer of the DEM hit and the static scene's (the DEM wins exact ties)."""
-        mi, dr = self.backend.mi, self.backend.dr
-        pd = self._dem_hit(ray, active)
-        short = type(ray)(ray)  # the static scene is searched only up to the DEM hit
-        short.maxt = dr.minimum(ray.maxt, pd.t)
-        ps = self.backend.scene.ray_intersect_preliminary(short, coherent=coherent, active=active)
-        pi = dr.select(ps.t < pd.t, ps, pd)
-        return pi.compute_surface_interaction(ray, mi.RayFlags.All, pi.is_valid())
+        return nearer_hit(self.backend, self._dem_hit(ray, active), ray, coherent, active)
 
     def direct_sun(self, sampler, ray):
         """Radiance along ``ray``: E · r(μ0, μ, g) · V (:mod:`renderlab.render.mitsuba_direct`) over DEMs + static."""
-        mi, dr = self.backend.mi, self.backend.dr
-        static = self.backend.scene
-        si = self.first_hit(ray)
-        valid = si.is_valid()
-        bsdf = si.bsdf(ray)
-        ds, em_weight = static.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
-        lit = valid & (ds.pdf != 0.0)
-        if self.shadows:
-            shadow = si.spawn_ray_to(ds.p)
-            lit &= ~self.occluded(shadow, lit)
-            lit &= ~static.ray_test(shadow, lit)
-        value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
-        return dr.select(lit, em_weight * value, 0.0)
+        return direct_sun_over(self.backend, self, sampler, ray, self.occluded)

@@ -86,30 +86,43 @@ class TileScene:
 
     def first_hit(self, ray, coherent: bool = True, active=True):
         """The surface interaction of the nearer of the two scenes' hits along ``ray`` (tiles win exact ties)."""
-        mi, dr = self.backend.mi, self.backend.dr
-        pt = self.scene.ray_intersect_preliminary(ray, coherent=coherent, active=active)
-        short = type(ray)(ray)  # the static scene is searched only up to the tile hit: Embree prunes the rest
-        short.maxt = dr.minimum(ray.maxt, pt.t)
-        ps = self.backend.scene.ray_intersect_preliminary(short, coherent=coherent, active=active)
-        pi = dr.select(ps.t < pt.t, ps, pt)
-        return pi.compute_surface_interaction(ray, mi.RayFlags.All, pi.is_valid())
+        near = self.scene.ray_intersect_preliminary(ray, coherent=coherent, active=active)
+        return nearer_hit(self.backend, near, ray, coherent, active)
 
     def direct_sun(self, sampler, ray):
         """Radiance along ``ray``: E · r(μ0, μ, g) · V (:mod:`renderlab.render.mitsuba_direct`) over both scenes."""
-        mi, dr = self.backend.mi, self.backend.dr
-        static = self.backend.scene
-        si = self.first_hit(ray)
-        valid = si.is_valid()
-        bsdf = si.bsdf(ray)
-        ds, em_weight = static.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
-        lit = valid & (ds.pdf != 0.0)
-        if self.shadows:  # the tile scene first: near the site most shadows are cast by its own relief
-            shadow = si.spawn_ray_to(ds.p)
-            lit &= ~self.scene.ray_test(shadow, lit)
-            lit &= ~static.ray_test(shadow, lit)
-        value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
-        return dr.select(lit, em_weight * value, 0.0)
+        # the tile scene's shadow test first: near the site most shadows are cast by its own relief
+        return direct_sun_over(self.backend, self, sampler, ray, self.scene.ray_test)
 
+
+def nearer_hit(backend, near, ray, coherent, active):
+    """The surface interaction of the nearer of ``near`` (a preliminary intersection with the site: tiles or DEM) and
+    the static scene's hit; the static scene is searched only up to ``near`` (Embree prunes the rest), and the site
+    wins exact ties."""
+    mi, dr = backend.mi, backend.dr
+    short = type(ray)(ray)
+    short.maxt = dr.minimum(ray.maxt, near.t)
+    ps = backend.scene.ray_intersect_preliminary(short, coherent=coherent, active=active)
+    pi = dr.select(ps.t < near.t, ps, near)
+    return pi.compute_surface_interaction(ray, mi.RayFlags.All, pi.is_valid())
+
+
+def direct_sun_over(backend, site, sampler, ray, site_occludes):
+    """Radiance along ``ray``: E · r(μ0, μ, g) · V (:mod:`renderlab.render.mitsuba_direct`) over the site
+    (``site.first_hit``; ``site_occludes(shadow_ray, active)``, tested first) and the static scene."""
+    mi, dr = backend.mi, backend.dr
+    static = backend.scene
+    si = site.first_hit(ray)
+    valid = si.is_valid()
+    bsdf = si.bsdf(ray)
+    ds, em_weight = static.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
+    lit = valid & (ds.pdf != 0.0)
+    if site.shadows:
+        shadow = si.spawn_ray_to(ds.p)
+        lit &= ~site_occludes(shadow, lit)
+        lit &= ~static.ray_test(shadow, lit)
+    value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
+    return dr.select(lit, em_weight * value, 0.0)
 
 def two_scene_capable(backend) -> bool:
     """True where the two-scene design applies: the direct-sun integrator on an LLVM variant (on a CUDA variant only
