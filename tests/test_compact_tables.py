@@ -139,3 +139,16 @@ def test_a_corrupt_record_is_one_line(tmp_path):
     (tmp_path / compact.RAW_TABLES).write_text(json.dumps({"format": "x", "tables": {}}))
     with pytest.raises(UserError, match="not a renderlab.raw_tables/1 record"):
         compact.read_raw_tables(tmp_path)
+
+
+
+def test_replacing_write_leaves_the_old_table_whole_when_it_fails(tmp_path):
+    from renderlab.files.parquet_compact import write_compact_replacing
+
+    t = _table(np.random.default_rng(2), 20)
+    p = tmp_path / "t.parquet"
+    write_compact_replacing(t, p)
+    assert p.read_bytes() == compact.compact_bytes(t) and [q.name for q in tmp_path.iterdir()] == ["t.parquet"]
+    with pytest.raises(AttributeError):  # not a table: nothing is written
+        write_compact_replacing(object(), p)
+    assert p.read_bytes() == compact.compact_bytes(t) and [q.name for q in tmp_path.iterdir()] == ["t.parquet"]

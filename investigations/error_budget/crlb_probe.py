@@ -21,12 +21,12 @@ import numpy as np
 import pyarrow as pa
 
 from renderlab.campaign.cache import cached_truthset
-from renderlab.campaign.compact import write_compact
 from renderlab.campaign.crlb import crlb_window
 from renderlab.campaign.oat_tables import TABLES
 from renderlab.campaign.reexpose import frame_sensor_options
 from renderlab.campaign.scoring import dn_variance, image_gradients, registration_crlb, template_shift_covariance
 from renderlab.errors import UserError
+from renderlab.files.parquet_compact import write_compact_replacing
 from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, onboard_photometry
 from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
@@ -156,9 +156,7 @@ def main(argv: list[str] | None = None) -> int:
         all_off = next(c for c in budget_configs(scenario.to_dict()) if c["config"] == "all_off")["scenario"]
         table = probe_table(all_off, base_dir, args.workdir, CrlbProbeOptions(high_spp=tuple(args.high_spp)))
         out = Path(args.folder) / TABLES / f"{TABLE}.parquet"
-        tmp = out.with_name(f".{out.name}.tmp")
-        write_compact(table, tmp)
-        tmp.replace(out)
+        write_compact_replacing(table, out)
         print(f"renderlab: wrote {out} ({table.num_rows} rows)")
     except UserError as err:
         print(f"renderlab: error: {err}", file=sys.stderr)

@@ -16,10 +16,10 @@ import numpy as np
 import pyarrow as pa
 
 from renderlab.campaign.cache import cached_truthset
-from renderlab.campaign.compact import write_compact
 from renderlab.campaign.oat_tables import TABLES
 from renderlab.campaign.perturb import draw_perturbation
 from renderlab.errors import UserError
+from renderlab.files.parquet_compact import write_compact_replacing
 from renderlab.files.truthset import TruthSet
 from renderlab.measurement.runner import MeasureOptions, measure_truthset
 from renderlab.scenario import load_scenario, scenario_from_dict, truth_dict
@@ -62,10 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         scenario, base_dir = load_scenario(args.scenario)
         all_off = next(c for c in budget_configs(scenario.to_dict()) if c["config"] == "all_off")
         table = probe_table(all_off["scenario"], base_dir, args.workdir)
-        out = args.folder / TABLES / f"{PROBE}.parquet"
-        tmp = out.with_name(f".{out.name}.tmp")
-        write_compact(table, tmp)
-        tmp.replace(out)
+        write_compact_replacing(table, args.folder / TABLES / f"{PROBE}.parquet")
         write_report(args.folder)
     except UserError as err:
         print(f"error: {err}", file=sys.stderr)

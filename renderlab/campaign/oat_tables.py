@@ -16,6 +16,7 @@ from pathlib import Path
 
 from renderlab.campaign import store
 from renderlab.errors import UserError
+from renderlab.files.parquet_compact import write_compact, write_compact_replacing
 
 TABLES = "tables"
 MEASUREMENTS, CONFIGS, PERTURBATIONS = "budget_measurements", "budget_configs", "budget_perturbations"
@@ -57,7 +58,6 @@ def write_tables(out: Path, configs: list[dict], measurements, perturbations, ma
                  columns: tuple[str, ...]) -> None:
     """Write the three tables (measurements: ``columns`` only) and ``budget.json`` into ``out`` (staged: all or
     nothing)."""
-    import pyarrow.parquet as pq
 
     missing = [c for c in columns if c not in measurements.column_names]
     if missing:
@@ -65,9 +65,9 @@ def write_tables(out: Path, configs: list[dict], measurements, perturbations, ma
     cfg = _config_table(configs)
     with store.staged_folder(Path(out), "the error budget") as stage:
         (stage / TABLES).mkdir()
-        pq.write_table(measurements.select(list(columns)), stage / TABLES / f"{MEASUREMENTS}.parquet")
-        pq.write_table(cfg, stage / TABLES / f"{CONFIGS}.parquet")
-        pq.write_table(perturbations, stage / TABLES / f"{PERTURBATIONS}.parquet")
+        write_compact(measurements.select(list(columns)), stage / TABLES / f"{MEASUREMENTS}.parquet")
+        write_compact(cfg, stage / TABLES / f"{CONFIGS}.parquet")
+        write_compact(perturbations, stage / TABLES / f"{PERTURBATIONS}.parquet")
         (stage / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=True) + "\n", encoding="utf-8")
 
 
@@ -163,10 +163,7 @@ def merge_tables(out: Path, configs: list[dict], meas, pert, manifest: dict, met
         add = new[name].select(keep.column_names) if name != PERTURBATIONS else new[name]
         merged[name] = pa.concat_tables([keep, add], promote_options="default")
     for name, table in merged.items():
-        path = Path(out) / TABLES / f"{name}.parquet"
-        tmp = path.with_name(f".{path.name}.tmp")
-        pq.write_table(table, tmp)
-        tmp.replace(path)
+        write_compact_replacing(table, Path(out) / TABLES / f"{name}.parquet")
     mpath = Path(out) / MANIFEST
     man = json.loads(mpath.read_text(encoding="utf-8"))
     man.setdefault("incremental", []).append({**manifest, "configs": [c["config"] for c in configs]})

@@ -15,6 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from renderlab.errors import UserError
+from renderlab.files.parquet_compact import write_compact_replacing
 from renderlab.inputs import short
 
 
@@ -96,10 +97,7 @@ def run_navigation(folder: Path, scenario_path: Path, runs: int, seed: int, work
         keep = old.filter(pc.invert(drop))
         nav = pa.concat_tables([keep, nav.select(keep.column_names)])
     for name, table in ((TABLE, nav), (RENDERED, rendered)):
-        out = Path(folder) / TABLES / f"{name}.parquet"
-        tmp = out.with_name(f".{out.name}.tmp")
-        pq.write_table(table, tmp)
-        tmp.replace(out)
+        write_compact_replacing(table, Path(folder) / TABLES / f"{name}.parquet")
     return write_report(folder)
 
 

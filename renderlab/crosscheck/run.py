@@ -15,6 +15,7 @@ from renderlab.crosscheck.figures import figure as draw
 from renderlab.crosscheck.figures import markdown_table as table
 from renderlab.errors import UserError
 from renderlab.extras import require
+from renderlab.files.parquet_compact import write_compact
 from renderlab.files.truthset import TruthSet
 from renderlab.pipeline import render_truthset
 from renderlab.render.ray_oracle import consistent, oracle_scene, pixel_truth
@@ -121,7 +122,6 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
     ``crosscheck.png`` / ``.svg`` into ``out_dir`` (truth sets in ``out_dir/truthsets/`` if ``keep_truthsets``);
     ``renderlab report out_dir`` remakes the last two (:func:`renderlab.crosscheck.figures.write_report`)."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
 
     require("bpy", "cycles", load=False)  # before out_dir is made
@@ -141,7 +141,7 @@ def run_crosscheck(scenario, base_dir: Path, out_dir: Path, *, frames: int | Non
     cols = list(FrameAgreement.__dataclass_fields__)
     table = pa.table({c: [getattr(r, c) for r in rows] for c in cols})
     table = table.replace_schema_metadata({TITLE_KEY: f"Mitsuba vs Cycles: {scenario.name}"})
-    pq.write_table(table, out_dir / TABLE)
+    write_compact(table, out_dir / TABLE)
     write_images(rows, images, out_dir)
     write_report(out_dir, out_dir)  # crosscheck.md and the figure from the two tables just written
     return rows

@@ -33,6 +33,20 @@ def write_compact(table, path) -> None:
                    use_byte_stream_split=floats or False, use_dictionary=others or False)
 
 
+def write_compact_replacing(table, path) -> None:
+    """:func:`write_compact` to a hidden sibling of ``path``, then renamed onto it: a reader never sees half a table
+    (the sibling is removed if the write fails)."""
+    from pathlib import Path
+
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        write_compact(table, tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def compact_bytes(table) -> bytes:
     """The bytes :func:`write_compact` writes for ``table``."""
     import pyarrow as pa
