@@ -152,3 +152,10 @@ def test_replacing_write_leaves_the_old_table_whole_when_it_fails(tmp_path):
     with pytest.raises(AttributeError):  # not a table: nothing is written
         write_compact_replacing(object(), p)
     assert p.read_bytes() == compact.compact_bytes(t) and [q.name for q in tmp_path.iterdir()] == ["t.parquet"]
+
+
+def test_recovery_runs_only_a_git_show_of_a_recorded_commit(tmp_path):
+    rec = {"sha256": "0" * 64, "bytes": 1, "rows": 1, "columns": ["x"], "regenerate": "-",
+           "recover": f"touch {tmp_path / 'ran'}"}
+    (tmp_path / compact.RAW_TABLES).write_text(compact.raw_tables_json({"t": rec}))
+    assert compact.recover_raw_table(tmp_path, "t") is None and not (tmp_path / "ran").exists()
