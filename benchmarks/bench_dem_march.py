@@ -1,4 +1,4 @@
-"""The DEM ray march (:mod:`renderlab.render.dem_march`) against today's tile path and Mitsuba's floor, one run.
+"""The DEM ray march (:mod:`renderlab.render.dem_march`) against the LOD tiles and Mitsuba's floor, one run.
 
 On the full EV5 scenario (``scenes/ev5_descent.toml``: 64 m site at 2 cm, a 3201² DEM, 20.5 M facets), frame
 ``--frame`` (default 1: the 171 m frame of ``bench_frame_breakdown.py --frames 4``, whose tile set is 9.6 M level-0
@@ -11,14 +11,15 @@ facets) at ``--size``², ``--spp`` spp:
   along the sun direction, as a shadow-ray epsilon);
 * **march**: primary rays (``intersect``: hit, t, cell, triangle, barycentrics, point) and shadow rays
   (``occluded``), the first call apart (kernel compilation), then ``--repeats`` timed calls;
-* **tiles (today)**: the renderer's own two-scene path (:class:`renderlab.render.mitsuba_two_scene.TileScene`):
+* **tiles**: the two-scene path (``tile_design = "two"``) (:class:`renderlab.render.mitsuba_two_scene.TileScene`):
   ``update`` from another frame's tile set to this frame's (tile meshes built for the first time, concatenation,
   upload, Embree's build), then the same primary rays (``ray_intersect_preliminary``) and shadow rays
   (``ray_test``) in the tile scene, timed like the march;
 * **floor**: a warm ``mi.render`` (Mitsuba's C++ ``direct``) of the same geometry (static bodies + this frame's tiles
   in one scene), as ``bench_frame_breakdown.py`` times it;
-* **frames**: ``Renderer.frame`` of the frame right after another frame (the tile set changes), today's design and
-  ``tile_design = "dem"`` (:mod:`renderlab.render.mitsuba_dem`), ``--repeats`` interleaved calls each;
+* **frames**: ``Renderer.frame`` of the frame right after another frame (the tile set changes), with
+  ``tile_design = "two"`` and the default, the DEM march (:mod:`renderlab.render.mitsuba_dem`), ``--repeats``
+  interleaved calls each;
 * agreement of the march with the tile scene on the same primary rays (level-0 tiles are the DEM itself); rays hit
   by one of them only are checked against the float64 ray oracle on the DEM's cells around the hit.
 
@@ -218,7 +219,7 @@ def agreement(hit, pi, site, o_s, d_s, n_check: int = 200) -> str:
 
 
 def kernels(r, args, spec, other, floor) -> None:
-    """The pyramid, the march and today's tile path on the frame's rays, against ``floor()`` timed right after."""
+    """The pyramid, the march and the two-scene tile path on the frame's rays, against ``floor()`` timed right after."""
     from renderlab.render.dem_march import DemMarch, build_pyramid, jit_module
 
     backend, _ = r.backend_for(spec)
@@ -239,7 +240,7 @@ def kernels(r, args, spec, other, floor) -> None:
     print(f"  nodes visited per primary ray: mean {it.mean():.1f}, p99 {np.percentile(it, 99):.0f}, max {it.max()}; "
           f"hits {int(np.array(hit.valid).sum())}", flush=True)
     t, pi = tile_times(backend, spec, other, ray, sun_render, args.repeats)
-    print("tiles, today's two-scene path (s): " + _fmt(t), flush=True)
+    print("tiles, the two-scene path (s): " + _fmt(t), flush=True)
     print("  " + agreement(hit, pi, site, o_s, d_s), flush=True)
     del pi, hit, ray, o_s, d_s, march
     backend._two.update(other)  # the 9.6 M-facet tile structure freed
@@ -267,8 +268,12 @@ def main() -> None:
     from bench_frame_api import _merged_backend, _sets
 
     from renderlab.pipeline.frame_api import Renderer
+    from renderlab.render.mitsuba_backend import MitsubaBackend
 
+    MitsubaBackend.tile_design = "two"  # r: the LOD tiles in a second scene, the design the march is compared with
     r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
+    r.frame(3 if args.frame != 3 else 0)  # the backend made with that design
+    MitsubaBackend.tile_design = "auto"
     spec, other = r.spec(args.frame), r.spec(3 if args.frame != 3 else 0)
     tiled = r.plan.static_scene.tiled[0]
     site = tiled.site
@@ -296,7 +301,7 @@ def main() -> None:
 
 
 def frame_times(r, args, spec, other, floor) -> dict:
-    """``Renderer.frame`` of the frame, each call right after ``other`` (the tile set changes), with today's design
+    """``Renderer.frame`` of the frame, each call right after ``other`` (the tile set changes), with tile_design = "two"
     (``r``) and with ``tile_design = "dem"`` (a second Renderer of the same scenario; its first frame, untimed, builds
     the pyramid and the site's mesh), and ``floor()``, interleaved ``--repeats`` times."""
     from bench_frame_api import _sets
@@ -304,7 +309,7 @@ def frame_times(r, args, spec, other, floor) -> dict:
     from renderlab.pipeline.frame_api import Renderer
     from renderlab.render.mitsuba_backend import MitsubaBackend
 
-    out = {"two scenes (today)": [], "dem": [], "floor": []}
+    out = {"two scenes": [], "dem (default)": [], "floor": []}
     MitsubaBackend.tile_design = "dem"
     try:
         rd = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
@@ -314,7 +319,7 @@ def frame_times(r, args, spec, other, floor) -> dict:
     finally:
         MitsubaBackend.tile_design = "auto"
     for _ in range(args.repeats):
-        for name, rr in (("two scenes (today)", r), ("dem", rd)):
+        for name, rr in (("two scenes", r), ("dem (default)", rd)):
             rr.frame(other.index)
             start = _clock()
             rr.frame(spec.index)

@@ -2,13 +2,14 @@
 
 Three measurements, one run, the load average printed before and after:
 
-* **full EV5** (``scenes/ev5_descent.toml``: 1.30 M global facets, 64 m site at 2 cm in tiles with levels of detail),
-  ``--frames`` descent frames at ``--size``², ``--spp`` spp. Per frame: ``Renderer.frame(k)`` right after the
-  previous frame (the tile set changes), the same call again (no tile change), and the floor: ``mi.render`` with
-  Mitsuba's C++ ``direct`` integrator (one emitter sample, no BSDF sample, radiance only, perspective sensor) of the
-  *same geometry* — the static bodies and this frame's tiles merged into one loaded scene — timed after a warm-up
-  call. Also the one-scene design (``MitsubaBackend.tile_design = "merged"``: the tiles written
-  into the scene that holds the asteroid, so Mitsuba rebuilds the whole structure) on the same frames.
+* **full EV5** (``scenes/ev5_descent.toml``: 1.30 M global facets, 64 m site at 2 cm, 20.5 M facets),
+  ``--frames`` descent frames at ``--size``², ``--spp`` spp. Per frame, each right after another frame:
+  ``Renderer.frame(k)`` with the default design (the full DEM marched, :mod:`renderlab.render.mitsuba_dem`: nothing
+  changes per frame), and with ``tile_design = "two"`` (the frame's LOD tiles in a second scene) twice — the tile set
+  changed, then the same tiles; and two floors, ``mi.render`` with Mitsuba's C++ ``direct`` integrator (one emitter
+  sample, no BSDF sample, radiance only, perspective sensor) timed after a warm-up call, each of the geometry one
+  design renders: the static bodies with the **full site** (``world.site.lod = false``, one loaded scene) for the
+  default, with **this frame's tiles** (merged into one loaded scene) for the tiles.
   Then the frames as ``renderlab render`` makes them (:func:`renderlab.pipeline.write_frames`: the API frame + the
   EXR (``render.exr_compression``) and PNG files, written in the loop or, the default, by the writer's background
   thread while the next frame renders; ``--repeats`` interleaved passes of each; ``--file-settings new,old``: the
@@ -67,40 +68,75 @@ def _floor(mi, backend, spec, spp: int) -> float:
     return dt
 
 
+def _with_design(design: str, make):
+    """``make()`` with ``MitsubaBackend.tile_design = design`` (the backend reads it when it is made)."""
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+
+    old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
+    try:
+        return make()
+    finally:
+        MitsubaBackend.tile_design = old
+
+
+def _full_site_backend(r):
+    """A one-scene backend of ``r``'s world with the site whole at full resolution (``world.site.lod = false``): the
+    geometry the default DEM design renders, for its floor (Embree builds its 21.8 M facets once, not timed)."""
+    from renderlab.pipeline import make_backend
+    from renderlab.pipeline.frame_api import Renderer
+
+    rf = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=[*r.overrides, "world.site.lod=false"])
+    return make_backend(rf.scenario, rf.plan.static_scene, "mitsuba")
+
+
 def full_ev5(args) -> None:
     from renderlab.pipeline.frame_api import Renderer
 
-    r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, args.frames) + args.set)
-    if args.skip_api:  # every frame once first (kernels, tile meshes), as the API part leaves them
+    sets = _sets(args.size, args.spp, args.frames) + args.set
+    r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=sets)
+    r.overrides = sets
+    if args.skip_api:  # every frame once first (kernels), as the API part leaves them
         for k in range(r.n_frames):
             r.frame(k)
         return bar_vs_sphere(args, r, r.backend.mi)
-    merged = _merged_backend(r)  # the floor's one-scene geometry
+    r.frame(0)  # the DEM design's pyramid, site mesh and kernels, once per process
+    rt = _with_design("two", lambda: Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=sets))
+    _with_design("two", lambda: rt.frame(r.n_frames - 1))
+    merged = _merged_backend(r)  # the LOD floor's one-scene geometry (static bodies + the frame's tiles)
+    full = _full_site_backend(r)  # the default design's geometry (static bodies + the full site)
     mi = merged.mi
     rows = []
     for k, spec in enumerate(r.plan.frames):
+        r.frame((k - 1) % r.n_frames)
         t0 = time.perf_counter()
         r.frame(k)
+        t_dem = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        rt.frame(k)
         t_change = time.perf_counter() - t0
         t0 = time.perf_counter()
-        r.frame(k)
+        rt.frame(k)
         t_same = time.perf_counter() - t0
-        t0 = time.perf_counter()
         merged._set_sun(spec)
-        merged.render(spec, seed=k)
-        t_merged = time.perf_counter() - t0  # one-scene design, tile set changed
         floor = _floor(mi, merged, spec, args.spp)
+        full._set_sun(spec)
+        floor_full = _floor(mi, full, spec, args.spp)
         alt = r.plan.frame_meta(spec, r.plan.static_scene)["ev5"]["altitude_m"]
-        rows.append((alt, t_change, t_same, t_merged, floor))
-        print(f"  frame {k} ({alt:6.0f} m): API {t_change:.2f} s (tiles changed), {t_same:.2f} s (same tiles); "
-              f"one-scene {t_merged:.2f} s; mi.render direct {floor:.2f} s; ratios {t_change / floor:.2f}x / "
-              f"{t_same / floor:.2f}x / one-scene {t_merged / floor:.2f}x", flush=True)
+        rows.append((alt, t_dem, t_change, t_same, floor, floor_full))
+        print(f"  frame {k} ({alt:6.0f} m): default (DEM march) {t_dem:.2f} s; LOD tiles in a second scene "
+              f"{t_change:.2f} s (tiles changed), {t_same:.2f} s (same tiles); mi.render direct of the full site "
+              f"{floor_full:.2f} s, of the frame's tiles {floor:.2f} s; ratios: DEM / full-site floor "
+              f"{t_dem / floor_full:.2f}x, DEM / tiles floor {t_dem / floor:.2f}x, tiles / tiles floor "
+              f"{t_change / floor:.2f}x (changed), {t_same / floor:.2f}x (same)", flush=True)
     a = np.array(rows)
-    print(f"full EV5 {args.size}², {args.spp} spp {' '.join(args.set)}, {len(rows)} frames (frame 0 includes the first "
-          "kernel builds):")
-    for label, col in (("API, tiles changed", 1), ("API, same tiles", 2), ("one-scene design, tiles changed", 3)):
-        rat = a[1:, col] / a[1:, 4] if len(a) > 1 else a[:, col] / a[:, 4]
-        print(f"  {label:34s} / mi.render direct: median {np.median(rat):.2f}x, max {rat.max():.2f}x (frames 1..)")
+    print(f"full EV5 {args.size}², {args.spp} spp {' '.join(args.set)}, {len(rows)} frames, each right after another "
+          "frame (frame 0 after the last):")
+    for label, col, fl in (("default (DEM) / full-site floor", 1, 5), ("default (DEM) / tiles floor", 1, 4),
+                           ("two scenes, tiles changed / tiles floor", 2, 4),
+                           ("two scenes, same tiles / tiles floor", 3, 4)):
+        rat = a[:, col] / a[:, fl]
+        print(f"  {label:40s}: per frame {np.round(rat, 2).tolist()}, median {np.median(rat):.2f}x, "
+              f"max {rat.max():.2f}x")
     bar_vs_sphere(args, r, mi)
 
 

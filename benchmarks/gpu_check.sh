@@ -13,7 +13,10 @@
 #   5. frame files written by the background writer equal the sequential ones on CUDA (tests/test_background_writes.py),
 #      and where a full EV5 frame's time goes on the GPU (benchmarks/bench_frame_breakdown.py, 1024², 16 spp, 4 frames:
 #      is the tile scene's structure build of the 171 m frame, seconds on 2 CPU cores, still the largest stage?), and
-#      that frame's 9.6 M tile facets built flat vs as a shapegroup + instance (benchmarks/bench_tile_structure_build.py).
+#      that frame's 9.6 M tile facets built flat vs as a shapegroup + instance (benchmarks/bench_tile_structure_build.py);
+#   6. the DEM march (the LLVM default for tiled sites, renderlab/render/mitsuba_dem.py) forced on CUDA
+#      (RENDERLAB_MITSUBA_TILE_DESIGN=dem: one OptiX scene plus the Dr.Jit march in one kernel): its tests, then
+#      benchmarks/bench_dem_march.py on the 171 m frame (march vs tiles vs mi.render on the GPU).
 # Needs the project environment (./setup.sh) and a CUDA driver. Figures go to $OUT (default $TMPDIR/renderlab_gpu_check);
 # exit status 0 when everything passed, 1 when a step failed, 2 when there is no usable GPU.
 # Run from anywhere:  bash benchmarks/gpu_check.sh        (about 10 minutes, more when the EV5 world is not cached yet; each step has its own timeout)
@@ -50,5 +53,8 @@ step background_writes_cuda 120 env RENDERLAB_MITSUBA_DEVICE=cuda $PY -m pytest 
   tests/test_background_writes.py
 step frame_breakdown_cuda 600 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_frame_breakdown.py --frames 4
 step tile_structure_build_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_tile_structure_build.py --repeats 1
+step dem_on_cuda 300 env RENDERLAB_MITSUBA_DEVICE=cuda RENDERLAB_MITSUBA_TILE_DESIGN=dem $PY -m pytest -q \
+  -p no:cacheprovider tests/test_mitsuba_dem.py tests/test_frame_api.py
+step dem_march_bench_cuda 400 env RENDERLAB_MITSUBA_DEVICE=cuda $PY benchmarks/bench_dem_march.py --frame 1 --repeats 2
 echo "gpu_check: $([ $status = 0 ] && echo PASSED || echo FAILED); figures in $OUT/"
 exit $status

@@ -243,8 +243,11 @@ SCENARIO = {
 }
 
 
-def _render_frames(lod: bool, lod_pixels: float = 1.0):
+def _render_frames(lod: bool, lod_pixels: float = 1.0, design: str = "two"):
+    """The plan and frames of SCENARIO with ``world.site.lod`` and Mitsuba's ``tile_design`` (``"two"``: the LOD
+    tiles these tests are about; ``"auto"``: the default, the full DEM marched)."""
     from renderlab.pipeline import make_backend
+    from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.ev5 import make_plan
 
@@ -252,13 +255,34 @@ def _render_frames(lod: bool, lod_pixels: float = 1.0):
     d["world"]["site"].update(lod=lod, lod_pixels=lod_pixels)
     sc = scenario_from_dict(d)
     plan = make_plan(sc, ".")
-    backend = make_backend(sc, plan.static_scene, "mitsuba")
+    old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
+    try:
+        backend = make_backend(sc, plan.static_scene, "mitsuba")
+    finally:
+        MitsubaBackend.tile_design = old
     return plan, [backend.render(spec, seed=7) for spec in plan.frames]
 
 
 @pytest.fixture(scope="module")
 def renders(cache_env):
-    return {"full": _render_frames(False), "lod": _render_frames(True), "coarse": _render_frames(True, 8.0)}
+    return {"full": _render_frames(False), "lod": _render_frames(True), "coarse": _render_frames(True, 8.0),
+            "default": _render_frames(True, design="auto")}
+
+
+def test_default_design_renders_the_full_dem_and_records_it(renders):
+    """Mitsuba's default for a tiled site on LLVM marches the full DEM (renderlab.render.mitsuba_dem): at 100 m,
+    where the tiles would be at level 1, the frame equals the untiled full-resolution site (Embree on its 2 facets
+    per cell) but at shared-edge ties, and the manifest records the full DEM with no height error."""
+    plan, dem = renders["default"]
+    _, full = renders["full"]
+    meta = plan.frame_meta(plan.frames[0], plan.static_scene)["ev5"]["lod"]
+    assert meta["tracer"] == "dem_march" and meta["tiles"] == 0 and meta["max_height_error_m"] == 0.0
+    assert meta["n_faces"] == 2 * (plan.model.site.n - 1) ** 2
+    for a, b in zip(dem, full):
+        assert np.count_nonzero(a.body_id != b.body_id) <= 3
+        same = (a.body_id == b.body_id) & (a.body_id >= 0)
+        assert np.abs(a.range_m - b.range_m)[same].max() <= 1e-4
+        assert np.count_nonzero(~np.isclose(a.radiance, b.radiance, rtol=1e-4, atol=1e-4)) <= 0.001 * a.radiance.size
 
 
 def _range_error_in_gsd(a, b, spec):

@@ -287,6 +287,10 @@ class DemMarch:
             t_hit = dr.select(found, th, t_hit)
             tri, fx, fy = dr.select(found, trh, tri), dr.select(found, fxh, fx), dr.select(found, fyh, fy)
             down = can & (L > 0)
+            # a descending ray cannot meet the node's triangles before its height falls to the node's maximum: the
+            # descent starts there (t_top ≤ t_exit, since z(t_exit) ≤ max + slack; fewer children visited)
+            t_top = dr.select(dz < 0, (m + self.slack - oz) / dz, t)
+            t = dr.select(down, dr.clip(t_top, t, t_exit), t)
             # descend: the child holding the ray at t (clamped into the node; a wrong pick on a boundary has an
             # empty interval and steps into its sibling)
             c = L - 1

@@ -48,7 +48,7 @@ from renderlab.render.mitsuba_direct import integrator_dict, register_direct_sun
 from renderlab.render.mitsuba_numpy_path import NumpyRayPath, subpixel_offsets  # noqa: F401  (re-exported)
 from renderlab.render.mitsuba_rays import MAX_SAMPLES_PER_PASS, CameraRays, FramePose, aligned_f32, pass_sizes
 from renderlab.render.mitsuba_tiles import TileScenes
-from renderlab.render.mitsuba_two_scene import TileScene, register_ids, two_scene_capable
+from renderlab.render.mitsuba_two_scene import TileScene, register_ids, site_design
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
 from renderlab.render.variant import init_mitsuba
 
@@ -88,11 +88,12 @@ class MitsubaBackend(NumpyRayPath):
     #: ``"auto"``: ``rl_direct_sun`` (renderlab.render.mitsuba_direct) for max_depth 2, else ``path``;
     #: ``"path"``: Mitsuba's ``path`` integrator (the lab's before ``rl_direct_sun``), kept for the benchmarks
     integrator = "auto"
-    #: tiled surfaces: ``"auto"``, in a second scene where the design applies (LLVM variants with the direct-sun
-    #: integrator; renderlab.render.mitsuba_two_scene); ``"two"``, a second scene on CUDA variants too (not yet
-    #: checked on a GPU: benchmarks/gpu_check.sh does); ``"merged"``, in the one scene (the design before; kept for the
-    #: benchmarks and the side-by-side tests); ``"dem"``, the full DEMs traced by the pyramid march beside the static
-    #: scene (renderlab.render.mitsuba_dem: opt-in); ``$RENDERLAB_MITSUBA_TILE_DESIGN`` sets the default
+    #: tiled surfaces (renderlab.render.mitsuba_two_scene.site_design): ``"auto"``, the full DEMs marched beside the
+    #: static scene where the design applies (LLVM variants with the direct-sun integrator;
+    #: renderlab.render.mitsuba_dem), else in the one scene; ``"dem"``, that design on CUDA variants too (not yet
+    #: checked on a GPU: benchmarks/gpu_check.sh does); ``"two"``, the frame's LOD tiles in a second scene
+    #: (renderlab.render.mitsuba_two_scene); ``"merged"``, the tiles in the one scene (the first design; kept for the
+    #: benchmarks and the side-by-side tests); ``$RENDERLAB_MITSUBA_TILE_DESIGN`` sets the default
     tile_design = os.environ.get("RENDERLAB_MITSUBA_TILE_DESIGN") or "auto"
     #: largest wavefront of the Dr.Jit path (samples); more spp are rendered in passes of whole spp
     samples_per_pass = MAX_SAMPLES_PER_PASS
@@ -127,11 +128,14 @@ class MitsubaBackend(NumpyRayPath):
         self._tiles = self._two = None
         if scene.tiled:  # the frame's tiles, chosen before each frame (_set_sun)
 
-            if two_scene_capable(self) and self.tile_design == "dem":  # marched DEMs: nothing built per frame
+            design = site_design(self)
+            for surf in scene.tiled:  # what the manifest records for the surface (renderlab.contracts.tiled)
+                surf.traced_whole = design == "dem"
+            if design == "dem":  # the full DEMs marched: nothing built per frame, full resolution
                 self._tiles = self._two = DemScene(self, scene.tiled, settings.shadows)
-            elif two_scene_capable(self):  # a second scene: the static bodies' structure is never rebuilt
+            elif design == "two":  # the frame's tiles in a second scene: the static bodies' structure is never rebuilt
                 self._tiles = self._two = TileScene(self, scene.tiled, settings.shadows)
-            else:  # merged into the one scene (scalar variants, Mitsuba's path integrator)
+            else:  # merged into the one scene (scalar and CUDA variants, Mitsuba's path integrator)
                 self._tiles = TileScenes(self, desc, keys, scene.tiled)
 
     def _load(self, desc: dict, keys: dict) -> None:

@@ -19,9 +19,12 @@ per site. Per ray:
 
 Tuning
 ------
-None. Opt-in: ``MitsubaBackend.tile_design = "dem"`` (``$RENDERLAB_MITSUBA_TILE_DESIGN=dem``) on LLVM variants with
-the direct-sun integrator. Not yet the default: the frame's manifest still records the tile levels the LOD path
-would have used (``ev5.lod``), while this design renders level 0.
+None. The default for tiled surfaces on LLVM variants with the direct-sun integrator
+(:func:`renderlab.render.mitsuba_two_scene.site_design`; ``$RENDERLAB_MITSUBA_TILE_DESIGN=two`` or ``merged``
+choose the LOD tiles instead). The backend marks each surface ``traced_whole``, so the frame's manifest records the
+full DEM (``ev5.lod``: ``tracer = "dem_march"``, no tiles, no height error). Against the LOD tiles it also traces
+what they miss: relief outside the frustum casting shadows into it, and rays that slip through Embree's float32
+shared tile edges onto the body underneath (``benchmarks/bench_dem_march.py`` counts them).
 
 Use
 ---

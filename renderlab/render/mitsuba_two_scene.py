@@ -26,11 +26,11 @@ intersected with both:
 
 Tuning
 ------
-None. :class:`renderlab.render.mitsuba_backend.MitsubaBackend` uses this design for every tiled scene rendered by
-an LLVM variant with the direct-sun integrator (``render.max_depth = 2``, the default); longer light paths
-(Mitsuba's ``path`` integrator), scalar variants and, until checked on a GPU, CUDA variants keep the tiles in the one
-scene (:mod:`renderlab.render.mitsuba_tiles`); ``MitsubaBackend.tile_design`` (``$RENDERLAB_MITSUBA_TILE_DESIGN``)
-chooses explicitly.
+None. :class:`renderlab.render.mitsuba_backend.MitsubaBackend` uses this design where ``tile_design = "two"``
+(``$RENDERLAB_MITSUBA_TILE_DESIGN``; :func:`site_design`). The default for tiled scenes on LLVM variants with the
+direct-sun integrator is the DEM march (:mod:`renderlab.render.mitsuba_dem`), which builds nothing per frame and
+traces the site at full resolution; this design stays for CUDA variants (once checked on a GPU) and for the
+side-by-side tests and benchmarks.
 
 Use
 ---
@@ -124,19 +124,26 @@ def direct_sun_over(backend, site, sampler, ray, site_occludes):
     value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
     return dr.select(lit, em_weight * value, 0.0)
 
-def two_scene_capable(backend) -> bool:
-    """True where the two-scene design applies: the direct-sun integrator on an LLVM variant (on a CUDA variant only
-    with ``tile_design = "two"``: OptiX traces one scene per kernel launch in Mitsuba's CUDA back end unless shown
-    otherwise on a device), and ``tile_design`` not ``"merged"``."""
+def site_design(backend) -> str:
+    """How ``backend`` traces tiled surfaces: ``"dem"`` (the full-resolution DEM marched beside the static scene,
+    :mod:`renderlab.render.mitsuba_dem`: the default where it applies), ``"two"`` (the frame's tiles in a second
+    scene, this module) or ``"merged"`` (the tiles in the one scene, :mod:`renderlab.render.mitsuba_tiles`).
+
+    The two designs beside the static scene need the direct-sun integrator on a JIT variant; on a CUDA variant they
+    are taken only when asked for (``tile_design = "dem"`` or ``"two"``: whether OptiX traces two scenes in one
+    kernel is not yet checked on a device, ``benchmarks/gpu_check.sh``); scalar variants and Mitsuba's ``path``
+    integrator merge."""
     design = getattr(backend, "tile_design", "auto")
     if design not in ("auto", "two", "merged", "dem"):
-        raise UserError(f"Mitsuba tile design ($RENDERLAB_MITSUBA_TILE_DESIGN) must be auto, two, merged or dem, "
+        raise UserError(f"Mitsuba tile design ($RENDERLAB_MITSUBA_TILE_DESIGN) must be auto, dem, two or merged, "
                         f"got {str(design)[:40]!r}")
     if design == "merged" or backend.scalar:
-        return False
-    if backend.variant.startswith("cuda") and design != "two":
-        return False
-    return integrator_dict(backend.settings.max_depth, backend.settings.shadows, backend.integrator)["type"] != "path"
+        return "merged"
+    if backend.variant.startswith("cuda") and design == "auto":
+        return "merged"
+    if integrator_dict(backend.settings.max_depth, backend.settings.shadows, backend.integrator)["type"] == "path":
+        return "merged"
+    return "dem" if design == "auto" else design
 
 
 def register_ids(id_lut: np.ndarray, reg: np.ndarray, body_ids: list[int]) -> np.ndarray:

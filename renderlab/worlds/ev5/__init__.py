@@ -195,7 +195,7 @@ def make_plan(scenario, base_dir: Path):
             bodies = {b.name: b.state() for b in scene.bodies}
             for t in scene.tiled:  # the tiles and levels this frame rendered (renderlab.worlds.ev5.tiles)
                 bodies[t.name] = t.state()
-                ev5["lod"] = t.lod_summary(t.select(spec.camera, spec.pose))
+                ev5["lod"] = t.lod_summary([] if t.traced_whole else t.select(spec.camera, spec.pose))
             return {"bodies": bodies, **epoch, "ev5": ev5}
 
         def write_static(self, writer):

@@ -75,7 +75,8 @@ class EV5Site(Strict):
     lod: bool | Literal["auto"] = Field(
         "auto", description="Render the site as tiles with levels of detail, only those in the frustum (true); the "
         "full-resolution DEM in every frame (false: exact, its acceleration structure built once); auto: whole up to "
-        "static_max_facets, tiles above")
+        "static_max_facets, tiles above. Mitsuba's LLVM variants trace a tiled site whole at full resolution by a "
+        "DEM ray march (exact, nothing built per frame; $RENDERLAB_MITSUBA_TILE_DESIGN=two for the tiles)")
     static_max_facets: Annotated[int, Field(ge=0, le=10**9)] = Field(
         4_000_000, description="With lod = auto: the largest site rendered whole (2 facets per DEM cell) [facets]")
     tile_cells: Annotated[int, Field(ge=2, le=4096)] = Field(128, description="Tile side in DEM cells, a power of "

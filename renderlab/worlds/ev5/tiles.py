@@ -38,6 +38,10 @@ site pixels (measured on the tiny test world at 100 m, level 1: median 0.002, p9
 with lod_pixels = 8: p99 0.85, which the test rejects). That is far inside the occlusion tolerance of
 :mod:`renderlab.worlds.ev5.landmark_truth` (max(spacing, 3 GSD)), so visibility flags do not depend on the
 level; ``aov_offset_m`` includes the level's height error (bounded per frame by ``ev5.lod.max_height_error_m``).
+
+Who uses the tiles: Mitsuba's ``tile_design = "two"`` and ``"merged"`` (and its CUDA variants). Its default on LLVM
+variants marches the full DEM instead (:mod:`renderlab.render.mitsuba_dem`) and marks the surface
+``traced_whole``; :meth:`TiledSite.lod_summary` then records the full DEM, with no height error.
 """
 
 from __future__ import annotations
@@ -128,6 +132,7 @@ class TiledSite:
                 t = h[e[r]:e[r + 1] + 1, e[c]:e[c + 1] + 1]
                 self.zrange[r, c] = float(t.min()), float(t.max())
         self._err: dict[tuple[int, int, int], tuple[float, float]] = {}
+        self.traced_whole = False  # set by a backend that marches the full DEM (renderlab.contracts.tiled)
         self._border: dict[tuple[int, int, int], float] = {}  # border bounds of the levels below a tile's own
 
     # ------------------------------------------------------------------ geometry of the tiles
@@ -267,7 +272,11 @@ class TiledSite:
         return out
 
     def lod_summary(self, keys: list[TileKey]) -> dict:
-        """What a frame rendered: tiles per level, facets (skirts included), the largest height error bound."""
+        """What a frame rendered: tiles per level, facets (skirts included), the largest height error bound; where
+        the backend traced the full DEM (``traced_whole``), that: no tiles, every facet, no height error."""
+        if self.traced_whole:
+            return {"tracer": "dem_march", "tiles": 0, "levels": {}, "n_faces": 2 * (self.site.n - 1) ** 2,
+                    "max_height_error_m": 0.0, "cell_m": self.site.cell_m}
         levels: dict[str, int] = {}
         n_faces = 0
         err = 0.0
