@@ -265,13 +265,15 @@ class DemMarch:
         t_hi = (J.Float(dr.inf) if t_max is None else J.Float(t_max)) - t0
         t1 = t1 - t0
         zero = dr.zeros(J.Int32, dr.width(ok))  # per-ray integers (the state has the rays' width)
-        state = (ok, J.Bool(False), J.Float(0.0) + J.Float(zero), I0 + zero, J0 + zero, L0 + zero, zero,
-                 J.Float(dr.inf), zero, J.Float(0.0), J.Float(0.0))
+        # the nearest hit carries its t, triangle and position in the cell; a shadow ray (any hit) only its flag:
+        # a smaller loop state (fewer registers live across the loop inside the renderer's kernel)
+        extra = (J.Float(dr.inf), zero, J.Float(0.0), J.Float(0.0)) if nearest else ()
+        state = (ok, J.Bool(False), J.Float(0.0) + J.Float(zero), I0 + zero, J0 + zero, L0 + zero, zero, *extra)
 
-        def cond(active, hit, t, I, J_, L, it, t_hit, tri, fx, fy):
+        def cond(active, *_):
             return active
 
-        def body(active, hit, t, I, J_, L, it, t_hit, tri, fx, fy):
+        def body(active, hit, t, I, J_, L, it, *extra):
             t_exit, across_u, last = self._node_exit(ray, I, J_, L, t1)
             z_lo = dr.minimum(oz + t * dz, oz + t_exit * dz)
             m = dr.gather(J.Float, self.maxima, dr.gather(J.Int32, self.offsets, L, active) + J_
@@ -280,12 +282,16 @@ class DemMarch:
             leaf = can & (L == 0)
             zf, zi = J.Float(0.0) * t, J.Int32(0) * I
             # the triangle tests as a branch: a SIMD packet with no lane at a reached leaf skips them (1.5x faster)
-            found, th, trh, fxh, fyh = dr.if_stmt(
-                (I, J_, leaf), leaf, lambda I, J_, leaf: self._cell_hit(ray, I, J_, t_lo, t_hi, leaf),
-                lambda I, J_, leaf: (leaf & False, zf + dr.inf, zi, zf, zf))
+            if nearest:
+                found, th, trh, fxh, fyh = dr.if_stmt(
+                    (I, J_, leaf), leaf, lambda I, J_, leaf: self._cell_hit(ray, I, J_, t_lo, t_hi, leaf),
+                    lambda I, J_, leaf: (leaf & False, zf + dr.inf, zi, zf, zf))
+                extra = tuple(dr.select(found, new, old) for new, old in zip((th, trh, fxh, fyh), extra))
+            else:
+                found = dr.if_stmt((I, J_, leaf), leaf,
+                                   lambda I, J_, leaf: self._cell_hit(ray, I, J_, t_lo, t_hi, leaf)[0],
+                                   lambda I, J_, leaf: leaf & False)
             hit = hit | found
-            t_hit = dr.select(found, th, t_hit)
-            tri, fx, fy = dr.select(found, trh, tri), dr.select(found, fxh, fx), dr.select(found, fyh, fy)
             down = can & (L > 0)
             # a descending ray cannot meet the node's triangles before its height falls to the node's maximum: the
             # descent starts there (t_top ≤ t_exit, since z(t_exit) ≤ max + slack; fewer children visited)
@@ -312,15 +318,14 @@ class DemMarch:
                 | (Jn >= self._count(self.ny, Ln))
             it = it + J.Int32(active)
             active = active & ~found & ~(step & (last | outside)) & (it < self.max_iterations)
-            return active, hit, t, In, Jn, Ln, it, t_hit, tri, fx, fy
+            return active, hit, t, In, Jn, Ln, it, *extra
 
-        labels = ("active", "hit", "t", "I", "J", "L", "it", "t_hit", "tri", "fx", "fy")
-        _, hit, _, I, J_, _, it, t_hit, tri, fx, fy = dr.while_loop(state, cond, body, labels=labels,
-                                                                 label="dem_march")
-        t_rel = t_hit
+        labels = ("active", "hit", "t", "I", "J", "L", "it") + (("t_hit", "tri", "fx", "fy") if nearest else ())
+        _, hit, _, I, J_, _, it, *extra = dr.while_loop(state, cond, body, labels=labels, label="dem_march")
+        if not nearest:  # where a shadow ray is blocked, not by what
+            return MarchHit(hit, None, I, J_, None, None, None, None, it)
+        t_rel, tri, fx, fy = extra
         t_hit = dr.select(hit, t0 + t_rel, dr.inf)
-        if not nearest:
-            return MarchHit(hit, t_hit, I, J_, tri, None, None, None, it)
         b1 = dr.select(tri == 0, fx - fy, fx)
         b2 = dr.select(tri == 0, fy, fy - fx)
         p = self.pyr
