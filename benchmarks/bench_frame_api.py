@@ -107,27 +107,33 @@ def full_ev5(args) -> None:
     mi = merged.mi
     rows = []
     for k, spec in enumerate(r.plan.frames):
-        r.frame((k - 1) % r.n_frames)
-        t0 = time.perf_counter()
-        r.frame(k)
-        t_dem = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        rt.frame(k)
-        t_change = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        rt.frame(k)
-        t_same = time.perf_counter() - t0
-        merged._set_sun(spec)
-        floor = _floor(mi, merged, spec, args.spp)
-        full._set_sun(spec)
-        floor_full = _floor(mi, full, spec, args.spp)
+        reps = []
+        for _ in range(args.repeats):  # interleaved; the median of each is kept
+            r.frame((k - 1) % r.n_frames)
+            t0 = time.perf_counter()
+            r.frame(k)
+            t_dem = time.perf_counter() - t0
+            rt.frame((k - 1) % r.n_frames)
+            t0 = time.perf_counter()
+            rt.frame(k)
+            t_change = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            rt.frame(k)
+            t_same = time.perf_counter() - t0
+            merged._set_sun(spec)
+            floor = _floor(mi, merged, spec, args.spp)
+            full._set_sun(spec)
+            floor_full = _floor(mi, full, spec, args.spp)
+            reps.append((t_dem, t_change, t_same, floor, floor_full))
+        t_dem, t_change, t_same, floor, floor_full = np.median(np.array(reps), axis=0)
         alt = r.plan.frame_meta(spec, r.plan.static_scene)["ev5"]["altitude_m"]
         rows.append((alt, t_dem, t_change, t_same, floor, floor_full))
-        print(f"  frame {k} ({alt:6.0f} m): default (DEM march) {t_dem:.2f} s; LOD tiles in a second scene "
-              f"{t_change:.2f} s (tiles changed), {t_same:.2f} s (same tiles); mi.render direct of the full site "
-              f"{floor_full:.2f} s, of the frame's tiles {floor:.2f} s; ratios: DEM / full-site floor "
+        print(f"  frame {k} ({alt:6.0f} m), median of {args.repeats}: default (DEM march) {t_dem:.2f} s; LOD tiles in a "
+              f"second scene {t_change:.2f} s (tiles changed), {t_same:.2f} s (same tiles); mi.render direct of the "
+              f"full site {floor_full:.2f} s, of the frame's tiles {floor:.2f} s; ratios: DEM / full-site floor "
               f"{t_dem / floor_full:.2f}x, DEM / tiles floor {t_dem / floor:.2f}x, tiles / tiles floor "
-              f"{t_change / floor:.2f}x (changed), {t_same / floor:.2f}x (same)", flush=True)
+              f"{t_change / floor:.2f}x (changed), {t_same / floor:.2f}x (same); each run (s): "
+              f"{np.round(np.array(reps), 2).tolist()}", flush=True)
     a = np.array(rows)
     print(f"full EV5 {args.size}², {args.spp} spp {' '.join(args.set)}, {len(rows)} frames, each right after another "
           "frame (frame 0 after the last):")
@@ -317,7 +323,8 @@ def main() -> None:
     ap.add_argument("--skip-full", action="store_true")
     ap.add_argument("--skip-descent", action="store_true")
     ap.add_argument("--skip-api", action="store_true", help="full EV5: only the renderlab-render bar")
-    ap.add_argument("--repeats", type=int, default=2, help="renderlab-render passes per file mode (interleaved)")
+    ap.add_argument("--repeats", type=int, default=2,
+                    help="full EV5: interleaved timings per frame (median), and renderlab-render passes per file mode")
     ap.add_argument("--compressions", default="zip", help="renderlab-render bar: EXR compressions, e.g. zip,none")
     ap.add_argument("--file-settings", default="new",
                     help="renderlab-render bar: the files' zlib settings, new and/or old (before: ZIP level 4, PNG 3)")
