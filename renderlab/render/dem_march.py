@@ -16,7 +16,8 @@ The ray is clipped to the DEM's bounding box and starts at the pyramid's top nod
 footprint entered at t and left at t_exit (ray–box slab test, Kay & Kajiya 1986)::
 
     z_lo = min(z(t), z(t_exit))      (the ray is straight: its lowest point over the footprint)
-    z_lo ≤ max + slack, level > 0  → descend into the child containing the ray at t
+    z_lo ≤ max + slack, level > 0  → advance t to where z(t) falls to max (descending rays), then descend
+                                     into the descendant (``descent_levels`` down) containing the ray at t
     z_lo ≤ max + slack, level 0    → exact test of the cell's two triangles; the nearer hit ends the march
     otherwise (or no hit)          → step to the neighbour across the exit face; ascend one level when it has
                                      another parent
@@ -34,6 +35,12 @@ Tuning
 ``slack_m`` (default 1e-4 m): added to each node maximum so that float32 rounding of z(t) cannot skip a node (costs
 a few extra descents). ``edge_eps`` (default 1e-5 cells): the triangle overlap above. ``max_iterations``: a
 safety cap on the loop (a ray that reaches it is reported as a miss and counted in ``iterations``).
+``descent_levels`` (default 2): a node the ray may meet is entered ``descent_levels`` levels down at once, at the
+descendant holding the ray where its height falls to the node's maximum (exact either way: every node's maximum
+bounds its own triangles; it trades the intermediate level's pruning for fewer iterations). On the full EV5 site,
+2 instead of 1 takes the mean nodes per camera ray at 1000 / 171 / 5 m from 14.0 / 11.0 / 6.8 to 10.2 / 7.2 / 4.2
+(512², 4 spp) and the Mitsuba backend's render of those frames at 1024², 16 spp from 1.21 / 1.76 / 1.10 s to
+1.12 / 1.52 / 1.00 s (medians of 3, runs side by side, load 1.2–1.6); 3 was no faster than 2.
 
 Use
 ---
@@ -150,10 +157,12 @@ class DemMarch:
         See Tuning.
     max_iterations : int, optional
         Default 8·(nx + ny) + 16·levels.
+    descent_levels : int
+        Levels a descent goes down at once (default 2: into the grandchild holding the ray; see Tuning).
     """
 
     def __init__(self, pyramid: HeightPyramid, jit=None, slack_m: float = 1e-4, edge_eps: float = 1e-5,
-                 max_iterations: int | None = None):
+                 max_iterations: int | None = None, descent_levels: int = 2):
         import drjit as dr
 
         self.dr, self.jit = dr, jit if jit is not None else jit_module()
@@ -162,6 +171,9 @@ class DemMarch:
         self.nx, self.ny = nx, ny
         self.top = pyramid.levels - 1
         self.slack, self.edge_eps = float(slack_m), float(edge_eps)
+        self.descent = int(descent_levels)
+        if self.descent < 1:
+            raise UserError(f"DEM march descent_levels must be ≥ 1, got {descent_levels!r}")
         self.max_iterations = int(max_iterations or 8 * (nx + ny) + 16 * pyramid.levels)
         J = self.jit
         self.heights = J.Float(pyramid.heights.ravel())
@@ -299,11 +311,12 @@ class DemMarch:
             t = dr.select(down, dr.clip(t_top, t, t_exit), t)
             # descend: the child holding the ray at t (clamped into the node; a wrong pick on a boundary has an
             # empty interval and steps into its sibling)
-            c = L - 1
+            k = dr.minimum(L, self.descent)  # levels skipped per descent
+            c = L - k
             cu = J.Int32(dr.floor(ou + t * du)) >> c
             cv = J.Int32(dr.floor(ov + t * dv)) >> c
-            cu = dr.clip(cu, 2 * I, dr.minimum(2 * I + 1, self._count(self.nx, c) - 1))
-            cv = dr.clip(cv, 2 * J_, dr.minimum(2 * J_ + 1, self._count(self.ny, c) - 1))
+            cu = dr.clip(cu, I << k, dr.minimum(((I + 1) << k) - 1, self._count(self.nx, c) - 1))
+            cv = dr.clip(cv, J_ << k, dr.minimum(((J_ + 1) << k) - 1, self._count(self.ny, c) - 1))
             step = active & ~found & ~down
             su = dr.select(du > 0, J.Int32(1), J.Int32(-1))
             sv = dr.select(dv > 0, J.Int32(1), J.Int32(-1))
