@@ -262,6 +262,19 @@ class DemMarch:
             best_fx, best_fy = dr.select(ok, fx, best_fx), dr.select(ok, fy, best_fy)
         return dr.isfinite(best_t), best_t, best_tri, best_fx, best_fy
 
+    def _descendant(self, ray, I, J_, L, t):
+        """The node ``descent_levels`` (at most L) below node (I, J_) at level L that holds the ray at t: (I, J, level)
+        (clamped into the node; a wrong pick on a boundary has an empty interval and steps into its sibling)."""
+        dr, J = self.dr, self.jit
+        ou, ov, _, du, dv = ray[:5]
+        k = dr.minimum(L, self.descent)
+        c = L - k
+        cu = J.Int32(dr.floor(ou + t * du)) >> c
+        cv = J.Int32(dr.floor(ov + t * dv)) >> c
+        cu = dr.clip(cu, I << k, dr.minimum(((I + 1) << k) - 1, self._count(self.nx, c) - 1))
+        cv = dr.clip(cv, J_ << k, dr.minimum(((J_ + 1) << k) - 1, self._count(self.ny, c) - 1))
+        return cu, cv, c
+
     def _march(self, o, d, t_max, t_min, nearest: bool) -> MarchHit:
         dr, J = self.dr, self.jit
         ray, t0, t1, ok = self._setup(o, d, t_max, t_min)
@@ -309,14 +322,7 @@ class DemMarch:
             # descent starts there (t_top ≤ t_exit, since z(t_exit) ≤ max + slack; fewer children visited)
             t_top = dr.select(dz < 0, (m + self.slack - oz) / dz, t)
             t = dr.select(down, dr.clip(t_top, t, t_exit), t)
-            # descend: the child holding the ray at t (clamped into the node; a wrong pick on a boundary has an
-            # empty interval and steps into its sibling)
-            k = dr.minimum(L, self.descent)  # levels skipped per descent
-            c = L - k
-            cu = J.Int32(dr.floor(ou + t * du)) >> c
-            cv = J.Int32(dr.floor(ov + t * dv)) >> c
-            cu = dr.clip(cu, I << k, dr.minimum(((I + 1) << k) - 1, self._count(self.nx, c) - 1))
-            cv = dr.clip(cv, J_ << k, dr.minimum(((J_ + 1) << k) - 1, self._count(self.ny, c) - 1))
+            cu, cv, c = self._descendant(ray, I, J_, L, t)
             step = active & ~found & ~down
             su = dr.select(du > 0, J.Int32(1), J.Int32(-1))
             sv = dr.select(dv > 0, J.Int32(1), J.Int32(-1))
