@@ -320,6 +320,34 @@ def test_tiled_render_range_within_the_gsd_where_levels_are_coarser(renders):
     assert np.percentile(bad, 99) > 0.25
 
 
+def test_manifest_records_what_the_last_backend_rendered_when_two_share_a_plan(cache_env):
+    """A DEM backend and a tile backend made from one plan, rendering in turn: each frame's ``ev5.lod`` says what that
+    frame's backend did (the flag is set per frame, not once per backend)."""
+    from renderlab.pipeline import make_backend
+    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.scenario import scenario_from_dict
+    from renderlab.worlds.ev5 import make_plan
+
+    d = copy.deepcopy(SCENARIO)
+    d["world"]["site"].update(lod=True)
+    d["camera"].update(width=32, height=32, fx=152.5, fy=152.5, cx=15.5, cy=15.5)
+    sc = scenario_from_dict(d)
+    plan = make_plan(sc, ".")
+    backends = {}
+    for design in ("auto", "two"):
+        old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
+        try:
+            backends[design] = make_backend(sc, plan.static_scene, "mitsuba")
+        finally:
+            MitsubaBackend.tile_design = old
+    spec = plan.frames[0]
+    for design in ("auto", "two", "auto"):
+        backends[design].render(spec, seed=1)
+        lod = plan.frame_meta(spec, plan.static_scene)["ev5"]["lod"]
+        assert (lod.get("tracer") == "dem_march") == (design == "auto"), (design, lod)
+        assert (lod["tiles"] > 0) == (design == "two")
+
+
 @pytest.mark.parametrize("name", ["nadir_40m", "oblique_12m", "oblique_far"])
 def test_facet_budget_caps_the_frame_and_only_coarsens(model, name):
     """world.site.facets_per_pixel: the selected tiles' facets (counted from the meshes tile_mesh builds, not from the

@@ -30,7 +30,7 @@ class TiledSurface(Protocol):
     def state(self) -> dict:
         """JSON-able description for the manifest (as ``BodySpec.state``)."""
 
-    #: set by a backend that traces the whole surface at full resolution instead of asking for tiles (Mitsuba's DEM
-    #: march, :mod:`renderlab.render.mitsuba_dem`): what a frame rendered, as the world records it, is then the
-    #: full surface, with no level-of-detail error (a plain attribute: a surface without it was rendered as tiles)
+    #: set before each frame by a backend that traces the whole surface at full resolution instead of asking for tiles
+    #: (Mitsuba's DEM march, :mod:`renderlab.render.mitsuba_dem`), and cleared by one that asks for tiles: what that
+    #: frame rendered, as the world records it, is then the full surface, with no level-of-detail error
     traced_whole: bool

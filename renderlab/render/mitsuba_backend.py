@@ -126,11 +126,11 @@ class MitsubaBackend(NumpyRayPath):
             desc[key] = self._trimesh(body, key) if body.shape == "trimesh" else {**self._shape_dict(body), "id": key}
         self._load(desc, keys)
         self._tiles = self._two = None
+        self._tiled = []
         if scene.tiled:  # the frame's tiles, chosen before each frame (_set_sun)
 
             design = site_design(self)
-            for surf in scene.tiled:  # what the manifest records for the surface (renderlab.contracts.tiled)
-                surf.traced_whole = design == "dem"
+            self._tiled = [(surf, design == "dem") for surf in scene.tiled]
             if design == "dem":  # the full DEMs marched: nothing built per frame, full resolution
                 self._tiles = self._two = DemScene(self, scene.tiled, settings.shadows)
             elif design == "two":  # the frame's tiles in a second scene: the static bodies' structure is never rebuilt
@@ -231,6 +231,8 @@ class MitsubaBackend(NumpyRayPath):
     # ---------------------------------------------------------------- per frame
     def _set_sun(self, frame: FrameSpec) -> None:
         """Per frame, before any ray: the tiles in view (when the scene has tiled surfaces), then the sun."""
+        for surf, whole in self._tiled:  # what the frame's manifest records for it (renderlab.contracts.tiled),
+            surf.traced_whole = whole  # set per frame: two backends may share a plan's surfaces
         if self._tiles is not None:
             self._tiles.update(frame)
         mi = self.mi
