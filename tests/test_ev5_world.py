@@ -340,6 +340,23 @@ def test_shadow_test_agrees_with_mitsuba_shadow_rays(model):
     assert np.mean(ours == theirs) >= 0.97, (ours.mean(), theirs.mean(), np.mean(ours == theirs))
 
 
+def test_shadow_fractions_of_a_frame_equal_each_landmark_marched_alone(model):
+    """The frame's one stacked, parallel march (landmark_truth._shadow_fractions) gives each landmark exactly the
+    fraction its own footprint gives point by point (low sun: some landmarks partly shadowed)."""
+    from renderlab.worlds.ev5.landmark_truth import _shadow_fractions, footprint_points, local_lit, shadowed
+
+    site = model.site
+    el, az = np.radians(20.0), np.radians(120.0)
+    sun = site.R_body_from_site @ np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    got = _shadow_fractions(site, model.maplets, sun, {}, 9)
+    want = []
+    for m in model.maplets:
+        fp = footprint_points(site, m, 9)
+        want.append(np.mean(shadowed(site, fp, sun) | ~local_lit(site, fp, sun)))
+    assert len(got) == len(model.maplets) and np.any((np.array(want) > 0) & (np.array(want) < 1))
+    np.testing.assert_array_equal(got, np.array(want))
+
+
 @pytest.mark.parametrize("over, match", [
     ({"landmarks": [{"name": "a", "count": 3, "spacing_m": 0.2, "size": 31, "radius_m": 14.0}]}, "does not fit"),
     ({"landmarks": [{"name": "a", "count": 3, "spacing_m": 0.01, "size": 31, "radius_m": 2.0}]}, "finer than the site"),
