@@ -39,8 +39,8 @@ safety cap on the loop (a ray that reaches it is reported as a miss and counted 
 descendant holding the ray where its height falls to the node's maximum (exact either way: every node's maximum
 bounds its own triangles; it trades the intermediate level's pruning for fewer iterations). On the full EV5 site,
 2 instead of 1 takes the mean nodes per camera ray at 1000 / 171 / 5 m from 14.0 / 11.0 / 6.8 to 10.2 / 7.2 / 4.2
-(512², 4 spp) and the Mitsuba backend's render of those frames at 1024², 16 spp from 1.21 / 1.76 / 1.10 s to
-1.12 / 1.52 / 1.00 s (medians of 3, runs side by side, load 1.2–1.6); 3 was no faster than 2.
+and the Mitsuba backend's 1024², 16 spp render of those frames to 0.98 / 0.93 / 0.92× of its time with 1, timed
+next to it (``benchmarks/bench_dem_descent.py --repeats 5``, medians, load 2.1 → 1.9); 3 and 4 were no faster.
 
 Use
 ---
