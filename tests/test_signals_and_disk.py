@@ -55,6 +55,30 @@ def _one_line(stderr: str, text: str) -> None:
     assert "Traceback" not in stderr
 
 
+def test_a_signal_inside_deferred_is_raised_when_the_block_ends_and_no_lock_stays_taken():
+    """signals.deferred (around the writer queue's lock): the handler does not raise inside the block, so a lock taken
+    and released there is free afterwards; Terminated is raised once, at the block's end."""
+    import os
+    import threading
+
+    from renderlab.files.signals import Terminated, deferred, handled_signals, raise_pending
+
+    lock, steps = threading.Lock(), []
+    with pytest.raises(Terminated) as err:
+        with handled_signals():
+            with deferred():
+                lock.acquire()
+                os.kill(os.getpid(), signal.SIGTERM)
+                for k in range(10000):  # bytecodes: the Python handler has run by the end
+                    steps.append(k)
+                lock.release()
+                steps.append("released")
+            steps.append("after the block")  # not reached: the block's end raised
+    assert err.value.signum == signal.SIGTERM and steps[-1] == "released"
+    assert lock.acquire(blocking=False)
+    raise_pending()  # nothing left to raise twice
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
 def test_signal_during_render_leaves_nothing(tmp_path, sig):
     proc = _start(["render", str(SCENE), "--out", "o", "--quiet", "--set", "trajectory.frames=400", *TINY], tmp_path)

@@ -23,6 +23,8 @@ from __future__ import annotations
 import queue
 import threading
 
+from renderlab.files.signals import deferred
+
 _STOP = object()
 
 
@@ -71,12 +73,14 @@ class BackgroundJobs:
         if self._closed:
             raise RuntimeError("BackgroundJobs is closed")
         self.check()
-        self._q.put(job)
+        with deferred():  # a signal inside put would leave the queue's lock taken (signals.deferred)
+            self._q.put(job)
 
     def flush(self) -> None:
         """Wait until every queued job has run, then raise the first error among them."""
         if not self._closed:
-            self._q.join()
+            with deferred():
+                self._q.join()
         self.check()
 
     def close(self, cancel: bool = False) -> None:
@@ -84,16 +88,17 @@ class BackgroundJobs:
         Raises a job's error unless ``cancel`` (the caller is already handling one)."""
         if self._closed:
             return
-        if cancel:
-            while True:
-                try:
-                    self._q.get_nowait()
-                except queue.Empty:
-                    break
-                self._q.task_done()
-        self._q.put(_STOP)
-        self._thread.join()
-        self._closed = True
+        with deferred():  # the queue's lock is never left taken by a signal (signals.deferred)
+            if cancel:
+                while True:
+                    try:
+                        self._q.get_nowait()
+                    except queue.Empty:
+                        break
+                    self._q.task_done()
+            self._q.put(_STOP)
+            self._thread.join()
+            self._closed = True
         if not cancel:
             self.check()
 

@@ -37,16 +37,37 @@ class Terminated(KeyboardInterrupt):
         self.signum = int(signum)
 
 
-_state = {"count": 0, "pending": None}
+_state = {"count": 0, "pending": None, "deferred": 0, "held": None}
 
 
 def _handler(signum, frame):  # noqa: ARG001 - signal API
     _state["count"] += 1
     if _state["count"] == 1:
         _state["pending"] = int(signum)
-        raise Terminated(signum)
+        if _state["deferred"]:  # inside :func:`deferred`: the block's end raises it
+            _state["held"] = int(signum)
+        else:
+            raise Terminated(signum)
     if _state["count"] >= 3:  # the user insists: no more clean-up
         os._exit(128 + signum)
+
+
+@contextlib.contextmanager
+def deferred():
+    """Hold the first signal's :class:`Terminated` until the block ends (main thread; nestable).
+
+    For blocks that take a lock another thread waits on (a ``queue.Queue`` shared with a writer thread): raised
+    between a lock's acquire and the ``with`` that releases it, the exception would leave the lock taken and the
+    clean-up that follows would wait on it for ever. A third signal still ends the process at once."""
+    _state["deferred"] += 1
+    try:
+        yield
+    finally:
+        _state["deferred"] -= 1
+    held = _state["held"]
+    if held is not None and not _state["deferred"]:
+        _state["held"] = _state["pending"] = None
+        raise Terminated(held)
 
 
 def raise_pending() -> None:
@@ -69,13 +90,13 @@ def handled_signals():
         yield
         return
     old = {s: signal.getsignal(s) for s in HANDLED}
-    _state["count"], _state["pending"] = 0, None
+    _state.update(count=0, pending=None, deferred=0, held=None)
     for s in HANDLED:
         signal.signal(s, _handler)
     try:
         yield
     finally:
-        _state["pending"] = None
+        _state["pending"] = _state["held"] = None
         for s, h in old.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 
