@@ -268,12 +268,11 @@ def main() -> None:
     from bench_frame_api import _merged_backend, _sets
 
     from renderlab.pipeline.frame_api import Renderer
-    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.render.mitsuba_backend import tile_design
 
-    MitsubaBackend.tile_design = "two"  # r: the LOD tiles in a second scene, the design the march is compared with
-    r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
-    r.frame(3 if args.frame != 3 else 0)  # the backend made with that design
-    MitsubaBackend.tile_design = "auto"
+    with tile_design("two"):  # r: the LOD tiles in a second scene, the design the march is compared with
+        r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
+        r.frame(3 if args.frame != 3 else 0)  # the backend is made with that design
     spec, other = r.spec(args.frame), r.spec(3 if args.frame != 3 else 0)
     tiled = r.plan.static_scene.tiled[0]
     site = tiled.site
@@ -307,17 +306,14 @@ def frame_times(r, args, spec, other, floor) -> dict:
     from bench_frame_api import _sets
 
     from renderlab.pipeline.frame_api import Renderer
-    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.render.mitsuba_backend import tile_design
 
     out = {"two scenes": [], "dem (default)": [], "floor": []}
-    MitsubaBackend.tile_design = "dem"
-    try:
+    with tile_design("dem"):
         rd = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=_sets(args.size, args.spp, 4))
         t0 = time.perf_counter()
         rd.frame(other.index)
         print(f"dem design: first frame (pyramid, site mesh, kernels) {time.perf_counter() - t0:.2f} s", flush=True)
-    finally:
-        MitsubaBackend.tile_design = "auto"
     for _ in range(args.repeats):
         for name, rr in (("two scenes", r), ("dem (default)", rd)):
             rr.frame(other.index)

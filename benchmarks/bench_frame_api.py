@@ -68,42 +68,33 @@ def _floor(mi, backend, spec, spp: int) -> float:
     return dt
 
 
-def _with_design(design: str, make):
-    """``make()`` with ``MitsubaBackend.tile_design = design`` (the backend reads it when it is made)."""
-    from renderlab.render.mitsuba_backend import MitsubaBackend
-
-    old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
-    try:
-        return make()
-    finally:
-        MitsubaBackend.tile_design = old
-
-
-def _full_site_backend(r):
-    """A one-scene backend of ``r``'s world with the site whole at full resolution (``world.site.lod = false``): the
-    geometry the default DEM design renders, for its floor (Embree builds its 21.8 M facets once, not timed)."""
+def _full_site_backend(sets: list[str]):
+    """A one-scene backend of the EV5 world (``--set`` overrides ``sets``) with the site whole at full resolution
+    (``world.site.lod = false``): the geometry the default DEM design renders, for its floor (Embree builds its
+    21.8 M facets once, not timed)."""
     from renderlab.pipeline import make_backend
     from renderlab.pipeline.frame_api import Renderer
 
-    rf = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=[*r.overrides, "world.site.lod=false"])
+    rf = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=[*sets, "world.site.lod=false"])
     return make_backend(rf.scenario, rf.plan.static_scene, "mitsuba")
 
 
 def full_ev5(args) -> None:
     from renderlab.pipeline.frame_api import Renderer
+    from renderlab.render.mitsuba_backend import tile_design
 
     sets = _sets(args.size, args.spp, args.frames) + args.set
     r = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=sets)
-    r.overrides = sets
     if args.skip_api:  # every frame once first (kernels), as the API part leaves them
         for k in range(r.n_frames):
             r.frame(k)
         return bar_vs_sphere(args, r, r.backend.mi)
     r.frame(0)  # the DEM design's pyramid, site mesh and kernels, once per process
-    rt = _with_design("two", lambda: Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=sets))
-    _with_design("two", lambda: rt.frame(r.n_frames - 1))
+    with tile_design("two"):  # the backend is made at the first frame
+        rt = Renderer(REPO / "scenes" / "ev5_descent.toml", overrides=sets)
+        rt.frame(r.n_frames - 1)
     merged = _merged_backend(r)  # the LOD floor's one-scene geometry (static bodies + the frame's tiles)
-    full = _full_site_backend(r)  # the default design's geometry (static bodies + the full site)
+    full = _full_site_backend(sets)  # the default design's geometry (static bodies + the full site)
     mi = merged.mi
     rows = []
     for k, spec in enumerate(r.plan.frames):
@@ -281,13 +272,10 @@ def _ply(mesh) -> str:
 def _merged_backend(r):
     """A one-scene backend of ``r``'s world (tiles merged into the scene): the geometry the floor renders."""
     from renderlab.pipeline import make_backend
-    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.render.mitsuba_backend import tile_design
 
-    MitsubaBackend.tile_design = "merged"
-    try:
+    with tile_design("merged"):
         return make_backend(r.scenario, r.plan.static_scene, "mitsuba")
-    finally:
-        MitsubaBackend.tile_design = "auto"
 
 
 def descent_world(args) -> None:

@@ -247,7 +247,7 @@ def _render_frames(lod: bool, lod_pixels: float = 1.0, design: str = "two"):
     """The plan and frames of SCENARIO with ``world.site.lod`` and Mitsuba's ``tile_design`` (``"two"``: the LOD
     tiles these tests are about; ``"auto"``: the default, the full DEM marched)."""
     from renderlab.pipeline import make_backend
-    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.render.mitsuba_backend import tile_design
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.ev5 import make_plan
 
@@ -255,11 +255,8 @@ def _render_frames(lod: bool, lod_pixels: float = 1.0, design: str = "two"):
     d["world"]["site"].update(lod=lod, lod_pixels=lod_pixels)
     sc = scenario_from_dict(d)
     plan = make_plan(sc, ".")
-    old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
-    try:
+    with tile_design(design):
         backend = make_backend(sc, plan.static_scene, "mitsuba")
-    finally:
-        MitsubaBackend.tile_design = old
     return plan, [backend.render(spec, seed=7) for spec in plan.frames]
 
 
@@ -324,7 +321,7 @@ def test_manifest_records_what_the_last_backend_rendered_when_two_share_a_plan(c
     """A DEM backend and a tile backend made from one plan, rendering in turn: each frame's ``ev5.lod`` says what that
     frame's backend did (the flag is set per frame, not once per backend)."""
     from renderlab.pipeline import make_backend
-    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.render.mitsuba_backend import tile_design
     from renderlab.scenario import scenario_from_dict
     from renderlab.worlds.ev5 import make_plan
 
@@ -335,11 +332,8 @@ def test_manifest_records_what_the_last_backend_rendered_when_two_share_a_plan(c
     plan = make_plan(sc, ".")
     backends = {}
     for design in ("auto", "two"):
-        old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
-        try:
+        with tile_design(design):
             backends[design] = make_backend(sc, plan.static_scene, "mitsuba")
-        finally:
-            MitsubaBackend.tile_design = old
     spec = plan.frames[0]
     for design in ("auto", "two", "auto"):
         backends[design].render(spec, seed=1)

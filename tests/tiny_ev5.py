@@ -59,7 +59,7 @@ def render_with_tile_design(tmp_path, scenario: str, design: str):
     """(backend, the static scene as first loaded, frames, plan) of ``scenario`` rendered by Mitsuba with
     ``MitsubaBackend.tile_design = design`` (frame k seeded 11 + k)."""
     from renderlab.pipeline import make_backend
-    from renderlab.render.mitsuba_backend import MitsubaBackend
+    from renderlab.render.mitsuba_backend import tile_design
     from renderlab.scenario import load_scenario
     from renderlab.worlds.base import make_plan
 
@@ -67,12 +67,8 @@ def render_with_tile_design(tmp_path, scenario: str, design: str):
     path.write_text(scenario)
     sc, base = load_scenario(path, [])
     plan = make_plan(sc, base)
-    old = MitsubaBackend.tile_design
-    MitsubaBackend.tile_design = design
-    try:
+    with tile_design(design):
         backend = make_backend(sc, plan.static_scene, "mitsuba")
         static = backend.scene
         frames = [backend.render(spec, seed=11 + k) for k, spec in enumerate(plan.frames)]
-    finally:
-        MitsubaBackend.tile_design = old
     return backend, static, frames, plan

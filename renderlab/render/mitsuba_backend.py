@@ -36,6 +36,7 @@ BSDF-sampled ray per sample that cannot reach the delta sun, and a second BSDF e
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import numpy as np
@@ -338,3 +339,14 @@ class MitsubaBackend(NumpyRayPath):
             range_m=rng_m.reshape(H, W),
             body_id=ids.reshape(H, W),
         )
+
+
+@contextlib.contextmanager
+def tile_design(design: str):
+    """``MitsubaBackend.tile_design = design`` inside the block, restored after (a backend made inside keeps the
+    design it was made with: the benchmarks' and tests' side-by-side backends)."""
+    old, MitsubaBackend.tile_design = MitsubaBackend.tile_design, design
+    try:
+        yield
+    finally:
+        MitsubaBackend.tile_design = old
