@@ -39,6 +39,8 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.extending import intrinsic
 
 NOISE_STREAMS = ("per_pixel", "sequential")
 """Values of ``SensorOptions.noise_stream``: the per-pixel counter-based stream (default) and the former order."""
@@ -48,20 +50,30 @@ PTRS_MIN_MEAN = 10.0
 _U = np.uint64
 _M0, _M1 = _U(0xD2E7470EE14C6C93), _U(0xCA5A826395121157)  # Philox4x64 multipliers
 _W0, _W1 = _U(0x9E3779B97F4A7C15), _U(0xBB67AE8584CAA73B)  # Weyl key increments (golden ratio, sqrt(3) - 1)
-_LO32, _S32, _S11 = _U(0xFFFFFFFF), _U(32), _U(11)
+_S11 = _U(11)
 _TWO_M53 = 2.0 ** -53
 _LN_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 _S0, _S1, _S2, _S3, _S4 = 1.0 / 12, 1.0 / 360, 1.0 / 1260, 1.0 / 1680, 1.0 / 1188  # Stirling series
 
 
+@intrinsic
+def _mulhi64(typingctx, a, b):  # pragma: no cover - numba
+    """High 64-bit word of the 128-bit product ``a · b`` of two uint64: one widening multiply in LLVM IR (numba has
+    no 128-bit integer type; a product of 32-bit halves takes four multiplies)."""
+    sig = numba.types.uint64(numba.types.uint64, numba.types.uint64)
+
+    def codegen(context, builder, signature, args):
+        wide = ir.IntType(128)
+        prod = builder.mul(builder.zext(args[0], wide), builder.zext(args[1], wide))
+        return builder.trunc(builder.lshr(prod, ir.Constant(wide, 64)), ir.IntType(64))
+
+    return sig, codegen
+
+
 @numba.njit(cache=True, inline="always")
 def _mulhilo(a, b):  # pragma: no cover - numba
-    """High and low 64-bit words of the 128-bit product ``a · b`` (32-bit halves)."""
-    a_lo, a_hi, b_lo, b_hi = a & _LO32, a >> _S32, b & _LO32, b >> _S32
-    t = a_lo * b_lo
-    u = a_hi * b_lo + (t >> _S32)
-    w = (u & _LO32) + a_lo * b_hi
-    return a_hi * b_hi + (u >> _S32) + (w >> _S32), a * b
+    """High and low 64-bit words of the 128-bit product ``a · b``."""
+    return _mulhi64(a, b), a * b
 
 
 @numba.njit(cache=True)
