@@ -15,7 +15,7 @@ SCENARIO = tiled_descent("dem_design", "lod = true\ntile_cells = 32\nlod_pixels 
 
 def _render(tmp_path, design: str):
     backend, _, frames, plan = render_with_tile_design(tmp_path, SCENARIO, design)
-    return backend, frames, plan.static_scene.tiled[0].site
+    return backend, frames, plan.static_scene.tiled[0].site, plan
 
 
 @pytest.fixture(scope="module")
@@ -40,8 +40,8 @@ def test_truth_aovs_and_radiance_match_the_level_0_tiles(renders):
     """Same body and range at every site pixel centre; a different facet normal only where the centre ray meets an
     edge shared by two facets (either answer is exact there: a tie). Measured: ≤ 39 of 9216 pixels per frame, range
     within 3.2e-5 m everywhere, radiance differing on ≤ 0.09 % of pixels."""
-    _, a, site = renders["dem"]
-    _, b, _ = renders["two"]
+    _, a, site, _ = renders["dem"]
+    _, b, _, _ = renders["two"]
     for fa, fb in zip(a, b):
         on_site = fb.body_id == 1
         assert on_site.mean() > 0.5  # the site fills most of the frame
@@ -58,3 +58,31 @@ def test_truth_aovs_and_radiance_match_the_level_0_tiles(renders):
         assert np.all(to_edge < 1e-3), to_edge.max()
         differ = np.abs(fa.radiance - fb.radiance) > 1e-4 * fb.radiance.max()
         assert differ.mean() <= 0.005, differ.mean()
+
+
+def test_the_static_scene_skipped_under_the_dem_changes_no_bit(renders):
+    """Over the site's clear square (renderlab.render.dem_clearance) the static scene is not searched by camera rays
+    and shadow rays are tested against it only from where they leave the square: every frame rendered again with the
+    square emptied (the static scene tested on every ray) gives the same bytes. The square covers the site inside its
+    border strip (1.5 global facets, where the global facets are only 2 cm under the DEM) up to the global facets
+    that straddle the strip's edge (one more facet); the camera is over it in the two low frames."""
+    from renderlab.render.dem_clearance import ClearSquare
+
+    backend, frames, site, plan = renders["dem"]
+    dem = backend._two
+    sq = dem.squares[0]
+    n = site.heights_m.shape[0]
+    facet_cells = 4.0 / 0.05  # the tiny world's 4 m global facets in 5 cm cells
+    assert (n - 1) / 2 - 2.5 * facet_cells <= sq.r < (n - 1) / 2 and sq.blocked_cells > 0
+    clear = []
+    for k, (spec, fa) in enumerate(zip(plan.frames, frames)):
+        dem.squares = [sq]
+        backend.render(spec, seed=11 + k)
+        clear.append(dem.camera_clear[0])
+        dem.squares = [ClearSquare(sq.u_c, sq.v_c, 0.0, sq.blocked_cells)]
+        fb = backend.render(spec, seed=11 + k)
+        assert not dem.camera_clear[0]
+        for name in ("radiance", "position", "normal", "range_m", "body_id"):
+            assert np.array_equal(getattr(fa, name), getattr(fb, name), equal_nan=True), (k, name)
+    dem.squares = [sq]
+    assert clear == [False, True, True]

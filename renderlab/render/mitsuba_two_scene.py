@@ -95,21 +95,23 @@ class TileScene:
         return direct_sun_over(self.backend, self, sampler, ray, self.scene.ray_test)
 
 
-def nearer_hit(backend, near, ray, coherent, active):
+def nearer_hit(backend, near, ray, coherent, active, static_active=None):
     """The surface interaction of the nearer of ``near`` (a preliminary intersection with the site: tiles or DEM) and
-    the static scene's hit; the static scene is searched only up to ``near`` (Embree prunes the rest), and the site
-    wins exact ties."""
+    the static scene's hit; the static scene is searched only up to ``near`` (Embree prunes the rest), only where
+    ``static_active`` (default ``active``), and the site wins exact ties."""
     mi, dr = backend.mi, backend.dr
     short = type(ray)(ray)
     short.maxt = dr.minimum(ray.maxt, near.t)
-    ps = backend.scene.ray_intersect_preliminary(short, coherent=coherent, active=active)
-    pi = dr.select(ps.t < near.t, ps, near)
+    static_active = active if static_active is None else static_active
+    ps = backend.scene.ray_intersect_preliminary(short, coherent=coherent, active=static_active)
+    pi = dr.select(static_active & (ps.t < near.t), ps, near)
     return pi.compute_surface_interaction(ray, mi.RayFlags.All, pi.is_valid())
 
 
-def direct_sun_over(backend, site, sampler, ray, site_occludes):
+def direct_sun_over(backend, site, sampler, ray, site_occludes, static_occludes=None):
     """Radiance along ``ray``: E · r(μ0, μ, g) · V (:mod:`renderlab.render.mitsuba_direct`) over the site
-    (``site.first_hit``; ``site_occludes(shadow_ray, active)``, tested first) and the static scene."""
+    (``site.first_hit``; ``site_occludes(shadow_ray, active)``, tested first) and the static scene
+    (``static_occludes(si, shadow_ray, active)``, default its ``ray_test``)."""
     mi, dr = backend.mi, backend.dr
     static = backend.scene
     si = site.first_hit(ray)
@@ -120,7 +122,7 @@ def direct_sun_over(backend, site, sampler, ray, site_occludes):
     if site.shadows:
         shadow = si.spawn_ray_to(ds.p)
         lit &= ~site_occludes(shadow, lit)
-        lit &= ~static.ray_test(shadow, lit)
+        lit &= ~(static.ray_test(shadow, lit) if static_occludes is None else static_occludes(si, shadow, lit))
     value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
     return dr.select(lit, em_weight * value, 0.0)
 
