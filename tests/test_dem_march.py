@@ -102,8 +102,11 @@ def test_pyramid_is_the_block_maximum_of_the_cells():
     h32 = h.astype(np.float32)
     for level in range(p.levels):
         s = 2 ** level
-        nodes = p.maxima[p.offsets[level]:p.offsets[level] + p.rows[level] * p.cols[level]]
-        nodes = nodes.reshape(p.rows[level], p.cols[level])
+        nodes = p.level(level)
+        k = p.levels - 1 - level  # the march's index arithmetic: (4^k − 1)/3 + J·2^k + I; −inf past the grid
+        padded = p.maxima[(4 ** k - 1) // 3:(4 ** k - 1) // 3 + 4 ** k].reshape(2 ** k, 2 ** k)
+        assert np.array_equal(padded[:p.rows[level], :p.cols[level]], nodes)
+        assert np.all(padded[p.rows[level]:] == -np.inf) and np.all(padded[:, p.cols[level]:] == -np.inf)
         for J, I in [(0, 0), (p.rows[level] - 1, p.cols[level] - 1), (p.rows[level] // 2, 0)]:
             block = h32[J * s:(J + 1) * s + 1, I * s:(I + 1) * s + 1]  # vertices of the node's cells
             assert nodes[J, I] == block.max()

@@ -63,22 +63,24 @@ from renderlab.errors import UserError
 class HeightPyramid:
     """A DEM and its max-height pyramid (module docstring), float32.
 
-    ``maxima`` holds every level row-major, level L (``rows[L]`` × ``cols[L]`` nodes, node (J, I) covering cells
-    [I·2^L, (I+1)·2^L) × [J·2^L, (J+1)·2^L)) from ``offsets[L]``; nodes past the grid's edge cover fewer cells.
+    Level L holds ``rows[L]`` × ``cols[L]`` nodes, node (J, I) covering cells [I·2^L, (I+1)·2^L) × [J·2^L, (J+1)·2^L)
+    (nodes past the grid's edge cover fewer cells). ``maxima`` stores the levels top first, each as a square of side
+    2^(P − L) (P = the top level; −inf beyond ``rows[L]`` × ``cols[L]``), row-major: node (J, I) of level L is at
+    (4^(P − L) − 1)/3 + J·2^(P − L) + I, arithmetic that the march evaluates instead of a table look-up
+    (:meth:`level` gives a level's nodes).
     """
 
     heights: np.ndarray  # (ny, nx) float32 vertex heights
     x0_m: float
     y0_m: float
     cell_m: float
-    maxima: np.ndarray  # float32, all levels
-    offsets: np.ndarray  # (levels,) int64
+    maxima: np.ndarray  # float32, all levels (padded squares, top first)
     rows: np.ndarray  # (levels,) int64
     cols: np.ndarray  # (levels,) int64
 
     @property
     def levels(self) -> int:
-        return len(self.offsets)
+        return len(self.rows)
 
     @property
     def h_min(self) -> float:
@@ -86,7 +88,13 @@ class HeightPyramid:
 
     @property
     def h_max(self) -> float:
-        return float(self.maxima[self.offsets[-1]])
+        return float(self.maxima[0])
+
+    def level(self, L: int) -> np.ndarray:
+        """The (rows[L], cols[L]) node maxima of level L."""
+        side = 1 << (self.levels - 1 - L)
+        o = (side * side - 1) // 3
+        return self.maxima[o:o + side * side].reshape(side, side)[:self.rows[L], :self.cols[L]]
 
 
 def build_pyramid(heights, x0_m: float, cell_m: float, y0_m: float | None = None) -> HeightPyramid:
@@ -113,9 +121,13 @@ def build_pyramid(heights, x0_m: float, cell_m: float, y0_m: float | None = None
         pad[:r, :c] = level
         level = np.maximum(np.maximum(pad[0::2, 0::2], pad[0::2, 1::2]), np.maximum(pad[1::2, 0::2], pad[1::2, 1::2]))
         out.append(level)
-    sizes = np.array([a.size for a in out], np.int64)
-    return HeightPyramid(h, float(x0_m), float(x0_m if y0_m is None else y0_m), float(cell_m),
-                         np.concatenate([a.ravel() for a in out]), np.r_[0, np.cumsum(sizes)[:-1]],
+    top = len(out) - 1
+    maxima = np.full((4 ** (top + 1) - 1) // 3, -np.inf, np.float32)
+    for L, a in enumerate(out):
+        side = 1 << (top - L)
+        o = (side * side - 1) // 3
+        maxima[o:o + side * side].reshape(side, side)[:a.shape[0], :a.shape[1]] = a
+    return HeightPyramid(h, float(x0_m), float(x0_m if y0_m is None else y0_m), float(cell_m), maxima,
                          np.array([a.shape[0] for a in out], np.int64), np.array([a.shape[1] for a in out], np.int64))
 
 
@@ -178,8 +190,7 @@ class DemMarch:
         J = self.jit
         self.heights = J.Float(pyramid.heights.ravel())
         self.maxima = J.Float(pyramid.maxima)
-        self.offsets = J.Int32(pyramid.offsets.astype(np.int32))
-        dr.eval(self.heights, self.maxima, self.offsets)
+        dr.eval(self.heights, self.maxima)
 
     # ------------------------------------------------------------------ public
     def intersect(self, o, d, t_max=None, t_min: float = 0.0) -> MarchHit:
@@ -301,8 +312,8 @@ class DemMarch:
         def body(active, hit, t, I, J_, L, it, *extra):
             t_exit, across_u, last = self._node_exit(ray, I, J_, L, t1)
             z_lo = dr.minimum(oz + t * dz, oz + t_exit * dz)
-            m = dr.gather(J.Float, self.maxima, dr.gather(J.Int32, self.offsets, L, active) + J_
-                          * self._count(self.nx, L) + I, active)
+            k = self.top - L  # the node's index in the padded layout (HeightPyramid): (4^k − 1)/3 + J·2^k + I
+            m = dr.gather(J.Float, self.maxima, (0x55555555 & ((J.Int32(1) << (k + k)) - 1)) + (J_ << k) + I, active)
             can = active & (z_lo <= m + self.slack)
             leaf = can & (L == 0)
             zf, zi = J.Float(0.0) * t, J.Int32(0) * I
