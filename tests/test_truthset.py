@@ -360,3 +360,42 @@ def test_exr_zip_level_is_applied_and_lossless(tmp_path, monkeypatch, level, fle
     with OpenEXR.File(str(tmp_path / "z.exr"), separate_channels=True) as f:
         back = {k: np.asarray(c.pixels) for k, c in f.channels().items()}
     assert all(np.array_equal(back[k], ch[k]) and back[k].dtype == ch[k].dtype for k in ch)
+
+
+def _exr_pool_threads() -> int:
+    """OpenEXR's global thread count (Imf::globalThreadCount), read from its own library."""
+    import ctypes
+
+    major, minor = str(OpenEXR.OPENEXR_VERSION).split(".")[:2]
+    ns = f"Imf_{major}_{minor}"
+    fn = getattr(ctypes.CDLL(OpenEXR.__file__), f"_ZN{len(ns)}{ns}17globalThreadCountEv")
+    fn.restype = ctypes.c_int
+    return fn()
+
+
+def _write_in_forked_child(path: str) -> int:
+    write_exr(path, {"Y": np.ones((64, 32), np.float32)})
+    return 0
+
+
+@pytest.mark.parametrize("compression", ["zip", "rle"])
+def test_exr_threads_give_the_same_bytes_and_leave_no_pool(tmp_path, monkeypatch, compression):
+    """Line blocks are compressed on every CPU (imageio._exr_threads): the file is byte for byte the one a single
+    thread writes (forced with _exr_threads = 1), OpenEXR's pool holds no thread after the write, and a forked
+    process writes an EXR afterwards without hanging on a pool whose threads it did not inherit."""
+    import concurrent.futures as cf
+    import multiprocessing
+
+    from renderlab.files import imageio
+
+    rng = np.random.default_rng(4)
+    ch = {"Y": rng.normal(size=(200, 96)).astype(np.float32).round(2), "id": rng.integers(0, 4, (200, 96), np.uint32)}
+    write_exr(tmp_path / "many.exr", ch, compression=compression)
+    assert _exr_pool_threads() == 0
+    monkeypatch.setattr(imageio, "_exr_threads", lambda: 1)
+    write_exr(tmp_path / "one.exr", ch, compression=compression)
+    assert (tmp_path / "many.exr").read_bytes() == (tmp_path / "one.exr").read_bytes()
+    monkeypatch.undo()
+    with cf.ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("fork")) as pool:
+        assert pool.submit(_write_in_forked_child, str(tmp_path / "child.exr")).result(timeout=60) == 0
+    assert read_exr(tmp_path / "child.exr")["Y"].shape == (64, 32)

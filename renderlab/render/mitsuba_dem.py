@@ -15,6 +15,11 @@ per site. Per ray:
   exact ties, as the tiles do). The surface interaction (position, normals, the ``vertex_albedo`` attribute, the
   BSDF) is computed once for the kept hit by Mitsuba itself (``compute_surface_interaction``), as for any mesh;
 * **shadow rays**: ``si.spawn_ray_to(ds.p)`` tested by the march (any hit) and by the static scene;
+* **where the DEM hides the static scene** (its clear square, :mod:`renderlab.render.dem_clearance`, found once per
+  site from the static triangles as Embree traces them: everything static there lies ≥ 1 mm under the DEM), the
+  static scene is not searched by a camera ray from above the DEM to a DEM hit in the square, and a shadow ray from a
+  DEM point in the square is tested against it only from where it leaves the square's prism. The same bytes either
+  way (``tests/test_mitsuba_dem.py``); the EV5 5 m frame renders in 0.93 instead of 0.97 s (a one-off probe);
 * **radiance**: the direct-sun estimator of :mod:`renderlab.render.mitsuba_direct`, as the two-scene design.
 
 Tuning
