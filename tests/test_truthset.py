@@ -380,19 +380,19 @@ def _write_in_forked_child(path: str) -> int:
 
 @pytest.mark.parametrize("compression", ["zip", "rle"])
 def test_exr_threads_give_the_same_bytes_and_leave_no_pool(tmp_path, monkeypatch, compression):
-    """Line blocks are compressed on every CPU (imageio._exr_threads): the file is byte for byte the one a single
-    thread writes (forced with _exr_threads = 1), OpenEXR's pool holds no thread after the write, and a forked
+    """Line blocks are compressed on every CPU (openexr_lib.exr_threads): the file is byte for byte the one a single
+    thread writes (forced with exr_threads = 1), OpenEXR's pool holds no thread after the write, and a forked
     process writes an EXR afterwards without hanging on a pool whose threads it did not inherit."""
     import concurrent.futures as cf
     import multiprocessing
 
-    from renderlab.files import imageio
+    from renderlab.files import openexr_lib
 
     rng = np.random.default_rng(4)
     ch = {"Y": rng.normal(size=(200, 96)).astype(np.float32).round(2), "id": rng.integers(0, 4, (200, 96), np.uint32)}
     write_exr(tmp_path / "many.exr", ch, compression=compression)
     assert _exr_pool_threads() == 0
-    monkeypatch.setattr(imageio, "_exr_threads", lambda: 1)
+    monkeypatch.setattr(openexr_lib, "exr_threads", lambda: 1)
     write_exr(tmp_path / "one.exr", ch, compression=compression)
     assert (tmp_path / "many.exr").read_bytes() == (tmp_path / "one.exr").read_bytes()
     monkeypatch.undo()

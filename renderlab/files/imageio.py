@@ -10,9 +10,6 @@ scale (2^N - 1) is 255; both deflated with zlib's run-length strategy (:data:`PN
 from __future__ import annotations
 
 import concurrent.futures
-import contextlib
-import ctypes
-import functools
 import json
 import os
 import struct
@@ -25,6 +22,7 @@ import OpenEXR
 
 from renderlab.contracts.image_headers import check_image
 from renderlab.errors import UserError
+from renderlab.files import openexr_lib
 from renderlab.geometry.rotations import rotation_from_quat_xyzw
 from renderlab.inputs import LIMITS, read_bytes, shown
 
@@ -66,52 +64,6 @@ EXR_ZIP_LEVEL = 1
 #: frames: 0.10 s and 0.90-0.97 MB per 16-bit DN PNG instead of 0.19-0.23 s and 0.92-0.96 MB with the default
 #: strategy at level 3; the 8-bit preview 0.05-0.07 s and 0.37-0.45 MB instead of 0.11-0.12 s and 0.44-0.52 MB.
 PNG_PARAMS = (cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE)
-
-
-@functools.cache
-def _imf_setter(fn_name: str):
-    """OpenEXR's C++ ``Imf::<fn_name>(int)`` from the OpenEXR module's own library, or None where it is not exported
-    (the file is then written with the library's default: lossless all the same). The Python binding passes neither
-    the ZIP level (a ``zipCompressionLevel`` key of the header dict is written as a plain int attribute and the level
-    stays 4) nor a thread count; both settings are global to that library."""
-    major, minor = str(OpenEXR.OPENEXR_VERSION).split(".")[:2]
-    ns = f"Imf_{major}_{minor}"
-    name = f"_ZN{len(ns)}{ns}{len(fn_name)}{fn_name}Ei"  # Itanium C++ name of Imf::<fn_name>(int)
-    try:
-        fn = getattr(ctypes.CDLL(OpenEXR.__file__), name)
-    except (OSError, AttributeError):
-        return None
-    fn.argtypes, fn.restype = [ctypes.c_int], None
-    return fn
-
-
-def _zip_level_setter():
-    """``Imf::setDefaultZipCompressionLevel`` (:func:`_imf_setter`): every ZIP file written through the ``OpenEXR``
-    module afterwards in this process uses the level."""
-    return _imf_setter("setDefaultZipCompressionLevel")
-
-
-def _exr_threads() -> int:
-    """Threads that compress an EXR's line blocks: the CPUs this process may use (the blocks are compressed
-    independently and written in order, so the file's bytes do not depend on it)."""
-    return max(1, len(os.sched_getaffinity(0)))
-
-
-@contextlib.contextmanager
-def _compression_threads(n: int):
-    """OpenEXR's global thread pool at ``n`` threads inside the block and at none after it: no pool thread outlives a
-    write, so a process forked later (a ``ProcessPoolExecutor`` worker) never inherits a pool without its threads.
-    On the 2-core machine a 1 MP ten-channel ZIP file takes 0.18-0.20 s instead of 0.28-0.32 s, the same bytes
-    (a one-off probe)."""
-    setter = _imf_setter("setGlobalThreadCount") if n > 1 else None
-    if setter is None:
-        yield
-        return
-    setter(n)
-    try:
-        yield
-    finally:
-        setter(0)
 
 
 #: ``render.exr_compression`` → OpenEXR compression (all lossless): ``zip`` (default, smallest), ``rle`` (fast,
@@ -159,11 +111,11 @@ def write_exr(path, channels: dict, header_extra: dict | None = None, compressio
     header = {"compression": codes[compression], "type": OpenEXR.scanlineimage}
     for key, value in (header_extra or {}).items():
         header[str(key)] = _header_value(key, value)
-    setter = _zip_level_setter() if compression == "zip" else None
+    setter = openexr_lib.zip_level_setter() if compression == "zip" else None
     if setter is not None:
         setter(EXR_ZIP_LEVEL)  # read by the C++ header that write() builds
     try:
-        with OpenEXR.File(header, data) as exr, _compression_threads(_exr_threads() if compression != "none" else 1):
+        with OpenEXR.File(header, data) as exr, openexr_lib.compression_threads(openexr_lib.exr_threads() if compression != "none" else 1):
             exr.write(str(path))
     except (RuntimeError, OSError) as exc:
         raise UserError(f"cannot write EXR {path}: {exc}") from None

@@ -51,6 +51,7 @@ from renderlab.render.mitsuba_rays import MAX_SAMPLES_PER_PASS, CameraRays, Fram
 from renderlab.render.mitsuba_tiles import TileScenes
 from renderlab.render.mitsuba_two_scene import TileScene, register_ids, site_design
 from renderlab.render.scene import BodySpec, FrameSpec, RenderedFrame, RenderSettings, SceneDescription
+from renderlab.render.truth_aovs import truth_aovs
 from renderlab.render.variant import init_mitsuba
 
 _aligned_f32 = aligned_f32
@@ -245,19 +246,12 @@ class MitsubaBackend(NumpyRayPath):
         self.params.update()
 
     def _truth_aovs(self, frame: FrameSpec, hits):
-        """Position (N, 3) float64 (render origin added back), normal (N, 3) float32, float64 range and body id
-        from centre-ray hits (valid, P (3, N), N (3, N), registry id); NaN / −1 where nothing was hit."""
+        """Position (N, 3) float32 (render origin added back in float64), normal (N, 3) float32, float64 range and body
+        id from centre-ray hits (valid, P (3, N), N (3, N), registry id); NaN / −1 where nothing was hit
+        (:mod:`renderlab.render.truth_aovs`)."""
         valid, P, N, reg = hits
-        miss = ~np.asarray(valid, bool)
-        ids = self._id_lut[np.clip(reg, 0, len(self._id_lut) - 1)].astype(np.int32)
-        ids[miss] = -1
-        P = np.asarray(P).T.astype(np.float64)  # (N, 3) contiguous
-        d = P - (np.asarray(frame.pose.position_m, float) - self.origin)
-        rng_m = np.sqrt(np.einsum("ij,ij->i", d, d))
-        P += self.origin
-        N = np.asarray(N).T.astype(np.float32)
-        P[miss], N[miss], rng_m[miss] = np.nan, np.nan, np.nan
-        return P, N, rng_m, ids
+        return truth_aovs(valid, P, N, reg, self._id_lut, np.asarray(frame.pose.position_m, float) - self.origin,
+                          self.origin)
 
     def _camera_rays(self, camera) -> CameraRays:
         """The ray generator of ``camera`` (its float64 direction grid is built and uploaded once)."""
@@ -334,7 +328,7 @@ class MitsubaBackend(NumpyRayPath):
         radiance = radiance[0].reshape(H, W) if len(radiance) == 1 else radiance.T.reshape(H, W, 3)
         return RenderedFrame(
             radiance=radiance,
-            position=P.astype(np.float32).reshape(H, W, 3),
+            position=P.reshape(H, W, 3),
             normal=N.reshape(H, W, 3),
             range_m=rng_m.reshape(H, W),
             body_id=ids.reshape(H, W),
