@@ -62,7 +62,7 @@ def timed(mi, backend, frame, repeats):
 
 def main(argv=None):
     args = parse_args(argv)
-    from bench_mitsuba_llvm_vs_scalar import lab_settings, load_inputs
+    from sphere_box_scene import lab_settings, load_inputs
 
     from renderlab.render.mitsuba_backend import MitsubaBackend
     from renderlab.render.variant import init_mitsuba

@@ -68,7 +68,7 @@ def parse_args(argv=None):
 
 def configurations(args, log):
     """[(name, callable returning a (H, W) mean radiance image)], and the lab backend."""
-    from bench_mitsuba_llvm_vs_scalar import lab_settings, load_inputs, native_scene, set_variant
+    from sphere_box_scene import lab_settings, load_inputs, native_scene, set_variant
 
     from renderlab.render.mitsuba_backend import MitsubaBackend
 
