@@ -11,8 +11,9 @@ the radiance factor r = f·cos θ_sun)::
 which is the single-bounce term of the rendering equation (J. T. Kajiya, "The rendering equation",
 SIGGRAPH '86, Computer Graphics 20(4), 1986, eq. 1, with one delta light source). Per sample the integrator traces the primary
 ray, samples the sun (``Scene.sample_emitter_direction``: for a directional emitter the direction is exact,
-the weight is E, the 2-D sample is unused) with one shadow ray when ``shadows`` is true (V = 1 without it),
-and evaluates the BSDF once. Mitsuba's ``path`` integrator with ``max_depth = 2`` computes the same L but
+the weight is E, the 2-D sample is unused), evaluates the BSDF once, and traces one shadow ray (the emitter
+sampler's own test, ``spawn_ray_to``) when ``shadows`` is true (V = 1 without it) and the BSDF's value is not
+zero there (a surface turned from the sun stays dark whatever the visibility: no ray). Mitsuba's ``path`` integrator with ``max_depth = 2`` computes the same L but
 also draws a BSDF sample and traces a third, continuation ray that can never hit a delta emitter (zero
 contribution), and evaluates the BSDF twice (``eval_pdf_sample``). Given the same primary ray both give
 the same value (no random number enters L for a delta sun): ``tests/test_shadows_switch.py`` checks
@@ -60,9 +61,12 @@ def _build_class(mi, dr):
             if scalar and not valid:  # scalar variants: no BSDF (null pointer) without a hit
                 return mi.Spectrum(0.0), False, []
             bsdf = si.bsdf(ray)
-            ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(valid), self.shadows, valid)
+            ds, em_weight = scene.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
             lit = valid & (ds.pdf != 0.0)
             value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
+            if self.shadows:  # the emitter's own visibility test, only where the BSDF sends sunlight
+                lit = lit & dr.any(value != 0.0)
+                lit = dr.select(scene.ray_test(si.spawn_ray_to(ds.p), lit), False, lit)  # (scalar: Python bools)
             return dr.select(lit, em_weight * value, 0.0), valid, []
 
         def aov_names(self):

@@ -119,12 +119,14 @@ def direct_sun_over(backend, site, sampler, ray, site_occludes, static_occludes=
     bsdf = si.bsdf(ray)
     ds, em_weight = static.sample_emitter_direction(si, sampler.next_2d(valid), False, valid)
     lit = valid & (ds.pdf != 0.0)
+    value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
     if site.shadows:
+        lit &= dr.any(value != 0.0)  # no shadow ray where the BSDF sends no sunlight: zero whatever the visibility
         shadow = si.spawn_ray_to(ds.p)
         lit &= ~site_occludes(shadow, lit)
         lit &= ~(static.ray_test(shadow, lit) if static_occludes is None else static_occludes(si, shadow, lit))
-    value = bsdf.eval(mi.BSDFContext(), si, si.to_local(ds.d), lit)
     return dr.select(lit, em_weight * value, 0.0)
+
 
 def site_design(backend) -> str:
     """How ``backend`` traces tiled surfaces: ``"dem"`` (the full-resolution DEM marched beside the static scene,
