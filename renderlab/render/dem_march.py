@@ -92,9 +92,14 @@ class HeightPyramid:
 
     def level(self, L: int) -> np.ndarray:
         """The (rows[L], cols[L]) node maxima of level L."""
-        side = 1 << (self.levels - 1 - L)
-        o = (side * side - 1) // 3
-        return self.maxima[o:o + side * side].reshape(side, side)[:self.rows[L], :self.cols[L]]
+        return _padded_level(self.maxima, self.levels - 1, L)[:self.rows[L], :self.cols[L]]
+
+
+def _padded_level(maxima: np.ndarray, top: int, L: int) -> np.ndarray:
+    """The padded square of level L in ``maxima`` (a view): side 2^(top − L), from (4^(top − L) − 1)/3."""
+    side = 1 << (top - L)
+    o = (side * side - 1) // 3
+    return maxima[o:o + side * side].reshape(side, side)
 
 
 def build_pyramid(heights, x0_m: float, cell_m: float, y0_m: float | None = None) -> HeightPyramid:
@@ -124,9 +129,7 @@ def build_pyramid(heights, x0_m: float, cell_m: float, y0_m: float | None = None
     top = len(out) - 1
     maxima = np.full((4 ** (top + 1) - 1) // 3, -np.inf, np.float32)
     for L, a in enumerate(out):
-        side = 1 << (top - L)
-        o = (side * side - 1) // 3
-        maxima[o:o + side * side].reshape(side, side)[:a.shape[0], :a.shape[1]] = a
+        _padded_level(maxima, top, L)[:a.shape[0], :a.shape[1]] = a
     return HeightPyramid(h, float(x0_m), float(x0_m if y0_m is None else y0_m), float(cell_m), maxima,
                          np.array([a.shape[0] for a in out], np.int64), np.array([a.shape[1] for a in out], np.int64))
 
