@@ -8,16 +8,16 @@ the radiance factor r = f·cos θ_sun)::
 
     L = E · r(μ0, μ, g) · V            (V = 1 when the sun is visible from the point, else 0)
 
-which is the single-bounce term of the rendering equation (J. T. Kajiya, "The rendering equation",
-SIGGRAPH '86, Computer Graphics 20(4), 1986, eq. 1, with one delta light source). Per sample the integrator traces the primary
-ray, samples the sun (``Scene.sample_emitter_direction``: for a directional emitter the direction is exact,
-the weight is E, the 2-D sample is unused), evaluates the BSDF once, and traces one shadow ray (the emitter
+which is the single-bounce term of the rendering equation (J. T. Kajiya, "The rendering equation", SIGGRAPH '86,
+Computer Graphics 20(4), 1986, eq. 1, with one delta light source). Per sample the integrator traces the primary
+ray, samples the sun (``Scene.sample_emitter_direction``: for a directional emitter the direction is exact, the
+weight is E, the 2-D sample is unused), evaluates the BSDF once, and traces one shadow ray (the emitter
 sampler's own test, ``spawn_ray_to``) when ``shadows`` is true (V = 1 without it) and the BSDF's value is not
-zero there (a surface turned from the sun stays dark whatever the visibility: no ray). Mitsuba's ``path`` integrator with ``max_depth = 2`` computes the same L but
-also draws a BSDF sample and traces a third, continuation ray that can never hit a delta emitter (zero
-contribution), and evaluates the BSDF twice (``eval_pdf_sample``). Given the same primary ray both give
-the same value (no random number enters L for a delta sun): ``tests/test_shadows_switch.py`` checks
-the images agree to float32 rounding.
+zero there (a surface turned from the sun stays dark whatever the visibility: no ray). Mitsuba's ``path``
+integrator with ``max_depth = 2`` computes the same L but also draws a BSDF sample and traces a third,
+continuation ray that can never hit a delta emitter (zero contribution), and evaluates the BSDF twice
+(``eval_pdf_sample``). Given the same primary ray both give the same value (no random number enters L for a
+delta sun): ``tests/test_shadows_switch.py`` checks the images agree to float32 rounding.
 
 Tuning
 ------
