@@ -115,7 +115,8 @@ def write_exr(path, channels: dict, header_extra: dict | None = None, compressio
     if setter is not None:
         setter(EXR_ZIP_LEVEL)  # read by the C++ header that write() builds
     try:
-        with OpenEXR.File(header, data) as exr, openexr_lib.compression_threads(openexr_lib.exr_threads() if compression != "none" else 1):
+        threads = openexr_lib.exr_threads() if compression != "none" else 1  # nothing to compress: no pool
+        with OpenEXR.File(header, data) as exr, openexr_lib.compression_threads(threads):
             exr.write(str(path))
     except (RuntimeError, OSError) as exc:
         raise UserError(f"cannot write EXR {path}: {exc}") from None
